@@ -1,0 +1,1 @@
+//! Learns neural materials from measured BRDFs; see the crate README.

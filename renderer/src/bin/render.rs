@@ -1,0 +1,241 @@
+//! `render`: renders a glTF or OBJ scene with the path tracer.
+//!
+//! Errors are reported once, here, as one line on stderr with exit code 2; no output file
+//! is written when the render cannot start, and files are replaced atomically.
+
+use anyhow::{bail, Context, Result};
+use clap::Parser;
+use indicatif::{ProgressBar, ProgressStyle};
+use renderer::camera::PinholeCamera;
+use renderer::image_io::{write_image, ImageFormat, ToneMap};
+use renderer::integrator::PathTracer;
+use renderer::render::{Budget, RenderStats, Renderer};
+use renderer::render_scene::RenderScene;
+use renderer::scene::{SceneDescription, SurfaceModel};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+#[derive(Parser, Debug)]
+#[command(name = "render", version, about = "Physically based path tracer for glTF and OBJ scenes with measured and neural BRDFs")]
+struct Args {
+    /// Scene file (.gltf, .glb or .obj).
+    scene: PathBuf,
+    /// Samples per pixel.
+    #[arg(long, conflicts_with = "time", value_parser = clap::value_parser!(u32).range(1..))]
+    spp: Option<u32>,
+    /// Render for this many seconds (passes of one sample per pixel, at least one).
+    #[arg(long, value_parser = parse_seconds)]
+    time: Option<f64>,
+    /// Image size as WIDTHxHEIGHT (default: 512 wide, height from the camera's aspect ratio).
+    #[arg(long, value_parser = parse_resolution)]
+    resolution: Option<(u32, u32)>,
+    /// Longest light path in segments, as Mitsuba 3's max_depth: 1 = emitters seen
+    /// directly, 2 = direct lighting, ...; -1 = unlimited.
+    #[arg(long, default_value_t = 8, allow_negative_numbers = true, value_parser = clap::value_parser!(i32).range(-1..))]
+    max_depth: i32,
+    /// Seed of the random streams; the same seed gives the same image for any thread count.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (0 = one per core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Camera name (default: the scene's first camera).
+    #[arg(long)]
+    camera: Option<String>,
+    /// Output image: .exr (linear f32 RGB) or .png (8-bit sRGB, tone-mapped).
+    #[arg(long, short, default_value = "render.exr")]
+    output: PathBuf,
+    /// Write render statistics as JSON to this file.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// Bind a material to a measured BRDF: MATERIAL=SPEC, e.g.
+    /// preview=merl:data/alum-bronze.binary or preview=nbrdf:path/alum-bronze (repeatable).
+    #[arg(long, value_parser = parse_binding)]
+    bind: Vec<(String, String)>,
+    /// Tone mapping for PNG output.
+    #[arg(long, value_enum, default_value_t = ToneMapArg::Clamp)]
+    tonemap: ToneMapArg,
+    /// Exposure in stops applied before tone mapping (PNG output only).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_finite)]
+    exposure: f32,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum ToneMapArg {
+    Clamp,
+    Aces,
+}
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(t) if t.is_finite() && t > 0.0 => Ok(t),
+        _ => Err(format!("'{s}' is not a positive number of seconds")),
+    }
+}
+
+fn parse_finite(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("'{s}' is not a finite number")),
+    }
+}
+
+fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let err = || format!("'{s}' is not WIDTHxHEIGHT with both in 1..=16384");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
+    let w: u32 = w.trim().parse().map_err(|_| err())?;
+    let h: u32 = h.trim().parse().map_err(|_| err())?;
+    if (1..=16384).contains(&w) && (1..=16384).contains(&h) {
+        Ok((w, h))
+    } else {
+        Err(err())
+    }
+}
+
+fn parse_binding(s: &str) -> Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((m, spec)) if !m.is_empty() && !spec.is_empty() => Ok((m.to_string(), spec.to_string())),
+        _ => Err(format!("'{s}' is not MATERIAL=SPEC")),
+    }
+}
+
+/// What `--stats` writes: the render's statistics plus load timing.
+#[derive(Serialize)]
+struct StatsFile<'a> {
+    scene: &'a Path,
+    load_seconds: f64,
+    #[serde(flatten)]
+    render: &'a RenderStats,
+}
+
+fn run(args: Args) -> Result<()> {
+    if ImageFormat::from_path(&args.output).is_none() {
+        bail!(
+            "invalid value for --output: {}: unsupported image extension (use .exr or .png)",
+            args.output.display()
+        );
+    }
+    let load_start = Instant::now();
+    let mut description = SceneDescription::load(&args.scene)?;
+    for (material, spec) in &args.bind {
+        let names: Vec<String> = description.materials.iter().map(|m| m.name.clone()).collect();
+        let Some(m) = description.materials.iter_mut().find(|m| &m.name == material) else {
+            return Err(renderer::Error::UnknownName {
+                what: "material (in --bind)",
+                name: material.clone(),
+                available: names,
+            }
+            .into());
+        };
+        m.model = SurfaceModel::Bound(spec.clone());
+    }
+    let aspect = args.resolution.map(|(w, h)| w as f32 / h as f32);
+    let camera = description.camera_or_default(args.camera.as_deref(), aspect)?;
+    let (width, height) = args.resolution.unwrap_or_else(|| {
+        let aspect = camera.aspect_ratio.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
+        (512, ((512.0 / aspect).round() as u32).clamp(1, 16384))
+    });
+    let scene = RenderScene::new(description)?;
+    let load_seconds = load_start.elapsed().as_secs_f64();
+
+    let budget = match (args.spp, args.time) {
+        (_, Some(t)) => Budget::Time(Duration::from_secs_f64(t)),
+        (Some(spp), None) => Budget::Spp(spp),
+        (None, None) => Budget::Spp(64),
+    };
+    let renderer = Renderer {
+        scene: &scene,
+        camera: PinholeCamera::new(&camera, width, height),
+        integrator: PathTracer {
+            max_depth: args.max_depth,
+            ..PathTracer::default()
+        },
+        seed: args.seed,
+    };
+
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        ctrlc::set_handler(move || cancel.store(true, Ordering::Relaxed)).context("cannot install the Ctrl-C handler")?;
+    }
+    let bar = match budget {
+        Budget::Spp(spp) => ProgressBar::new(width as u64 * height as u64 * spp as u64).with_style(
+            ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {percent}% {per_sec} samples, eta {eta}")
+                .expect("valid template")
+                .progress_chars("=> "),
+        ),
+        Budget::Time(t) => ProgressBar::new(t.as_millis() as u64).with_style(
+            ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {msg}")
+                .expect("valid template")
+                .progress_chars("=> "),
+        ),
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads)
+        .build()
+        .context("cannot start the worker threads")?;
+    let progress = |n: u64| {
+        if matches!(budget, Budget::Spp(_)) {
+            bar.inc(n)
+        }
+    };
+    let mut after_pass = |film: &renderer::film::Film, elapsed: Duration| {
+        if matches!(budget, Budget::Time(_)) {
+            bar.set_position(elapsed.as_millis() as u64);
+            bar.set_message(format!("{:.1} spp", film.total_samples() as f64 / (width as f64 * height as f64)));
+        }
+    };
+    let (film, stats) = pool.install(|| renderer.render(width, height, budget, &cancel, &progress, &mut after_pass));
+    bar.finish_and_clear();
+
+    let tone_map = match args.tonemap {
+        ToneMapArg::Clamp => ToneMap::Clamp,
+        ToneMapArg::Aces => ToneMap::Aces,
+    };
+    write_image(&args.output, width, height, &film.mean(), tone_map, args.exposure)?;
+    if let Some(path) = &args.stats {
+        let json = serde_json::to_string_pretty(&StatsFile {
+            scene: &args.scene,
+            load_seconds,
+            render: &stats,
+        })?;
+        std::fs::write(path, json + "\n").with_context(|| format!("{}: cannot write statistics", path.display()))?;
+    }
+    if stats.interrupted {
+        eprintln!(
+            "interrupted: wrote {} with {:.1} spp",
+            args.output.display(),
+            stats.spp
+        );
+    }
+    eprintln!(
+        "{}x{} {:.1} spp in {:.2} s: {:.3} M samples/s, {:.2} M rays/s{}",
+        width,
+        height,
+        stats.spp,
+        stats.wall_seconds,
+        stats.samples_per_second * 1e-6,
+        stats.rays_per_second * 1e-6,
+        if stats.discarded_samples > 0 {
+            format!(", {} NaN/Inf samples discarded", stats.discarded_samples)
+        } else {
+            String::new()
+        }
+    );
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

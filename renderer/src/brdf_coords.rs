@@ -1,0 +1,286 @@
+//! Rusinkiewicz (1998) half/difference coordinates: the one place where a pair of directions
+//! (wi, wo) is converted to and from (θh, φh, θd, φd), to the three isotropic angles of the
+//! MERL tables and to the 6D input of NBRDF networks.
+//!
+//! Conventions:
+//! - Directions are unit vectors in the local shading frame (z = normal), `wi` toward the
+//!   light, `wo` toward the viewer, both pointing away from the surface.
+//! - h = normalize(wi + wo) with polar angle θh ∈ [0, π/2] (for directions above the horizon)
+//!   and azimuth φh ∈ (−π, π]; d is `wi` rotated by −φh about z and then by −θh about y, so
+//!   that h becomes +z; θd ∈ [0, π] is its polar angle and φd ∈ (−π, π] its azimuth.
+//! - When h ≈ n (sin θh < [`PHI_H_GUARD`]) φh is undefined; it is taken as 0, which keeps
+//!   every conversion finite and invertible.
+//! - Reciprocity: swapping wi and wo keeps h and maps d to (−dx, −dy, dz), i.e. φd → φd + π.
+//!   Folding φd into [0, π) (as the MERL tables do) therefore makes any function of the folded
+//!   coordinates reciprocal. [`isotropic_angles`] and [`network_input`] fold.
+//! - Angles are in radians.
+
+use glam::Vec3;
+use std::f32::consts::PI;
+
+/// Below this sin θh the half vector is taken as the normal and φh as 0.
+pub const PHI_H_GUARD: f32 = 1e-7;
+
+/// Half vector and difference vector of a pair of directions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HalfDiff {
+    /// h = normalize(wi + wo), local frame (z = normal).
+    pub h: Vec3,
+    /// `wi` expressed in the frame where h is +z (rotated by −φh about z, then −θh about y).
+    pub d: Vec3,
+    /// cos φh and sin φh of the rotation used (1 and 0 when h ≈ n).
+    pub cos_sin_phi_h: (f32, f32),
+}
+
+/// The four Rusinkiewicz angles, radians.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HalfDiffAngles {
+    /// Polar angle of h, [0, π].
+    pub theta_h: f32,
+    /// Azimuth of h, (−π, π]; 0 when h ≈ n.
+    pub phi_h: f32,
+    /// Polar angle of d (angle between wi and h), [0, π].
+    pub theta_d: f32,
+    /// Azimuth of d, (−π, π] (not folded).
+    pub phi_d: f32,
+}
+
+/// Polar angle of a unit vector, accurate near both poles (atan2 rather than acos).
+#[inline]
+pub fn polar_angle(v: Vec3) -> f32 {
+    (v.x * v.x + v.y * v.y).sqrt().atan2(v.z)
+}
+
+/// Half and difference vectors of (wi, wo). When wi = −wo (no half vector) h is taken as +z.
+#[inline]
+pub fn half_diff(wi: Vec3, wo: Vec3) -> HalfDiff {
+    let s = wi + wo;
+    let len2 = s.length_squared();
+    let h = if len2 > 1e-20 { s / len2.sqrt() } else { Vec3::Z };
+    let sin_h = (h.x * h.x + h.y * h.y).sqrt();
+    let (cp, sp) = if sin_h > PHI_H_GUARD {
+        (h.x / sin_h, h.y / sin_h)
+    } else {
+        (1.0, 0.0)
+    };
+    // Rotate wi by −φh about z, then by −θh about y (cos θh = h.z, sin θh = sin_h).
+    let x1 = cp * wi.x + sp * wi.y;
+    let y1 = -sp * wi.x + cp * wi.y;
+    let (ct, st) = (h.z, sin_h);
+    let d = Vec3::new(ct * x1 - st * wi.z, y1, st * x1 + ct * wi.z);
+    HalfDiff {
+        h,
+        d,
+        cos_sin_phi_h: (cp, sp),
+    }
+}
+
+/// The four angles of (wi, wo); φd is not folded.
+#[inline]
+pub fn half_diff_angles(wi: Vec3, wo: Vec3) -> HalfDiffAngles {
+    let hd = half_diff(wi, wo);
+    HalfDiffAngles {
+        theta_h: polar_angle(hd.h),
+        phi_h: hd.cos_sin_phi_h.1.atan2(hd.cos_sin_phi_h.0),
+        theta_d: polar_angle(hd.d),
+        phi_d: hd.d.y.atan2(hd.d.x),
+    }
+}
+
+/// The directions (wi, wo) with the given angles: inverse of [`half_diff_angles`].
+#[inline]
+pub fn directions_from_angles(a: &HalfDiffAngles) -> (Vec3, Vec3) {
+    let (sd, cd) = a.theta_d.sin_cos();
+    let (spd, cpd) = a.phi_d.sin_cos();
+    let d = Vec3::new(sd * cpd, sd * spd, cd);
+    let (st, ct) = a.theta_h.sin_cos();
+    let (sp, cp) = a.phi_h.sin_cos();
+    let to_local = |v: Vec3| {
+        // Rotate by θh about y, then by φh about z.
+        let x1 = ct * v.x + st * v.z;
+        let z1 = -st * v.x + ct * v.z;
+        Vec3::new(cp * x1 - sp * v.y, sp * x1 + cp * v.y, z1)
+    };
+    (to_local(d), to_local(Vec3::new(-d.x, -d.y, d.z)))
+}
+
+/// Folds an azimuth φd into [0, π) (reciprocity: φd and φd + π describe the same pair with
+/// wi and wo swapped).
+#[inline]
+pub fn fold_phi_d(phi_d: f32) -> f32 {
+    let mut r = phi_d % PI;
+    if r < 0.0 {
+        r += PI;
+    }
+    if r >= PI {
+        r -= PI;
+    }
+    r
+}
+
+/// Whether the difference vector must be replaced by (−dx, −dy, dz) to bring φd into [0, π).
+#[inline]
+fn needs_fold(d: Vec3) -> bool {
+    d.y < 0.0 || (d.y == 0.0 && d.x < 0.0)
+}
+
+/// The isotropic angles (θh, θd, φd) of (wi, wo) with φd folded into [0, π): the coordinates
+/// of the MERL tables. Symmetric in wi and wo (up to rounding).
+#[inline]
+pub fn isotropic_angles(wi: Vec3, wo: Vec3) -> [f32; 3] {
+    let hd = half_diff(wi, wo);
+    let phi_d = if needs_fold(hd.d) {
+        (-hd.d.y).atan2(-hd.d.x)
+    } else {
+        hd.d.y.atan2(hd.d.x)
+    };
+    [polar_angle(hd.h), polar_angle(hd.d), fold_phi_d(phi_d)]
+}
+
+/// The 6D NBRDF network input (sin θh, 0, cos θh, dx, dy, dz) of (wi, wo): h rotated to
+/// φh = 0 (isotropy) and d folded to φd ∈ [0, π) (reciprocity), so the result is the same
+/// for (wo, wi) up to rounding.
+#[inline]
+pub fn network_input(wi: Vec3, wo: Vec3) -> [f32; 6] {
+    let hd = half_diff(wi, wo);
+    let sin_h = (hd.h.x * hd.h.x + hd.h.y * hd.h.y).sqrt();
+    let d = if needs_fold(hd.d) {
+        Vec3::new(-hd.d.x, -hd.d.y, hd.d.z)
+    } else {
+        hd.d
+    };
+    [sin_h, 0.0, hd.h.z, d.x, d.y, d.z]
+}
+
+/// The 6D NBRDF network input of the isotropic angles (θh, θd, φd), radians; φd is used as
+/// given (not folded).
+#[inline]
+pub fn network_input_from_angles(theta_h: f32, theta_d: f32, phi_d: f32) -> [f32; 6] {
+    let (sh, ch) = theta_h.sin_cos();
+    let (sd, cd) = theta_d.sin_cos();
+    let (sp, cp) = phi_d.sin_cos();
+    [sh, 0.0, ch, sd * cp, sd * sp, cd]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn unit(theta: f32, phi: f32) -> Vec3 {
+        let (st, ct) = theta.sin_cos();
+        let (sp, cp) = phi.sin_cos();
+        Vec3::new(st * cp, st * sp, ct)
+    }
+
+    /// Distance between two azimuths on the circle of period `period`.
+    fn circular_distance(a: f32, b: f32, period: f32) -> f32 {
+        let r = (a - b).rem_euclid(period);
+        r.min(period - r)
+    }
+
+    #[test]
+    fn mirror_configuration_has_zero_theta_h() {
+        let wo = unit(0.7, 1.1);
+        let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+        let a = half_diff_angles(wi, wo);
+        assert!(a.theta_h.abs() < 1e-6);
+        assert_eq!(a.phi_h, 0.0, "φh is guarded to 0 when h = n");
+        assert!((a.theta_d - 0.7).abs() < 1e-5);
+    }
+
+    #[test]
+    fn normal_incidence_has_zero_theta_d() {
+        let w = unit(0.4, -2.0);
+        let a = half_diff_angles(w, w);
+        assert!((a.theta_h - 0.4).abs() < 1e-6);
+        assert!(a.theta_d.abs() < 1e-3);
+        let hd = half_diff(w, w);
+        assert!((hd.d - Vec3::Z).length() < 1e-6);
+    }
+
+    #[test]
+    fn antiparallel_directions_stay_finite() {
+        let w = unit(1.0, 0.3);
+        let hd = half_diff(w, -w);
+        assert_eq!(hd.h, Vec3::Z);
+        assert!(hd.d.is_finite());
+        assert!(network_input(w, -w).iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn network_input_matches_angles_form() {
+        let a = HalfDiffAngles {
+            theta_h: 0.3,
+            phi_h: 2.2,
+            theta_d: 0.9,
+            phi_d: 1.2,
+        };
+        let (wi, wo) = directions_from_angles(&a);
+        let x = network_input(wi, wo);
+        let y = network_input_from_angles(0.3, 0.9, 1.2);
+        for k in 0..6 {
+            assert!((x[k] - y[k]).abs() < 1e-5, "{x:?} vs {y:?}");
+        }
+    }
+
+    #[test]
+    fn fold_phi_d_range() {
+        for phi in [-PI, -3.0, -1e-9, 0.0, 1e-9, 1.0, PI - 1e-7, PI, 3.5, 2.0 * PI] {
+            let f = fold_phi_d(phi);
+            assert!((0.0..PI).contains(&f), "{phi} -> {f}");
+            assert!(circular_distance(f, phi, PI) < 1e-5);
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn vectors_round_trip(
+            ti in 0.0f32..3.1, pi_ in -3.14f32..3.14, to in 0.0f32..3.1, po in -3.14f32..3.14,
+        ) {
+            let (wi, wo) = (unit(ti, pi_), unit(to, po));
+            prop_assume!((wi + wo).length() > 1e-2);
+            let (wi2, wo2) = directions_from_angles(&half_diff_angles(wi, wo));
+            prop_assert!((wi2 - wi).length() < 1e-4, "wi {wi:?} -> {wi2:?}");
+            prop_assert!((wo2 - wo).length() < 1e-4, "wo {wo:?} -> {wo2:?}");
+        }
+
+        #[test]
+        fn angles_round_trip(
+            theta_h in 0.01f32..1.56, phi_h in -3.1f32..3.1,
+            theta_d in 0.01f32..1.56, phi_d in -3.1f32..3.1,
+        ) {
+            let a = HalfDiffAngles { theta_h, phi_h, theta_d, phi_d };
+            let (wi, wo) = directions_from_angles(&a);
+            prop_assert!((wi.length() - 1.0).abs() < 1e-5 && (wo.length() - 1.0).abs() < 1e-5);
+            let b = half_diff_angles(wi, wo);
+            prop_assert!((b.theta_h - theta_h).abs() < 1e-4, "{a:?} -> {b:?}");
+            prop_assert!((b.theta_d - theta_d).abs() < 1e-4, "{a:?} -> {b:?}");
+            prop_assert!(circular_distance(b.phi_h, phi_h, 2.0 * PI) < 1e-3, "{a:?} -> {b:?}");
+            prop_assert!(circular_distance(b.phi_d, phi_d, 2.0 * PI) < 1e-3, "{a:?} -> {b:?}");
+        }
+
+        #[test]
+        fn folded_coordinates_are_reciprocal(
+            ti in 0.0f32..1.57, pi_ in -3.14f32..3.14, to in 0.0f32..1.57, po in -3.14f32..3.14,
+        ) {
+            let (wi, wo) = (unit(ti, pi_), unit(to, po));
+            let a = isotropic_angles(wi, wo);
+            let b = isotropic_angles(wo, wi);
+            prop_assert!((a[0] - b[0]).abs() < 1e-5 && (a[1] - b[1]).abs() < 1e-4);
+            prop_assert!((0.0..PI).contains(&a[2]));
+            // φd is undefined when θd ≈ 0, and the fold boundary 0 ≡ π may be crossed by
+            // rounding: compare on the circle of period π.
+            if a[1] > 1e-3 {
+                prop_assert!(circular_distance(a[2], b[2], PI) < 1e-3, "{a:?} vs {b:?}");
+            }
+            let x = network_input(wi, wo);
+            let y = network_input(wo, wi);
+            prop_assert!(x[1] == 0.0 && (x[0] - y[0]).abs() < 1e-5 && (x[2] - y[2]).abs() < 1e-5);
+            prop_assert!(x[4] >= 0.0);
+            let same = (3..6).all(|k| (x[k] - y[k]).abs() < 1e-4);
+            let boundary = x[4] < 1e-4 && y[4] < 1e-4;
+            prop_assert!(same || boundary, "{x:?} vs {y:?}");
+        }
+    }
+}

@@ -1,0 +1,148 @@
+//! The Lambertian (ideal diffuse) reflector.
+//!
+//! f_r(wo, wi) = albedo / π (1/sr) for `wo` and `wi` both above the horizon, zero otherwise;
+//! its directional albedo equals `albedo` for every `wo`. Sampled with cosine-weighted
+//! directions, which makes the Monte Carlo weight f cos θi / pdf exactly `albedo`.
+//!
+//! # Example
+//! ```
+//! use glam::{Vec2, Vec3};
+//! use renderer::bsdf::{Bxdf, Lambert};
+//! use renderer::Rgb;
+//!
+//! let white = Lambert::new(Rgb::ONE);
+//! let s = white.sample(Vec3::Z, Vec2::new(0.25, 0.5), 0.0).expect("wo is above the horizon");
+//! assert!((s.weight() - Rgb::ONE).length() < 1e-5);
+//! ```
+
+use super::{BsdfSample, Bxdf};
+use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+use std::f32::consts::FRAC_1_PI;
+
+/// An ideal diffuse reflector.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lambert {
+    /// Hemispherical reflectance per channel, linear RGB, dimensionless; in [0, 1] for a
+    /// physically plausible (energy-conserving) surface. The BRDF is `albedo / π` 1/sr.
+    pub albedo: Rgb,
+}
+
+impl Lambert {
+    /// A Lambertian reflector with each channel of `albedo` clamped to [0, 1] (NaN becomes 0).
+    #[inline]
+    pub fn new(albedo: Rgb) -> Self {
+        Lambert {
+            albedo: albedo.max(Rgb::ZERO).min(Rgb::ONE),
+        }
+    }
+}
+
+impl Bxdf for Lambert {
+    /// `albedo / π` in 1/sr when both directions are above the horizon, zero otherwise.
+    #[inline]
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Rgb::ZERO;
+        }
+        self.albedo * FRAC_1_PI
+    }
+
+    /// cos θi / π in 1/sr when both directions are above the horizon, zero otherwise.
+    #[inline]
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return 0.0;
+        }
+        cosine_hemisphere_pdf(wi.z)
+    }
+
+    /// A cosine-weighted direction (concentric mapping of `u`; `uc` is unused). `None` when
+    /// `wo` is below the horizon or `u` maps onto the horizon itself.
+    #[inline]
+    fn sample(&self, wo: Vec3, u: Vec2, _uc: f32) -> Option<BsdfSample> {
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let wi = sample_cosine_hemisphere(u);
+        if wi.z <= 0.0 {
+            return None;
+        }
+        Some(BsdfSample {
+            wi,
+            f: self.albedo * FRAC_1_PI,
+            pdf: cosine_hemisphere_pdf(wi.z),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chi2::{self, Chi2Config};
+
+    /// Number of chi-square tests in this module, for the Šidák correction.
+    const CHI2_TESTS: usize = 2;
+
+    #[test]
+    fn eval_and_pdf_known_values() {
+        let b = Lambert::new(Rgb::new(0.5, 0.25, 1.0));
+        let wo = Vec3::new(0.6, 0.0, 0.8);
+        let wi = Vec3::new(0.0, 0.6, 0.8);
+        assert!((b.eval(wo, wi) - Rgb::new(0.5, 0.25, 1.0) / std::f32::consts::PI).length() < 1e-7);
+        assert!((b.pdf(wo, wi) - 0.8 / std::f32::consts::PI).abs() < 1e-7);
+        assert!((b.pdf(wo, Vec3::Z) - FRAC_1_PI).abs() < 1e-7);
+    }
+
+    #[test]
+    fn zero_below_horizon() {
+        let b = Lambert::new(Rgb::ONE);
+        let up = Vec3::new(0.0, 0.6, 0.8);
+        let down = Vec3::new(0.0, 0.6, -0.8);
+        assert_eq!(b.eval(down, up), Rgb::ZERO);
+        assert_eq!(b.eval(up, down), Rgb::ZERO);
+        assert_eq!(b.pdf(down, up), 0.0);
+        assert_eq!(b.pdf(up, down), 0.0);
+        assert_eq!(b.pdf(up, Vec3::X), 0.0);
+        assert!(b.sample(down, Vec2::splat(0.3), 0.5).is_none());
+    }
+
+    #[test]
+    fn new_clamps_albedo() {
+        let b = Lambert::new(Rgb::new(-1.0, 2.0, f32::NAN));
+        assert_eq!(b.albedo, Rgb::new(0.0, 1.0, 0.0));
+    }
+
+    #[test]
+    fn white_furnace() {
+        let b = Lambert::new(Rgb::ONE);
+        for theta in [0.0f32, 0.5, 1.2, 1.55] {
+            let wo = Vec3::new(theta.sin(), 0.0, theta.cos());
+            let albedo = chi2::directional_albedo(&b, wo, 10_000);
+            assert!((albedo - Rgb::ONE).abs().max_element() < 1e-3, "θo = {theta}: {albedo}");
+        }
+    }
+
+    #[test]
+    fn sampling_is_consistent() {
+        let b = Lambert::new(Rgb::new(0.9, 0.5, 0.1));
+        for wo in [Vec3::Z, Vec3::new(1.0, 0.0, 1e-7).normalize()] {
+            let report = chi2::check_sample_consistency(&b, wo, 10_000);
+            assert!(report.passed(), "{report}");
+            assert!(report.valid > 9_990);
+        }
+    }
+
+    #[test]
+    fn sampling_passes_chi2() {
+        let b = Lambert::new(Rgb::splat(0.7));
+        let config = Chi2Config::default()
+            .with_sample_count(500_000)
+            .with_test_count(CHI2_TESTS);
+        for wo in [Vec3::Z, Vec3::new(0.8, 0.0, 0.6)] {
+            let result = chi2::test_bxdf(&b, wo, &config);
+            assert!(result.passed(), "wo = {wo}\n{result}");
+        }
+    }
+}

@@ -1,0 +1,98 @@
+//! BSDFs in the local shading frame.
+//!
+//! Convention (pbrt-v4's): z is the shading normal; `wo` points toward the viewer, `wi`
+//! toward the light, both unit vectors pointing away from the surface. [`Bxdf::eval`]
+//! returns f_r(wo, wi) in 1/sr **without** the cosine factor; [`Bxdf::pdf`] is the
+//! solid-angle density (1/sr) with which [`Bxdf::sample`] picks `wi`. All BSDFs of this
+//! crate are opaque reflectors: they return zero value and zero density when `wo` or `wi`
+//! lies below the horizon (z ≤ 0).
+//!
+//! The integrator sees only [`Bsdf`], an enum over the kinds (static dispatch in the hot
+//! loop); each kind lives in a file of its own.
+
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+
+pub mod lambert;
+pub mod measured;
+pub mod metallic_roughness;
+pub mod microfacet;
+
+pub use lambert::Lambert;
+pub use measured::MeasuredBsdf;
+pub use metallic_roughness::MetallicRoughness;
+
+/// One direction drawn by [`Bxdf::sample`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BsdfSample {
+    /// Sampled direction toward the light, local frame, unit length, z > 0.
+    pub wi: Vec3,
+    /// f_r(wo, wi) in 1/sr (no cosine).
+    pub f: Rgb,
+    /// Solid-angle density of `wi` in 1/sr; always > 0 and finite.
+    pub pdf: f32,
+}
+
+impl BsdfSample {
+    /// The Monte Carlo weight f · cos θi / pdf.
+    #[inline]
+    pub fn weight(&self) -> Rgb {
+        self.f * (self.wi.z / self.pdf)
+    }
+}
+
+/// The interface every BSDF implements (pbrt's BxDF: f, Sample_f, PDF).
+pub trait Bxdf {
+    /// f_r(wo, wi) in 1/sr, without the cosine; zero below either horizon.
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb;
+
+    /// Solid-angle density (1/sr) of sampling `wi` given `wo`; zero below either horizon.
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32;
+
+    /// Draws `wi` given `wo`, from a 2D sample `u` and a 1D sample `uc` (for choosing a
+    /// lobe). `None` when no direction could be drawn (e.g. `wo` below the horizon).
+    fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample>;
+
+    /// Value and density together (one evaluation for BSDFs that share work between them).
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        (self.eval(wo, wi), self.pdf(wo, wi))
+    }
+}
+
+/// A BSDF at one shading point: the enum the integrator dispatches on.
+#[derive(Clone, Copy, Debug)]
+pub enum Bsdf<'a> {
+    Lambert(Lambert),
+    MetallicRoughness(MetallicRoughness),
+    /// A measured BSDF shared by the scene (its tables live as long as the scene).
+    Measured(&'a MeasuredBsdf),
+}
+
+macro_rules! dispatch {
+    ($self:ident, $b:ident => $e:expr) => {
+        match $self {
+            Bsdf::Lambert($b) => $e,
+            Bsdf::MetallicRoughness($b) => $e,
+            Bsdf::Measured($b) => $e,
+        }
+    };
+}
+
+impl Bxdf for Bsdf<'_> {
+    #[inline]
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        dispatch!(self, b => b.eval(wo, wi))
+    }
+    #[inline]
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        dispatch!(self, b => b.pdf(wo, wi))
+    }
+    #[inline]
+    fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
+        dispatch!(self, b => b.sample(wo, u, uc))
+    }
+    #[inline]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        dispatch!(self, b => b.eval_pdf(wo, wi))
+    }
+}

@@ -1,0 +1,50 @@
+//! The renderer library's error type. Every variant names the file (or flag) and the problem,
+//! so a binary can report it as one line.
+
+use std::path::PathBuf;
+
+/// Errors of the renderer library.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A file could not be opened, read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file was read but its contents are invalid for the named reason.
+    #[error("{}: {reason}", path.display())]
+    InvalidFile { path: PathBuf, reason: String },
+    /// A name given by the user (camera, material, binding) does not exist.
+    #[error("{what} '{name}' not found{}", if available.is_empty() { String::new() } else { format!(" (available: {})", available.join(", ")) })]
+    UnknownName {
+        what: &'static str,
+        name: String,
+        available: Vec<String>,
+    },
+    /// A command-line option or configuration value is out of range or malformed.
+    #[error("invalid value for {flag}: {reason}")]
+    InvalidArgument { flag: String, reason: String },
+}
+
+impl Error {
+    /// Shorthand for [`Error::InvalidFile`].
+    pub fn invalid_file(path: impl Into<PathBuf>, reason: impl Into<String>) -> Self {
+        Error::InvalidFile {
+            path: path.into(),
+            reason: reason.into(),
+        }
+    }
+
+    /// Shorthand for [`Error::Io`].
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}
+
+/// Result alias of the renderer library.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

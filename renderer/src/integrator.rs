@@ -1,0 +1,156 @@
+//! Unidirectional path tracing with next-event estimation and multiple importance sampling
+//! (power heuristic) between BSDF sampling and light sampling, and Russian roulette.
+//!
+//! Depth follows Mitsuba 3's `max_depth`: a path of k segments (camera → … → emitter) is
+//! counted when k ≤ max_depth, so 1 renders directly visible emitters, 2 adds direct
+//! lighting, and −1 is unlimited (Russian roulette ends paths).
+
+use crate::accel::{offset_ray_origin, Ray};
+use crate::bsdf::Bxdf;
+use crate::render_scene::RenderScene;
+use crate::sampler::Sampler;
+use crate::sampling::power_heuristic;
+use crate::Rgb;
+
+/// Settings of the path tracer.
+#[derive(Clone, Copy, Debug)]
+pub struct PathTracer {
+    /// Longest path counted, in segments (Mitsuba 3's meaning); −1 = unlimited.
+    pub max_depth: i32,
+    /// Path depth (segments) from which Russian roulette may end paths (Mitsuba's default 5).
+    pub rr_depth: u32,
+}
+
+impl Default for PathTracer {
+    fn default() -> Self {
+        PathTracer {
+            max_depth: -1,
+            rr_depth: 5,
+        }
+    }
+}
+
+/// Ray counts of one path, for statistics.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PathCounters {
+    /// Closest-hit rays traced (camera and continuation rays).
+    pub rays: u64,
+    /// Shadow (occlusion) rays traced.
+    pub shadow_rays: u64,
+}
+
+/// Fraction of a shadow ray's length left out at the light end, so the ray does not hit the
+/// light itself.
+const SHADOW_EPSILON: f32 = 1e-4;
+
+impl PathTracer {
+    /// Whether a path of `segments` segments may be counted.
+    #[inline]
+    fn allows(&self, segments: u32) -> bool {
+        self.max_depth < 0 || segments <= self.max_depth as u32
+    }
+
+    /// Radiance arriving along `ray` (a camera ray), estimated with one path.
+    pub fn radiance(&self, scene: &RenderScene, mut ray: Ray, sampler: &mut Sampler, counters: &mut PathCounters) -> Rgb {
+        let mut l = Rgb::ZERO;
+        let mut beta = Rgb::ONE;
+        // Segments traced so far, including the one being traced.
+        let mut segments = 1u32;
+        // Density of the BSDF sample that produced `ray` (None for the camera ray).
+        let mut prev_bsdf_pdf: Option<f32> = None;
+        let mut prev_p = ray.origin;
+        if !self.allows(1) {
+            return l;
+        }
+        loop {
+            counters.rays += 1;
+            let Some(hit) = scene.bvh.intersect(&ray) else {
+                if let Some(env) = scene.lights.environment() {
+                    let le = env.radiance(ray.direction);
+                    let w = match prev_bsdf_pdf {
+                        None => 1.0,
+                        Some(pdf) => power_heuristic(pdf, scene.lights.pdf_environment(ray.direction)),
+                    };
+                    l += beta * le * w;
+                }
+                break;
+            };
+            let Some(sp) = scene.surface_point(&hit, ray.direction) else {
+                break;
+            };
+            let le = scene.emission(&sp);
+            if le.max_element() > 0.0 {
+                let w = match prev_bsdf_pdf {
+                    None => 1.0,
+                    Some(pdf) => power_heuristic(pdf, scene.lights.pdf_triangle(hit.triangle, prev_p, sp.p)),
+                };
+                l += beta * le * w;
+            }
+            if !self.allows(segments + 1) {
+                break;
+            }
+            let Some(bsdf) = scene.bsdf(&sp) else {
+                break;
+            };
+            let wo = sp.frame.to_local(-ray.direction);
+            if wo.z <= 0.0 {
+                break;
+            }
+
+            // Next-event estimation.
+            let u_light = sampler.next_1d();
+            let u_light2 = sampler.next_2d();
+            if let Some(ls) = scene.lights.sample(sp.p, u_light, u_light2) {
+                if ls.direction.dot(sp.ng_facing) > 0.0 {
+                    let wi = sp.frame.to_local(ls.direction);
+                    let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
+                    if wi.z > 0.0 && f.max_element() > 0.0 {
+                        let origin = offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, ls.direction);
+                        let t_max = if ls.distance.is_finite() {
+                            ls.distance * (1.0 - SHADOW_EPSILON)
+                        } else {
+                            f32::MAX
+                        };
+                        counters.shadow_rays += 1;
+                        let shadow = Ray {
+                            origin,
+                            direction: ls.direction,
+                            t_max,
+                        };
+                        if !scene.bvh.occluded(&shadow) {
+                            let w = if ls.is_delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
+                            l += beta * f * ls.radiance * (wi.z * w / ls.pdf);
+                        }
+                    }
+                }
+            }
+
+            // BSDF sampling.
+            let uc = sampler.next_1d();
+            let u = sampler.next_2d();
+            let Some(bs) = bsdf.sample(wo, u, uc) else {
+                break;
+            };
+            let wi_world = sp.frame.to_world(bs.wi);
+            if wi_world.dot(sp.ng_facing) <= 0.0 {
+                break;
+            }
+            beta *= bs.weight();
+            if !beta.is_finite() || beta.max_element() <= 0.0 {
+                break;
+            }
+            segments += 1;
+            if segments > self.rr_depth {
+                let q = beta.max_element().min(0.95);
+                if sampler.next_1d() >= q {
+                    break;
+                }
+                beta /= q;
+            }
+            prev_bsdf_pdf = Some(bs.pdf);
+            prev_p = sp.p;
+            ray = Ray::new(offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, wi_world), wi_world);
+        }
+        l
+    }
+}

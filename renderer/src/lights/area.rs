@@ -1,0 +1,103 @@
+//! Emissive triangles: one-sided area lights sampled uniformly by area.
+
+use crate::accel::interpolate_point;
+use crate::sampling::sample_uniform_triangle;
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+
+/// One emissive triangle.
+#[derive(Clone, Debug)]
+pub struct TriangleLight {
+    pub corners: [Vec3; 3],
+    /// Unit geometric normal from the winding (v1 − v0) × (v2 − v0): the emitting side.
+    pub normal: Vec3,
+    /// Area in scene units².
+    pub area: f32,
+    /// Emitted radiance, W/(m² sr).
+    pub radiance: Rgb,
+}
+
+/// A point drawn on an emissive triangle as seen from a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct AreaSample {
+    /// World-space unit direction from the shading point to the light point.
+    pub direction: Vec3,
+    pub distance: f32,
+    /// Radiance leaving the light toward the shading point (zero from its back side).
+    pub radiance: Rgb,
+    /// Solid-angle density at the shading point, 1/sr.
+    pub pdf: f32,
+}
+
+impl TriangleLight {
+    /// The light for triangle `corners` emitting `radiance`; `None` for a degenerate
+    /// (zero-area) triangle, which cannot emit.
+    pub fn new(corners: [Vec3; 3], radiance: Rgb) -> Option<Self> {
+        let cross = (corners[1] - corners[0]).cross(corners[2] - corners[0]);
+        let len = cross.length();
+        (len > 0.0 && len.is_finite()).then(|| TriangleLight {
+            corners,
+            normal: cross / len,
+            area: 0.5 * len,
+            radiance,
+        })
+    }
+
+    /// Uniform point by area, converted to a solid-angle density at `p`.
+    #[inline]
+    pub fn sample(&self, p: Vec3, u: Vec2) -> Option<AreaSample> {
+        let (q, _) = interpolate_point(self.corners, sample_uniform_triangle(u));
+        let to = q - p;
+        let d2 = to.length_squared();
+        if d2 <= 0.0 {
+            return None;
+        }
+        let distance = d2.sqrt();
+        let direction = to / distance;
+        let cos_light = -direction.dot(self.normal);
+        if cos_light <= 0.0 {
+            return None;
+        }
+        let pdf = d2 / (cos_light * self.area);
+        pdf.is_finite().then_some(AreaSample {
+            direction,
+            distance,
+            radiance: self.radiance,
+            pdf,
+        })
+    }
+
+    /// Solid-angle density of [`Self::sample`] at `p` for the light point `q`, 1/sr.
+    #[inline]
+    pub fn pdf(&self, p: Vec3, q: Vec3) -> f32 {
+        let to = q - p;
+        let d2 = to.length_squared();
+        let cos_light = -to.dot(self.normal) / d2.sqrt();
+        if cos_light <= 0.0 || d2 <= 0.0 {
+            return 0.0;
+        }
+        d2 / (cos_light * self.area)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn solid_angle_pdf_matches_sample_and_back_side_is_dark() {
+        let light = TriangleLight::new(
+            [Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(1.0, 1.0, 0.0)],
+            Rgb::ONE,
+        )
+        .expect("non-degenerate");
+        assert!((light.normal - -Vec3::Y).length() < 1e-6, "emits downward");
+        assert!((light.area - 0.5).abs() < 1e-6);
+        let p = Vec3::new(0.2, 0.0, 0.3);
+        let s = light.sample(p, Vec2::new(0.3, 0.6)).expect("visible from below");
+        let q = p + s.direction * s.distance;
+        assert!((light.pdf(p, q) - s.pdf).abs() < 1e-4 * s.pdf);
+        assert!(light.sample(Vec3::new(0.2, 2.0, 0.3), Vec2::new(0.3, 0.6)).is_none());
+        assert!(TriangleLight::new([Vec3::ZERO, Vec3::X, Vec3::X * 2.0], Rgb::ONE).is_none());
+    }
+}

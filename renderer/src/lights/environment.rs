@@ -1,0 +1,264 @@
+//! The distant environment: an equirectangular image or a constant colour, with importance
+//! sampling proportional to luminance × sin θ for images.
+//!
+//! Mapping (world space, y up): a direction d ↔ image coordinates (u, v) ∈ [0, 1)² with
+//! u = 0.5 + atan2(d.x, −d.z) / 2π and v = acos(d.y) / π; v = 0 is the top row (+y) and the
+//! image centre looks toward −z. A rotation r (radians) turns the map about +y.
+//! Texels are looked up nearest-neighbour, so the sampling density matches the radiance
+//! exactly (piecewise constant per texel).
+
+use crate::color::luminance;
+use crate::error::{Error, Result};
+use crate::sampling::{sample_uniform_sphere, uniform_sphere_pdf, Distribution2D};
+use crate::scene::{EnvironmentSource, EnvironmentSpec};
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+use std::path::Path;
+
+/// An environment emitter ready for rendering.
+pub struct Environment {
+    kind: Kind,
+    /// cos and sin of the rotation about +y.
+    rotation: (f32, f32),
+}
+
+enum Kind {
+    Constant(Rgb),
+    Image {
+        width: usize,
+        height: usize,
+        /// Radiance per texel (strength applied), row-major from the top row.
+        texels: Vec<Rgb>,
+        distribution: Distribution2D,
+    },
+}
+
+/// A direction drawn toward the environment.
+#[derive(Clone, Copy, Debug)]
+pub struct EnvironmentSample {
+    /// World-space unit direction toward the environment.
+    pub direction: Vec3,
+    /// Radiance arriving from that direction, W/(m² sr).
+    pub radiance: Rgb,
+    /// Solid-angle density, 1/sr.
+    pub pdf: f32,
+}
+
+impl Environment {
+    /// Loads the image (if any) and builds its sampling distribution.
+    pub fn load(spec: &EnvironmentSpec) -> Result<Self> {
+        let kind = match &spec.source {
+            EnvironmentSource::Constant(c) => Kind::Constant(*c * spec.strength),
+            EnvironmentSource::Image(path) => {
+                let (width, height, texels) = read_radiance_image(path)?;
+                let texels: Vec<Rgb> = texels.into_iter().map(|t| t * spec.strength).collect();
+                Self::image_kind(width, height, texels)
+            }
+        };
+        Ok(Environment {
+            kind,
+            rotation: (spec.rotation.cos(), spec.rotation.sin()),
+        })
+    }
+
+    /// An environment from texels in memory (row-major from the top row).
+    pub fn from_texels(width: usize, height: usize, texels: Vec<Rgb>, rotation: f32) -> Self {
+        assert_eq!(texels.len(), width * height);
+        Environment {
+            kind: Self::image_kind(width, height, texels),
+            rotation: (rotation.cos(), rotation.sin()),
+        }
+    }
+
+    /// A constant environment.
+    pub fn constant(radiance: Rgb) -> Self {
+        Environment {
+            kind: Kind::Constant(radiance),
+            rotation: (1.0, 0.0),
+        }
+    }
+
+    fn image_kind(width: usize, height: usize, texels: Vec<Rgb>) -> Kind {
+        let weights: Vec<f32> = texels
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| {
+                let row = i / width;
+                let sin_theta = (PI * (row as f32 + 0.5) / height as f32).sin();
+                luminance(t).max(0.0) * sin_theta
+            })
+            .collect();
+        Kind::Image {
+            width,
+            height,
+            distribution: Distribution2D::new(&weights, width, height),
+            texels,
+        }
+    }
+
+    /// Rough emitted power scale (mean radiance × π), used to weigh light selection.
+    pub fn power_hint(&self) -> f32 {
+        match &self.kind {
+            Kind::Constant(c) => luminance(*c) * PI,
+            Kind::Image { distribution, .. } => {
+                // distribution.integral() = mean of luminance·sinθ over the unit square;
+                // the mean over the sphere is that × π/2.
+                distribution.integral() * PI * 0.5 * PI
+            }
+        }
+    }
+
+    fn to_map(&self, d: Vec3) -> Vec3 {
+        let (c, s) = self.rotation;
+        Vec3::new(c * d.x - s * d.z, d.y, s * d.x + c * d.z)
+    }
+
+    fn from_map(&self, d: Vec3) -> Vec3 {
+        let (c, s) = self.rotation;
+        Vec3::new(c * d.x + s * d.z, d.y, -s * d.x + c * d.z)
+    }
+
+    /// Radiance arriving from world direction `d` (unit), W/(m² sr).
+    #[inline]
+    pub fn radiance(&self, d: Vec3) -> Rgb {
+        match &self.kind {
+            Kind::Constant(c) => *c,
+            Kind::Image {
+                width,
+                height,
+                texels,
+                ..
+            } => {
+                let uv = direction_to_uv(self.to_map(d));
+                let x = ((uv.x * *width as f32) as usize).min(width - 1);
+                let y = ((uv.y * *height as f32) as usize).min(height - 1);
+                texels[x + width * y]
+            }
+        }
+    }
+
+    /// Draws a direction toward the environment.
+    pub fn sample(&self, u: Vec2) -> Option<EnvironmentSample> {
+        match &self.kind {
+            Kind::Constant(c) => Some(EnvironmentSample {
+                direction: sample_uniform_sphere(u),
+                radiance: *c,
+                pdf: uniform_sphere_pdf(),
+            }),
+            Kind::Image { distribution, .. } => {
+                let (uv, map_pdf) = distribution.sample_continuous(u);
+                if map_pdf <= 0.0 {
+                    return None;
+                }
+                let local = uv_to_direction(uv);
+                let sin_theta = (1.0 - local.y * local.y).max(0.0).sqrt();
+                if sin_theta <= 0.0 {
+                    return None;
+                }
+                let direction = self.from_map(local);
+                Some(EnvironmentSample {
+                    direction,
+                    radiance: self.radiance(direction),
+                    pdf: map_pdf / (2.0 * PI * PI * sin_theta),
+                })
+            }
+        }
+    }
+
+    /// Solid-angle density (1/sr) with which [`Self::sample`] draws world direction `d`.
+    pub fn pdf(&self, d: Vec3) -> f32 {
+        match &self.kind {
+            Kind::Constant(_) => uniform_sphere_pdf(),
+            Kind::Image { distribution, .. } => {
+                let local = self.to_map(d);
+                let sin_theta = (1.0 - local.y * local.y).max(0.0).sqrt();
+                if sin_theta <= 0.0 {
+                    return 0.0;
+                }
+                distribution.pdf(direction_to_uv(local)) / (2.0 * PI * PI * sin_theta)
+            }
+        }
+    }
+}
+
+/// Image coordinates of a direction in the map's frame (see the module doc).
+#[inline]
+pub fn direction_to_uv(d: Vec3) -> Vec2 {
+    let u = 0.5 + d.x.atan2(-d.z) * (0.5 / PI);
+    let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+    Vec2::new(u.rem_euclid(1.0), v)
+}
+
+/// Direction in the map's frame of image coordinates (inverse of [`direction_to_uv`]).
+#[inline]
+pub fn uv_to_direction(uv: Vec2) -> Vec3 {
+    let phi = (uv.x - 0.5) * 2.0 * PI;
+    let theta = uv.y * PI;
+    let (st, ct) = theta.sin_cos();
+    Vec3::new(st * phi.sin(), ct, -st * phi.cos())
+}
+
+/// Reads an .exr or .hdr image as linear RGB radiance; rejects non-finite or negative texels.
+pub fn read_radiance_image(path: &Path) -> Result<(usize, usize, Vec<Rgb>)> {
+    let reader = image::ImageReader::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    let img = reader
+        .decode()
+        .map_err(|e| Error::invalid_file(path, format!("cannot decode image: {e}")))?
+        .into_rgb32f();
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    if w == 0 || h == 0 {
+        return Err(Error::invalid_file(path, "image is empty"));
+    }
+    let texels: Vec<Rgb> = img.pixels().map(|p| Rgb::new(p[0], p[1], p[2])).collect();
+    if let Some(i) = texels.iter().position(|t| !t.is_finite() || t.min_element() < 0.0) {
+        return Err(Error::invalid_file(
+            path,
+            format!("texel ({}, {}) is negative or not finite", i % w, i / w),
+        ));
+    }
+    Ok((w, h, texels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uv_mapping_round_trips_and_centre_is_minus_z() {
+        assert!((uv_to_direction(Vec2::new(0.5, 0.5)) - -Vec3::Z).length() < 1e-6);
+        assert!((uv_to_direction(Vec2::new(0.3, 0.0)) - Vec3::Y).length() < 1e-6);
+        for d in [Vec3::new(0.3, 0.4, -0.5), Vec3::new(-0.9, -0.1, 0.2), Vec3::new(0.1, 0.9, 0.8)] {
+            let d = d.normalize();
+            assert!((uv_to_direction(direction_to_uv(d)) - d).length() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn image_sampling_pdf_matches_pdf_and_integrates_to_one() {
+        let (w, h) = (16, 8);
+        let texels: Vec<Rgb> = (0..w * h)
+            .map(|i| Rgb::splat(if i % 7 == 0 { 50.0 } else { 0.1 + (i % 3) as f32 }))
+            .collect();
+        let env = Environment::from_texels(w, h, texels, 0.7);
+        let mut integral = 0.0f64;
+        let n = 256;
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                let s = env.sample(u).expect("sample");
+                let pdf = env.pdf(s.direction);
+                assert!((pdf - s.pdf).abs() <= 2e-3 * s.pdf, "{pdf} vs {}", s.pdf);
+                assert_eq!(env.radiance(s.direction), s.radiance);
+                // Uniform-sphere quadrature of the pdf.
+                let d = sample_uniform_sphere(u);
+                integral += env.pdf(d) as f64 / uniform_sphere_pdf() as f64;
+            }
+        }
+        integral /= (n * n) as f64;
+        assert!((integral - 1.0).abs() < 0.02, "{integral}");
+    }
+}

@@ -1,0 +1,176 @@
+//! Every emitter of a scene behind one interface for next-event estimation: emissive
+//! triangles, punctual lights and the environment, one of which is chosen per shading point
+//! with probability proportional to its estimated power.
+
+pub mod area;
+pub mod environment;
+pub mod punctual;
+
+use crate::color::luminance;
+use crate::sampling::Distribution1D;
+use crate::scene::PunctualLight;
+use crate::Rgb;
+use area::TriangleLight;
+use environment::Environment;
+use glam::{Vec2, Vec3};
+
+/// A light chosen and sampled for a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// World-space unit direction toward the light.
+    pub direction: Vec3,
+    /// Distance to the sampled point (∞ for the environment and directional lights).
+    pub distance: f32,
+    /// Incident radiance (for punctual lights: intensity / distance²).
+    pub radiance: Rgb,
+    /// Density including the selection probability: solid angle (1/sr) for area lights and
+    /// the environment, the bare selection probability for delta lights.
+    pub pdf: f32,
+    /// True for punctual lights, which BSDF sampling can never hit (no MIS).
+    pub is_delta: bool,
+}
+
+enum Light {
+    Triangle(TriangleLight),
+    Punctual(PunctualLight),
+    Environment,
+}
+
+/// The scene's emitters with a power-proportional selection distribution.
+pub struct LightSet {
+    lights: Vec<Light>,
+    selection: Option<Distribution1D>,
+    /// Light index of each scene triangle (`u32::MAX` for non-emitters); empty when the scene
+    /// has no emissive triangles.
+    triangle_to_light: Vec<u32>,
+    environment: Option<Environment>,
+    environment_light: usize,
+}
+
+impl LightSet {
+    /// Builds the set. `emissive` lists (scene triangle index, corners, radiance) of the
+    /// emitting triangles; `triangle_count` is the number of scene triangles;
+    /// `scene_radius` bounds the scene (for the power of distant lights).
+    pub fn new(
+        emissive: impl IntoIterator<Item = (u32, [Vec3; 3], Rgb)>,
+        triangle_count: usize,
+        punctual: &[PunctualLight],
+        environment: Option<Environment>,
+        scene_radius: f32,
+    ) -> Self {
+        let mut lights = Vec::new();
+        let mut weights = Vec::new();
+        let mut triangle_to_light = Vec::new();
+        for (tri, corners, radiance) in emissive {
+            if let Some(light) = TriangleLight::new(corners, radiance) {
+                if triangle_to_light.is_empty() {
+                    triangle_to_light = vec![u32::MAX; triangle_count];
+                }
+                triangle_to_light[tri as usize] = lights.len() as u32;
+                weights.push(light.area * std::f32::consts::PI * luminance(radiance));
+                lights.push(Light::Triangle(light));
+            }
+        }
+        for p in punctual {
+            weights.push(punctual::power_hint(p, scene_radius));
+            lights.push(Light::Punctual(p.clone()));
+        }
+        let environment_light = lights.len();
+        if let Some(env) = &environment {
+            weights.push(env.power_hint() * std::f32::consts::PI * scene_radius * scene_radius);
+            lights.push(Light::Environment);
+        }
+        let selection = (!weights.is_empty()).then(|| {
+            if weights.iter().any(|&w| w > 0.0 && w.is_finite()) {
+                Distribution1D::new(&weights)
+            } else {
+                Distribution1D::new(&vec![1.0; weights.len()])
+            }
+        });
+        LightSet {
+            lights,
+            selection,
+            triangle_to_light,
+            environment,
+            environment_light,
+        }
+    }
+
+    /// Number of lights (each emissive triangle counts as one).
+    pub fn len(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// True when the scene has no emitter at all.
+    pub fn is_empty(&self) -> bool {
+        self.lights.is_empty()
+    }
+
+    /// The environment, if the scene has one.
+    #[inline]
+    pub fn environment(&self) -> Option<&Environment> {
+        self.environment.as_ref()
+    }
+
+    /// Chooses a light with `u_select` and samples it from shading point `p`.
+    #[inline]
+    pub fn sample(&self, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
+        let selection = self.selection.as_ref()?;
+        let (index, select_pdf, _) = selection.sample_discrete(u_select);
+        if select_pdf <= 0.0 {
+            return None;
+        }
+        match &self.lights[index] {
+            Light::Triangle(t) => t.sample(p, u).map(|s| LightSample {
+                direction: s.direction,
+                distance: s.distance,
+                radiance: s.radiance,
+                pdf: s.pdf * select_pdf,
+                is_delta: false,
+            }),
+            Light::Punctual(l) => punctual::illuminate(l, p).map(|s| LightSample {
+                direction: s.direction,
+                distance: s.distance,
+                radiance: s.value,
+                pdf: select_pdf,
+                is_delta: true,
+            }),
+            Light::Environment => {
+                let env = self.environment.as_ref()?;
+                env.sample(u).map(|s| LightSample {
+                    direction: s.direction,
+                    distance: f32::INFINITY,
+                    radiance: s.radiance,
+                    pdf: s.pdf * select_pdf,
+                    is_delta: false,
+                })
+            }
+        }
+    }
+
+    /// Density (1/sr, selection included) with which [`Self::sample`] at `p` picks point `q`
+    /// on scene triangle `triangle`; zero for non-emitting triangles.
+    #[inline]
+    pub fn pdf_triangle(&self, triangle: u32, p: Vec3, q: Vec3) -> f32 {
+        let Some(&light) = self.triangle_to_light.get(triangle as usize) else {
+            return 0.0;
+        };
+        if light == u32::MAX {
+            return 0.0;
+        }
+        let (Light::Triangle(t), Some(selection)) = (&self.lights[light as usize], &self.selection) else {
+            return 0.0;
+        };
+        t.pdf(p, q) * selection.pdf_cell(light as usize)
+    }
+
+    /// Density (1/sr, selection included) with which [`Self::sample`] picks the environment
+    /// in world direction `d`.
+    #[inline]
+    pub fn pdf_environment(&self, d: Vec3) -> f32 {
+        match (&self.environment, &self.selection) {
+            (Some(env), Some(selection)) => env.pdf(d) * selection.pdf_cell(self.environment_light),
+            _ => 0.0,
+        }
+    }
+}

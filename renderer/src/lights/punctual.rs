@@ -1,0 +1,139 @@
+//! Point, spot and directional lights (delta distributions, sampled deterministically).
+
+use crate::scene::PunctualLight;
+use crate::Rgb;
+use glam::Vec3;
+
+/// Incident illumination from a punctual light at a point.
+#[derive(Clone, Copy, Debug)]
+pub struct PunctualSample {
+    /// World-space unit direction from the shading point toward the light.
+    pub direction: Vec3,
+    /// Incident radiance-equivalent: intensity / distance² (W/m² per unit solid-angle
+    /// measure of the delta), so that the contribution is f · value · |cos θ|.
+    pub value: Rgb,
+    /// Distance to the light (∞ for directional lights).
+    pub distance: f32,
+}
+
+/// Smoothstep falloff between the outer and inner cone cosines (as glTF suggests).
+#[inline]
+fn spot_falloff(cos_theta: f32, cos_inner: f32, cos_outer: f32) -> f32 {
+    if cos_theta >= cos_inner {
+        return 1.0;
+    }
+    if cos_theta <= cos_outer || cos_inner <= cos_outer {
+        return 0.0;
+    }
+    let t = (cos_theta - cos_outer) / (cos_inner - cos_outer);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Illumination arriving at `p` from `light`; `None` where the light contributes nothing.
+pub fn illuminate(light: &PunctualLight, p: Vec3) -> Option<PunctualSample> {
+    match *light {
+        PunctualLight::Point { position, intensity } => {
+            let to = position - p;
+            let d2 = to.length_squared();
+            (d2 > 0.0).then(|| {
+                let distance = d2.sqrt();
+                PunctualSample {
+                    direction: to / distance,
+                    value: intensity / d2,
+                    distance,
+                }
+            })
+        }
+        PunctualLight::Spot {
+            position,
+            direction,
+            intensity,
+            cos_inner,
+            cos_outer,
+        } => {
+            let to = position - p;
+            let d2 = to.length_squared();
+            if d2 <= 0.0 {
+                return None;
+            }
+            let distance = d2.sqrt();
+            let wi = to / distance;
+            let falloff = spot_falloff((-wi).dot(direction), cos_inner, cos_outer);
+            (falloff > 0.0).then_some(PunctualSample {
+                direction: wi,
+                value: intensity * (falloff / d2),
+                distance,
+            })
+        }
+        PunctualLight::Directional {
+            direction,
+            irradiance,
+        } => Some(PunctualSample {
+            direction: -direction,
+            value: irradiance,
+            distance: f32::INFINITY,
+        }),
+    }
+}
+
+/// Emitted power of a light (luminance, W), with `scene_radius` bounding the area a
+/// directional light can reach. Used only to weigh light selection.
+pub fn power_hint(light: &PunctualLight, scene_radius: f32) -> f32 {
+    use crate::color::luminance;
+    use std::f32::consts::PI;
+    match *light {
+        PunctualLight::Point { intensity, .. } => 4.0 * PI * luminance(intensity),
+        PunctualLight::Spot {
+            intensity,
+            cos_inner,
+            cos_outer,
+            ..
+        } => 2.0 * PI * (1.0 - 0.5 * (cos_inner + cos_outer)) * luminance(intensity),
+        PunctualLight::Directional { irradiance, .. } => {
+            PI * scene_radius * scene_radius * luminance(irradiance)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn point_light_falls_off_with_distance_squared() {
+        let l = PunctualLight::Point {
+            position: Vec3::new(0.0, 2.0, 0.0),
+            intensity: Rgb::splat(8.0),
+        };
+        let s = illuminate(&l, Vec3::ZERO).expect("lit");
+        assert_eq!(s.direction, Vec3::Y);
+        assert!((s.value - Rgb::splat(2.0)).length() < 1e-6);
+        assert!((s.distance - 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn spot_light_cone() {
+        let l = PunctualLight::Spot {
+            position: Vec3::new(0.0, 1.0, 0.0),
+            direction: -Vec3::Y,
+            intensity: Rgb::ONE,
+            cos_inner: 0.9,
+            cos_outer: 0.8,
+        };
+        assert!((illuminate(&l, Vec3::ZERO).expect("inside").value - Rgb::ONE).length() < 1e-6);
+        assert!(illuminate(&l, Vec3::new(5.0, 0.0, 0.0)).is_none(), "outside the cone");
+        let edge = illuminate(&l, Vec3::new(0.7, 0.0, 0.0)).expect("in the falloff");
+        assert!(edge.value.x > 0.0 && edge.value.x < 1.0 / 1.49);
+    }
+
+    #[test]
+    fn directional_light_comes_from_against_its_direction() {
+        let l = PunctualLight::Directional {
+            direction: -Vec3::Y,
+            irradiance: Rgb::splat(3.0),
+        };
+        let s = illuminate(&l, Vec3::new(4.0, 5.0, 6.0)).expect("lit");
+        assert_eq!(s.direction, Vec3::Y);
+        assert!(s.distance.is_infinite());
+    }
+}

@@ -1,0 +1,426 @@
+//! NBRDF networks (Sztrajman et al. 2021): 6 → 21 → 21 → 3 MLPs, one per material, read from
+//! the six `.npy` files `<prefix>_fc1.npy`, `_b1`, `_fc2`, `_b2`, `_fc3`, `_b3` (float32,
+//! little-endian, C order, shapes 6×21, 21, 21×21, 21, 21×3, 3; row vector times matrix).
+//!
+//! Evaluation: x ∈ R⁶ (see [`crate::brdf_coords::network_input`]) → relu(x·fc1 + b1) →
+//! relu(·fc2 + b2) → ·fc3 + b3 = y; f_r = max(exp(y) − 1, 0) in 1/sr, RGB, without the cosine.
+//!
+//! The forward pass runs in f32 with the hidden layers padded to [`PADDED`] lanes so that the
+//! loops vectorise; on x86-64 CPUs with AVX2 and FMA a copy compiled for those features is
+//! chosen at run time.
+
+use crate::{Error, Result, Rgb};
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+
+/// Input width.
+pub const INPUTS: usize = 6;
+/// Hidden width of the shipped networks.
+pub const HIDDEN: usize = 21;
+/// Output width (RGB).
+pub const OUTPUTS: usize = 3;
+/// Hidden width padded to a multiple of 8 lanes (the padding weights are zero).
+pub const PADDED: usize = 24;
+/// Largest y used: exp(80) − 1 ≈ 5.5e34 keeps f_r finite whatever the weights.
+const MAX_LOG_VALUE: f32 = 80.0;
+
+/// The tensor files of a network, with their expected shapes, in file-name order.
+const TENSORS: [(&str, &[u64]); 6] = [
+    ("fc1", &[INPUTS as u64, HIDDEN as u64]),
+    ("b1", &[HIDDEN as u64]),
+    ("fc2", &[HIDDEN as u64, HIDDEN as u64]),
+    ("b2", &[HIDDEN as u64]),
+    ("fc3", &[HIDDEN as u64, OUTPUTS as u64]),
+    ("b3", &[OUTPUTS as u64]),
+];
+
+/// One NBRDF network's weights, padded for vectorised evaluation.
+#[derive(Clone, Debug)]
+pub struct NbrdfNetwork {
+    /// fc1, `w1[input][hidden]`.
+    w1: [[f32; PADDED]; INPUTS],
+    b1: [f32; PADDED],
+    /// fc2, `w2[from][to]`.
+    w2: [[f32; PADDED]; PADDED],
+    b2: [f32; PADDED],
+    /// fc3 transposed, `w3[channel][hidden]`.
+    w3: [[f32; PADDED]; OUTPUTS],
+    b3: [f32; OUTPUTS],
+    /// Whether the AVX2 + FMA copy of the forward pass may run on this CPU.
+    fma: bool,
+}
+
+/// Paths of the six tensor files of a network prefix (`<prefix>_fc1.npy`, ...).
+pub fn tensor_paths(prefix: &Path) -> [PathBuf; 6] {
+    TENSORS.map(|(name, _)| {
+        let mut s = prefix.as_os_str().to_owned();
+        s.push(format!("_{name}.npy"));
+        PathBuf::from(s)
+    })
+}
+
+/// Names of the networks in a directory (prefixes that have an `_fc1.npy`), sorted.
+pub fn list_networks(dir: &Path) -> Result<Vec<String>> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let mut names = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(dir, e))?;
+        if let Some(name) = entry.file_name().to_str().and_then(|n| n.strip_suffix("_fc1.npy")) {
+            names.push(name.to_string());
+        }
+    }
+    names.sort();
+    Ok(names)
+}
+
+/// Reads one float32 little-endian C-order tensor and checks its shape.
+fn read_tensor(path: &Path, shape: &[u64]) -> Result<Vec<f32>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let npy = npyz::NpyFile::new(&bytes[..])
+        .map_err(|e| Error::invalid_file(path, format!("not a valid .npy file: {e}")))?;
+    match npy.dtype() {
+        npyz::DType::Plain(t)
+            if t.type_char() == npyz::TypeChar::Float
+                && t.size_field() == 4
+                && t.endianness() == npyz::Endianness::Little => {}
+        npyz::DType::Plain(t) => {
+            return Err(Error::invalid_file(
+                path,
+                format!("dtype {t}, expected little-endian float32 (<f4)"),
+            ))
+        }
+        _ => {
+            return Err(Error::invalid_file(
+                path,
+                "structured dtype, expected little-endian float32 (<f4)",
+            ))
+        }
+    }
+    if npy.shape() != shape {
+        return Err(Error::invalid_file(
+            path,
+            format!("shape {:?}, expected {:?}", npy.shape(), shape),
+        ));
+    }
+    if npy.order() != npyz::Order::C && shape.len() > 1 {
+        return Err(Error::invalid_file(path, "Fortran-ordered array, expected C order"));
+    }
+    let values: Vec<f32> = npy
+        .into_vec()
+        .map_err(|e| Error::invalid_file(path, format!("cannot read the data: {e}")))?;
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(Error::invalid_file(path, format!("non-finite weight {} at element {i}", values[i])));
+    }
+    Ok(values)
+}
+
+impl NbrdfNetwork {
+    /// Loads the six tensors `<prefix>_fc1.npy` ... `<prefix>_b3.npy`, checking dtype
+    /// (little-endian float32), shapes and finiteness; errors name the offending file.
+    pub fn load(prefix: impl AsRef<Path>) -> Result<Self> {
+        let paths = tensor_paths(prefix.as_ref());
+        let mut t: Vec<Vec<f32>> = Vec::with_capacity(6);
+        for (path, (_, shape)) in paths.iter().zip(TENSORS) {
+            t.push(read_tensor(path, shape)?);
+        }
+        Ok(Self::from_tensors(&t[0], &t[1], &t[2], &t[3], &t[4], &t[5]))
+    }
+
+    /// Builds a network from row-major tensors of the shipped shapes: fc1 6×21, b1 21,
+    /// fc2 21×21, b2 21, fc3 21×3, b3 3.
+    ///
+    /// # Panics
+    /// When a slice has the wrong length (a programming error; files are checked by
+    /// [`Self::load`]).
+    pub fn from_tensors(fc1: &[f32], b1: &[f32], fc2: &[f32], b2: &[f32], fc3: &[f32], b3: &[f32]) -> Self {
+        assert!(
+            fc1.len() == INPUTS * HIDDEN
+                && b1.len() == HIDDEN
+                && fc2.len() == HIDDEN * HIDDEN
+                && b2.len() == HIDDEN
+                && fc3.len() == HIDDEN * OUTPUTS
+                && b3.len() == OUTPUTS,
+            "NBRDF tensors of the wrong size"
+        );
+        let mut net = NbrdfNetwork {
+            w1: [[0.0; PADDED]; INPUTS],
+            b1: [0.0; PADDED],
+            w2: [[0.0; PADDED]; PADDED],
+            b2: [0.0; PADDED],
+            w3: [[0.0; PADDED]; OUTPUTS],
+            b3: [0.0; OUTPUTS],
+            fma: cpu_has_avx2_fma(),
+        };
+        for i in 0..INPUTS {
+            net.w1[i][..HIDDEN].copy_from_slice(&fc1[i * HIDDEN..(i + 1) * HIDDEN]);
+        }
+        net.b1[..HIDDEN].copy_from_slice(b1);
+        for i in 0..HIDDEN {
+            net.w2[i][..HIDDEN].copy_from_slice(&fc2[i * HIDDEN..(i + 1) * HIDDEN]);
+        }
+        net.b2[..HIDDEN].copy_from_slice(b2);
+        for i in 0..HIDDEN {
+            for c in 0..OUTPUTS {
+                net.w3[c][i] = fc3[i * OUTPUTS + c];
+            }
+        }
+        net.b3.copy_from_slice(b3);
+        net
+    }
+
+    /// The raw network output y (before the exp) for a 6D input.
+    #[inline]
+    pub fn forward(&self, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
+        #[cfg(target_arch = "x86_64")]
+        if self.fma {
+            // SAFETY: `fma` is true only when the CPU reported AVX2 and FMA at construction.
+            return unsafe { forward_avx2_fma(self, x) };
+        }
+        forward_generic::<Separate>(self, x)
+    }
+
+    /// f_r in 1/sr for a 6D input: max(exp(y) − 1, 0), finite.
+    #[inline]
+    pub fn eval_input(&self, x: [f32; INPUTS]) -> Rgb {
+        let y = self.forward(x);
+        let f = |v: f32| {
+            let r = v.min(MAX_LOG_VALUE).exp_m1();
+            if r > 0.0 {
+                r
+            } else {
+                0.0
+            }
+        };
+        Vec3::new(f(y[0]), f(y[1]), f(y[2]))
+    }
+
+    /// f_r in 1/sr at the isotropic angles (θh, θd, φd), radians, φd as given.
+    #[inline]
+    pub fn eval_angles(&self, theta_h: f32, theta_d: f32, phi_d: f32) -> Rgb {
+        self.eval_input(crate::brdf_coords::network_input_from_angles(theta_h, theta_d, phi_d))
+    }
+
+    /// Whether the AVX2 + FMA forward pass is in use.
+    pub fn uses_fma(&self) -> bool {
+        self.fma
+    }
+}
+
+fn cpu_has_avx2_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// How a multiply-add is formed: fused (one rounding, only fast where the CPU has FMA) or
+/// as a separate multiply and add (fast everywhere).
+trait MulAdd {
+    fn mul_add(a: f32, b: f32, c: f32) -> f32;
+}
+
+struct Separate;
+impl MulAdd for Separate {
+    #[inline(always)]
+    fn mul_add(a: f32, b: f32, c: f32) -> f32 {
+        a * b + c
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+struct Fused;
+#[cfg(target_arch = "x86_64")]
+impl MulAdd for Fused {
+    #[inline(always)]
+    fn mul_add(a: f32, b: f32, c: f32) -> f32 {
+        a.mul_add(b, c)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn forward_avx2_fma(net: &NbrdfNetwork, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
+    forward_generic::<Fused>(net, x)
+}
+
+/// The forward pass; every inner loop runs over the `PADDED` lanes of a layer.
+#[inline(always)]
+fn forward_generic<M: MulAdd>(net: &NbrdfNetwork, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
+    let mut a1 = net.b1;
+    for (xi, row) in x.iter().zip(&net.w1) {
+        for j in 0..PADDED {
+            a1[j] = M::mul_add(*xi, row[j], a1[j]);
+        }
+    }
+    for v in a1.iter_mut() {
+        *v = v.max(0.0);
+    }
+    let mut a2 = net.b2;
+    for (ai, row) in a1.iter().zip(&net.w2) {
+        for j in 0..PADDED {
+            a2[j] = M::mul_add(*ai, row[j], a2[j]);
+        }
+    }
+    for v in a2.iter_mut() {
+        *v = v.max(0.0);
+    }
+    let mut y = [0f32; OUTPUTS];
+    for c in 0..OUTPUTS {
+        let mut acc = [0f32; 8];
+        for (a, w) in a2.chunks_exact(8).zip(net.w3[c].chunks_exact(8)) {
+            for k in 0..8 {
+                acc[k] = M::mul_add(a[k], w[k], acc[k]);
+            }
+        }
+        y[c] = net.b3[c] + acc.iter().sum::<f32>();
+    }
+    y
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    /// The shared NBRDF data (always present next to the repository).
+    pub(crate) fn data_dir() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/nbrdf")
+    }
+
+    pub(crate) fn merl_network(name: &str) -> NbrdfNetwork {
+        NbrdfNetwork::load(data_dir().join("merl").join(name)).unwrap()
+    }
+
+    #[test]
+    fn golden_vectors_match() {
+        let text = std::fs::read_to_string(data_dir().join("golden-vectors.json")).unwrap();
+        let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let angles = json["inputs_theta_h_theta_d_phi_d"].as_array().unwrap();
+        let inputs = json["inputs_6d"].as_array().unwrap();
+        let outputs = json["outputs_rgb"].as_object().unwrap();
+        assert_eq!(outputs.len(), 10);
+        let mut worst = 0.0f64;
+        for (name, rows) in outputs {
+            let net = merl_network(name);
+            for (k, row) in rows.as_array().unwrap().iter().enumerate() {
+                let a: Vec<f32> = angles[k].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
+                let x6: Vec<f32> = inputs[k].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
+                let ours = crate::brdf_coords::network_input_from_angles(a[0], a[1], a[2]);
+                for i in 0..6 {
+                    assert!((ours[i] - x6[i]).abs() < 1e-6, "input {k}: {ours:?} vs {x6:?}");
+                }
+                let got = net.eval_angles(a[0], a[1], a[2]);
+                for c in 0..3 {
+                    let want = row[c].as_f64().unwrap();
+                    let err = (got[c] as f64 - want).abs() / want.abs().max(1e-3);
+                    worst = worst.max(err);
+                    assert!(err < 1e-4, "{name} #{k} channel {c}: {} vs {want}", got[c]);
+                }
+            }
+        }
+        println!("golden vectors: worst relative error {worst:.2e}");
+    }
+
+    #[test]
+    fn generic_and_dispatched_forward_agree() {
+        let net = merl_network("alum-bronze");
+        for k in 0..50 {
+            let t = k as f32 / 50.0;
+            let x = crate::brdf_coords::network_input_from_angles(1.5 * t, 1.5 * (1.0 - t), 3.0 * t);
+            let a = net.forward(x);
+            let b = forward_generic::<Separate>(&net, x);
+            for c in 0..3 {
+                assert!((a[c] - b[c]).abs() <= 1e-5 * (1.0 + b[c].abs()));
+            }
+        }
+    }
+
+    #[test]
+    fn chrome_sanity_value() {
+        // README: at θh = 0, θd = 0.3 chrome gives about (494, 538, 537).
+        let f = merl_network("chrome").eval_angles(0.0, 0.3, 0.0);
+        for (got, want) in [(f.x, 494.0), (f.y, 538.0), (f.z, 537.0)] {
+            assert!((got - want).abs() / want < 0.02, "{f:?}");
+        }
+    }
+
+    #[test]
+    fn all_shipped_networks_load() {
+        let mut total = 0;
+        for (folder, count) in [("merl", 100), ("rgl-isotropic", 51), ("nielsen", 8)] {
+            let dir = data_dir().join(folder);
+            let names = list_networks(&dir).unwrap();
+            assert_eq!(names.len(), count, "{folder}");
+            for name in names {
+                let net = NbrdfNetwork::load(dir.join(&name)).unwrap();
+                let f = net.eval_angles(0.2, 0.4, 1.0);
+                assert!(f.is_finite() && f.min_element() >= 0.0, "{folder}/{name}: {f:?}");
+                total += 1;
+            }
+        }
+        assert_eq!(total, 159);
+    }
+
+    /// Copies a network's six files into `dir` under `name`.
+    fn copy_network(dir: &Path, name: &str) -> PathBuf {
+        let src = tensor_paths(&data_dir().join("merl").join("chrome"));
+        let prefix = dir.join(name);
+        for (s, d) in src.iter().zip(tensor_paths(&prefix)) {
+            std::fs::copy(s, d).unwrap();
+        }
+        prefix
+    }
+
+    fn write_npy<T: npyz::AutoSerialize>(path: &Path, shape: &[u64], values: impl IntoIterator<Item = T>) {
+        use npyz::WriterBuilder;
+        let mut bytes = Vec::new();
+        let mut w = npyz::WriteOptions::<T>::new()
+            .default_dtype()
+            .shape(shape)
+            .writer(&mut bytes)
+            .begin_nd()
+            .unwrap();
+        w.extend(values).unwrap();
+        w.finish().unwrap();
+        std::fs::write(path, bytes).unwrap();
+    }
+
+    #[test]
+    fn bad_npy_files_give_clear_errors() {
+        let dir = tempfile::tempdir().unwrap();
+
+        let prefix = copy_network(dir.path(), "shape");
+        write_npy(&tensor_paths(&prefix)[2], &[21, 20], [0f32; 420]);
+        let e = NbrdfNetwork::load(&prefix).unwrap_err().to_string();
+        assert!(e.contains("shape_fc2.npy") && e.contains("shape [21, 20], expected [21, 21]"), "{e}");
+
+        let prefix = copy_network(dir.path(), "dtype");
+        write_npy(&tensor_paths(&prefix)[1], &[21], [0f64; 21]);
+        let e = NbrdfNetwork::load(&prefix).unwrap_err().to_string();
+        assert!(e.contains("dtype_b1.npy") && e.contains("<f8") && e.contains("float32"), "{e}");
+
+        let prefix = copy_network(dir.path(), "nan");
+        write_npy(&tensor_paths(&prefix)[5], &[3], [0.0, f32::NAN, 0.0]);
+        let e = NbrdfNetwork::load(&prefix).unwrap_err().to_string();
+        assert!(e.contains("nan_b3.npy") && e.contains("non-finite"), "{e}");
+
+        let prefix = copy_network(dir.path(), "garbage");
+        std::fs::write(&tensor_paths(&prefix)[0], b"not numpy").unwrap();
+        let e = NbrdfNetwork::load(&prefix).unwrap_err().to_string();
+        assert!(e.contains("garbage_fc1.npy") && e.contains("not a valid .npy"), "{e}");
+
+        let prefix = copy_network(dir.path(), "cut");
+        let p = &tensor_paths(&prefix)[2];
+        let bytes = std::fs::read(p).unwrap();
+        std::fs::write(p, &bytes[..bytes.len() - 10]).unwrap();
+        let e = NbrdfNetwork::load(&prefix).unwrap_err().to_string();
+        assert!(e.contains("cut_fc2.npy"), "{e}");
+
+        let e = NbrdfNetwork::load(dir.path().join("absent")).unwrap_err().to_string();
+        assert!(e.contains("absent_fc1.npy"), "{e}");
+    }
+}

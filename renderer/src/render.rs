@@ -1,0 +1,218 @@
+//! The render loop: progressive passes over the image, each pass split into tiles rendered
+//! in parallel with rayon. Every sample draws from its own random stream
+//! ([`crate::sampler::Sampler`]) and tiles are merged in a fixed order, so the image is
+//! bit-identical for any number of threads.
+
+use crate::camera::PinholeCamera;
+use crate::film::{Film, PixelAccumulator};
+use crate::integrator::{PathCounters, PathTracer};
+use crate::render_scene::RenderScene;
+use crate::sampler::Sampler;
+use glam::Vec2;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Edge length of a square tile in pixels.
+pub const TILE_SIZE: u32 = 16;
+
+/// When to stop rendering.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// This many samples per pixel.
+    Spp(u32),
+    /// Passes of one sample per pixel until this much wall time has passed (at least one).
+    Time(Duration),
+}
+
+/// Counts of one or more passes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PassCounters {
+    /// Pixel samples accumulated.
+    pub samples: u64,
+    /// Closest-hit rays.
+    pub rays: u64,
+    /// Shadow rays.
+    pub shadow_rays: u64,
+    /// Samples discarded because their radiance was NaN, infinite or negative.
+    pub discarded: u64,
+}
+
+impl PassCounters {
+    fn add(&mut self, o: &PassCounters) {
+        self.samples += o.samples;
+        self.rays += o.rays;
+        self.shadow_rays += o.shadow_rays;
+        self.discarded += o.discarded;
+    }
+}
+
+/// Statistics of a finished render (written by `render --stats`).
+#[derive(Clone, Debug, Serialize)]
+pub struct RenderStats {
+    pub width: u32,
+    pub height: u32,
+    /// Mean samples per pixel actually taken.
+    pub spp: f64,
+    pub samples: u64,
+    pub wall_seconds: f64,
+    pub samples_per_second: f64,
+    /// Closest-hit plus shadow rays.
+    pub rays: u64,
+    pub rays_per_second: f64,
+    /// Samples whose radiance was NaN, infinite or negative and were left out.
+    pub discarded_samples: u64,
+    pub threads: usize,
+    pub max_depth: i32,
+    pub seed: u64,
+    /// True when the render was interrupted (Ctrl-C) before its budget was spent.
+    pub interrupted: bool,
+}
+
+/// What renders one image: scene, camera, integrator and seed.
+pub struct Renderer<'a> {
+    pub scene: &'a RenderScene,
+    pub camera: PinholeCamera,
+    pub integrator: PathTracer,
+    pub seed: u64,
+}
+
+impl Renderer<'_> {
+    /// Adds samples `first_sample .. first_sample + count` to every pixel of `film`.
+    /// Tiles not yet started when `cancel` becomes true are skipped; `progress` is called
+    /// with the number of samples of each finished tile.
+    pub fn render_pass(
+        &self,
+        film: &mut Film,
+        first_sample: u32,
+        count: u32,
+        cancel: &AtomicBool,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> PassCounters {
+        let (w, h) = (film.width, film.height);
+        let tiles_x = w.div_ceil(TILE_SIZE);
+        let tiles_y = h.div_ceil(TILE_SIZE);
+        let results: Vec<(u32, Vec<PixelAccumulator>, PassCounters)> = (0..tiles_x * tiles_y)
+            .into_par_iter()
+            .map(|tile| {
+                if cancel.load(Ordering::Relaxed) {
+                    return (tile, Vec::new(), PassCounters::default());
+                }
+                let (pixels, counters) = self.render_tile(tile, tiles_x, w, h, first_sample, count);
+                progress(counters.samples);
+                (tile, pixels, counters)
+            })
+            .collect();
+        let mut total = PassCounters::default();
+        for (tile, pixels, counters) in results {
+            total.add(&counters);
+            if pixels.is_empty() {
+                continue;
+            }
+            let (x0, y0, x1, y1) = tile_bounds(tile, tiles_x, w, h);
+            let mut i = 0;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    film.merge((x + y * w) as usize, &pixels[i]);
+                    i += 1;
+                }
+            }
+        }
+        total
+    }
+
+    fn render_tile(&self, tile: u32, tiles_x: u32, w: u32, h: u32, first_sample: u32, count: u32) -> (Vec<PixelAccumulator>, PassCounters) {
+        let (x0, y0, x1, y1) = tile_bounds(tile, tiles_x, w, h);
+        let mut pixels = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
+        let mut counters = PassCounters::default();
+        let mut path = PathCounters::default();
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let pixel_index = (x + y * w) as u64;
+                let mut acc = PixelAccumulator::default();
+                for s in first_sample..first_sample + count {
+                    let mut sampler = Sampler::new(self.seed, pixel_index, s as u64);
+                    let film_pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                    let ray = self.camera.generate_ray(film_pos);
+                    let l = self.integrator.radiance(self.scene, ray, &mut sampler, &mut path);
+                    counters.samples += 1;
+                    if l.is_finite() && l.min_element() >= 0.0 {
+                        acc.add(l);
+                    } else {
+                        counters.discarded += 1;
+                    }
+                }
+                pixels.push(acc);
+            }
+        }
+        counters.rays = path.rays;
+        counters.shadow_rays = path.shadow_rays;
+        (pixels, counters)
+    }
+
+    /// Renders until `budget` is spent or `cancel` is set, calling `progress` with sample
+    /// counts as tiles finish and `after_pass` with the film and elapsed time after each
+    /// pass. Returns the film and the statistics.
+    pub fn render(
+        &self,
+        width: u32,
+        height: u32,
+        budget: Budget,
+        cancel: &AtomicBool,
+        progress: &(dyn Fn(u64) + Sync),
+        after_pass: &mut dyn FnMut(&Film, Duration),
+    ) -> (Film, RenderStats) {
+        let start = Instant::now();
+        let mut film = Film::new(width, height);
+        let mut totals = PassCounters::default();
+        let mut done = 0u32;
+        loop {
+            let count = match budget {
+                // About 16 passes: smooth progress and a cheap cancellation point.
+                Budget::Spp(spp) => (spp - done).min(spp.div_ceil(16).max(1)),
+                Budget::Time(_) => 1,
+            };
+            if count == 0 {
+                break;
+            }
+            let c = self.render_pass(&mut film, done, count, cancel, progress);
+            totals.add(&c);
+            done += count;
+            after_pass(&film, start.elapsed());
+            let finished = match budget {
+                Budget::Spp(spp) => done >= spp,
+                Budget::Time(t) => start.elapsed() >= t,
+            };
+            if finished || cancel.load(Ordering::Relaxed) {
+                break;
+            }
+        }
+        let wall = start.elapsed().as_secs_f64();
+        let pixels = width as u64 * height as u64;
+        let rays = totals.rays + totals.shadow_rays;
+        let stats = RenderStats {
+            width,
+            height,
+            spp: totals.samples as f64 / pixels as f64,
+            samples: totals.samples,
+            wall_seconds: wall,
+            samples_per_second: totals.samples as f64 / wall.max(1e-9),
+            rays,
+            rays_per_second: rays as f64 / wall.max(1e-9),
+            discarded_samples: totals.discarded,
+            threads: rayon::current_num_threads(),
+            max_depth: self.integrator.max_depth,
+            seed: self.seed,
+            interrupted: cancel.load(Ordering::Relaxed),
+        };
+        (film, stats)
+    }
+}
+
+/// Pixel bounds [x0, x1) × [y0, y1) of a tile.
+fn tile_bounds(tile: u32, tiles_x: u32, w: u32, h: u32) -> (u32, u32, u32, u32) {
+    let (tx, ty) = (tile % tiles_x, tile / tiles_x);
+    let (x0, y0) = (tx * TILE_SIZE, ty * TILE_SIZE);
+    (x0, y0, (x0 + TILE_SIZE).min(w), (y0 + TILE_SIZE).min(h))
+}

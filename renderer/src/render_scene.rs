@@ -1,0 +1,202 @@
+//! A scene prepared for rendering: the BVH, the lights, the bound BSDFs and everything
+//! the integrator looks up per hit. Only what the scene uses is built: measured BSDFs are
+//! loaded only for materials some triangle uses, and the environment's sampling structures
+//! exist only when the scene has an environment.
+
+use crate::accel::{interpolate_point, Bvh, Hit};
+use crate::bsdf::{Bsdf, Lambert, MeasuredBsdf, MetallicRoughness};
+use crate::error::Result;
+use crate::frame::Frame;
+use crate::lights::environment::Environment;
+use crate::lights::LightSet;
+use crate::scene::{Geometry, Material, SceneDescription, SurfaceModel, Texture};
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+use std::collections::HashMap;
+
+/// How a material scatters, after binding specifications were resolved.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Surface {
+    Lambert,
+    MetallicRoughness,
+    /// Index into [`RenderScene::measured`].
+    Measured(usize),
+}
+
+/// Everything the integrator needs, built once from a [`SceneDescription`].
+pub struct RenderScene {
+    pub geometry: Geometry,
+    pub materials: Vec<Material>,
+    surfaces: Vec<Surface>,
+    pub textures: Vec<Texture>,
+    measured: Vec<MeasuredBsdf>,
+    pub bvh: Bvh,
+    pub lights: LightSet,
+    /// Centre and radius of a sphere bounding the geometry.
+    pub bounds_centre: Vec3,
+    pub bounds_radius: f32,
+}
+
+/// The local description of a surface hit.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    /// World position and its absolute error bound per axis.
+    pub p: Vec3,
+    pub p_error: Vec3,
+    /// Unit geometric normal from the triangle's winding (the emitting side of lights).
+    pub ng: Vec3,
+    /// Shading frame (interpolated normal), flipped to the side the ray arrived from.
+    pub frame: Frame,
+    /// Geometric normal flipped to the side the ray arrived from.
+    pub ng_facing: Vec3,
+    pub uv: Vec2,
+    /// True when the ray hit the front (counter-clockwise) side.
+    pub front_face: bool,
+    pub material: u32,
+}
+
+impl RenderScene {
+    /// Builds the BVH, resolves bound BSDFs (loading each distinct specification once), loads
+    /// the environment and builds the light set.
+    pub fn new(description: SceneDescription) -> Result<Self> {
+        let SceneDescription {
+            geometry,
+            materials,
+            textures,
+            lights: punctual,
+            environment,
+            ..
+        } = description;
+        let mut used = vec![false; materials.len()];
+        for &m in &geometry.material_ids {
+            used[m as usize] = true;
+        }
+        let mut measured = Vec::new();
+        let mut loaded: HashMap<String, usize> = HashMap::new();
+        let mut surfaces = Vec::with_capacity(materials.len());
+        for (material, &is_used) in materials.iter().zip(&used) {
+            surfaces.push(match &material.model {
+                SurfaceModel::Lambert => Surface::Lambert,
+                SurfaceModel::MetallicRoughness => Surface::MetallicRoughness,
+                SurfaceModel::Bound(spec) if is_used => {
+                    let index = match loaded.get(spec) {
+                        Some(&i) => i,
+                        None => {
+                            measured.push(MeasuredBsdf::load(spec)?);
+                            loaded.insert(spec.clone(), measured.len() - 1);
+                            measured.len() - 1
+                        }
+                    };
+                    Surface::Measured(index)
+                }
+                SurfaceModel::Bound(_) => Surface::Lambert,
+            });
+        }
+        let bvh = Bvh::build((0..geometry.triangle_count()).map(|i| geometry.triangle_positions(i)));
+        let (bounds_centre, bounds_radius) = bounding_sphere(&geometry);
+        let environment = environment.as_ref().map(Environment::load).transpose()?;
+        let emissive = (0..geometry.triangle_count()).filter_map(|i| {
+            let e = materials[geometry.material_ids[i] as usize].emission;
+            (e.max_element() > 0.0).then(|| (i as u32, geometry.triangle_positions(i), e))
+        });
+        let lights = LightSet::new(
+            emissive,
+            geometry.triangle_count(),
+            &punctual,
+            environment,
+            bounds_radius,
+        );
+        Ok(RenderScene {
+            geometry,
+            materials,
+            surfaces,
+            textures,
+            measured,
+            bvh,
+            lights,
+            bounds_centre,
+            bounds_radius,
+        })
+    }
+
+    /// Number of distinct measured BSDFs loaded.
+    pub fn measured_count(&self) -> usize {
+        self.measured.len()
+    }
+
+    /// The surface point of a hit of a ray with direction `direction`; `None` for a
+    /// degenerate triangle.
+    #[inline]
+    pub fn surface_point(&self, hit: &Hit, direction: Vec3) -> Option<SurfacePoint> {
+        let g = &self.geometry;
+        let tri = hit.triangle as usize;
+        let [i0, i1, i2] = g.triangles[tri];
+        let corners = g.triangle_positions(tri);
+        let (p, p_error) = interpolate_point(corners, hit.barycentric);
+        let ng = (corners[1] - corners[0]).cross(corners[2] - corners[0]).try_normalize()?;
+        let front_face = direction.dot(ng) < 0.0;
+        let ng_facing = if front_face { ng } else { -ng };
+        let b = hit.barycentric;
+        let b0 = 1.0 - b.x - b.y;
+        let ns = g.normals[i0 as usize] * b0 + g.normals[i1 as usize] * b.x + g.normals[i2 as usize] * b.y;
+        let mut ns = ns.try_normalize().unwrap_or(ng);
+        if ns.dot(ng_facing) < 0.0 {
+            ns = -ns;
+        }
+        let uv = g.uvs[i0 as usize] * b0 + g.uvs[i1 as usize] * b.x + g.uvs[i2 as usize] * b.y;
+        Some(SurfacePoint {
+            p,
+            p_error,
+            ng,
+            frame: Frame::from_normal(ns),
+            ng_facing,
+            uv,
+            front_face,
+            material: g.material_ids[tri],
+        })
+    }
+
+    /// The BSDF at a surface point; `None` where the surface does not scatter (the back of
+    /// a single-sided material).
+    #[inline]
+    pub fn bsdf(&self, sp: &SurfacePoint) -> Option<Bsdf<'_>> {
+        let material = &self.materials[sp.material as usize];
+        if !sp.front_face && !material.double_sided {
+            return None;
+        }
+        let base = match material.base_color_texture {
+            Some(t) => material.base_color * self.textures[t].lookup(sp.uv),
+            None => material.base_color,
+        };
+        Some(match self.surfaces[sp.material as usize] {
+            Surface::Lambert => Bsdf::Lambert(Lambert { albedo: base }),
+            Surface::MetallicRoughness => {
+                Bsdf::MetallicRoughness(MetallicRoughness::new(base, material.metallic, material.roughness))
+            }
+            Surface::Measured(i) => Bsdf::Measured(&self.measured[i]),
+        })
+    }
+
+    /// Radiance emitted at a surface point toward the ray that hit it (front side only).
+    #[inline]
+    pub fn emission(&self, sp: &SurfacePoint) -> Rgb {
+        if sp.front_face {
+            self.materials[sp.material as usize].emission
+        } else {
+            Rgb::ZERO
+        }
+    }
+}
+
+/// A sphere bounding all vertices (the box's centre and half-diagonal).
+fn bounding_sphere(g: &Geometry) -> (Vec3, f32) {
+    if g.positions.is_empty() {
+        return (Vec3::ZERO, 1.0);
+    }
+    let (lo, hi) = g.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let centre = 0.5 * (lo + hi);
+    (centre, (0.5 * (hi - lo).length()).max(1e-3))
+}

@@ -1,0 +1,312 @@
+//! Warping functions from the unit square to directions, their densities (always in
+//! named pairs: `sample_x` / `x_pdf`), piecewise-constant distributions and the MIS
+//! heuristic.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_1_PI, PI};
+
+/// Uniform point on the unit disk, concentric mapping (Shirley–Chiu).
+#[inline]
+pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (
+            o.y,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
+        )
+    };
+    Vec2::new(theta.cos(), theta.sin()) * r
+}
+
+/// Cosine-weighted direction on the upper (z ≥ 0) hemisphere.
+#[inline]
+pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = sample_concentric_disk(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+/// Density of [`sample_cosine_hemisphere`] in 1/sr.
+#[inline]
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * FRAC_1_PI
+}
+
+/// Uniform direction on the unit sphere.
+#[inline]
+pub fn sample_uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Density of [`sample_uniform_sphere`] in 1/sr.
+#[inline]
+pub fn uniform_sphere_pdf() -> f32 {
+    0.25 * FRAC_1_PI
+}
+
+/// Uniform direction in a cone around +z with the given cosine of its half-angle.
+#[inline]
+pub fn sample_uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
+    let cos_theta = (1.0 - u.x) + u.x * cos_max;
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+}
+
+/// Density of [`sample_uniform_cone`] in 1/sr.
+#[inline]
+pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
+    1.0 / (2.0 * PI * (1.0 - cos_max))
+}
+
+/// Uniform barycentric coordinates (b1, b2) on a triangle (Heitz 2019, low distortion).
+#[inline]
+pub fn sample_uniform_triangle(u: Vec2) -> Vec2 {
+    let (b0, b1);
+    if u.x < u.y {
+        b0 = u.x / 2.0;
+        b1 = u.y - b0;
+    } else {
+        b1 = u.y / 2.0;
+        b0 = u.x - b1;
+    }
+    Vec2::new(b1, 1.0 - b0 - b1)
+}
+
+/// Power heuristic with β = 2 for MIS (Veach 1997); `f` and `g` are the two densities.
+#[inline]
+pub fn power_heuristic(f: f32, g: f32) -> f32 {
+    let (f2, g2) = (f * f, g * g);
+    if f2.is_infinite() {
+        return 1.0;
+    }
+    if f2 + g2 == 0.0 {
+        0.0
+    } else {
+        f2 / (f2 + g2)
+    }
+}
+
+/// A piecewise-constant density on [0, 1) over `n` equal cells, sampled by inverting its
+/// cumulative distribution.
+#[derive(Clone, Debug)]
+pub struct Distribution1D {
+    /// Non-negative cell weights as given.
+    func: Vec<f32>,
+    /// Normalised CDF, `func.len() + 1` entries from 0 to 1.
+    cdf: Vec<f32>,
+    /// Integral of `func` over [0, 1).
+    integral: f32,
+}
+
+impl Distribution1D {
+    /// Builds the distribution. Negative or non-finite weights count as zero; when all
+    /// weights are zero the distribution is uniform (and `integral()` returns 0).
+    pub fn new(weights: &[f32]) -> Self {
+        assert!(!weights.is_empty(), "Distribution1D needs at least one cell");
+        let n = weights.len();
+        let func: Vec<f32> = weights
+            .iter()
+            .map(|&w| if w.is_finite() && w > 0.0 { w } else { 0.0 })
+            .collect();
+        let mut cdf = Vec::with_capacity(n + 1);
+        cdf.push(0.0f32);
+        let mut acc = 0.0f64;
+        for &w in &func {
+            acc += w as f64 / n as f64;
+            cdf.push(acc as f32);
+        }
+        let integral = acc as f32;
+        if acc > 0.0 {
+            for c in cdf.iter_mut() {
+                *c = (*c as f64 / acc) as f32;
+            }
+        } else {
+            for (i, c) in cdf.iter_mut().enumerate() {
+                *c = i as f32 / n as f32;
+            }
+        }
+        cdf[n] = 1.0;
+        Distribution1D {
+            func,
+            cdf,
+            integral,
+        }
+    }
+
+    /// Number of cells.
+    pub fn len(&self) -> usize {
+        self.func.len()
+    }
+
+    /// Always false: a distribution has at least one cell.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Integral of the weights over [0, 1) (mean weight).
+    pub fn integral(&self) -> f32 {
+        self.integral
+    }
+
+    /// Weight of one cell.
+    pub fn weight(&self, i: usize) -> f32 {
+        self.func[i]
+    }
+
+    /// Samples a continuous x in [0, 1); returns (x, density of x, cell index).
+    pub fn sample_continuous(&self, u: f32) -> (f32, f32, usize) {
+        let i = self.find_cell(u);
+        let (c0, c1) = (self.cdf[i], self.cdf[i + 1]);
+        let du = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.5 };
+        let n = self.func.len() as f32;
+        let x = ((i as f32 + du.clamp(0.0, 1.0)) / n).min(1.0 - f32::EPSILON / 2.0);
+        (x, self.pdf_cell(i) * n, i)
+    }
+
+    /// Samples a cell index; returns (index, its probability mass, u remapped to [0, 1)).
+    pub fn sample_discrete(&self, u: f32) -> (usize, f32, f32) {
+        let i = self.find_cell(u);
+        let (c0, c1) = (self.cdf[i], self.cdf[i + 1]);
+        let remapped = if c1 > c0 {
+            ((u - c0) / (c1 - c0)).clamp(0.0, 1.0 - f32::EPSILON / 2.0)
+        } else {
+            0.5
+        };
+        (i, self.pdf_cell(i), remapped)
+    }
+
+    /// Probability mass of cell `i`.
+    #[inline]
+    pub fn pdf_cell(&self, i: usize) -> f32 {
+        self.cdf[i + 1] - self.cdf[i]
+    }
+
+    /// Density at x in [0, 1) of [`Self::sample_continuous`].
+    #[inline]
+    pub fn pdf_continuous(&self, x: f32) -> f32 {
+        let n = self.func.len();
+        let i = ((x * n as f32) as usize).min(n - 1);
+        self.pdf_cell(i) * n as f32
+    }
+
+    fn find_cell(&self, u: f32) -> usize {
+        // Last index with cdf[i] <= u, skipping zero-mass cells.
+        let n = self.func.len();
+        let mut i = self.cdf.partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
+        while i > 0 && self.pdf_cell(i) == 0.0 {
+            i -= 1;
+        }
+        while i + 1 < n && self.pdf_cell(i) == 0.0 {
+            i += 1;
+        }
+        i
+    }
+}
+
+/// A piecewise-constant density on [0, 1)² given on a `width × height` grid (row-major,
+/// row = v), sampled as a marginal in v and a conditional in u.
+#[derive(Clone, Debug)]
+pub struct Distribution2D {
+    conditional: Vec<Distribution1D>,
+    marginal: Distribution1D,
+}
+
+impl Distribution2D {
+    /// Builds from `width * height` non-negative weights, row-major (index = u + width * v).
+    pub fn new(weights: &[f32], width: usize, height: usize) -> Self {
+        assert_eq!(weights.len(), width * height, "Distribution2D size mismatch");
+        let conditional: Vec<Distribution1D> = weights
+            .chunks_exact(width)
+            .map(Distribution1D::new)
+            .collect();
+        let marginal_weights: Vec<f32> = conditional.iter().map(|c| c.integral()).collect();
+        Distribution2D {
+            marginal: Distribution1D::new(&marginal_weights),
+            conditional,
+        }
+    }
+
+    /// Integral of the weights over [0, 1)².
+    pub fn integral(&self) -> f32 {
+        self.marginal.integral()
+    }
+
+    /// Samples a point in [0, 1)²; returns it and its density (with respect to area in
+    /// the unit square).
+    pub fn sample_continuous(&self, u: Vec2) -> (Vec2, f32) {
+        let (v, pdf_v, row) = self.marginal.sample_continuous(u.y);
+        let (x, pdf_u, _) = self.conditional[row].sample_continuous(u.x);
+        (Vec2::new(x, v), pdf_u * pdf_v)
+    }
+
+    /// Density at a point of [0, 1)² of [`Self::sample_continuous`].
+    pub fn pdf(&self, p: Vec2) -> f32 {
+        let h = self.conditional.len();
+        let row = ((p.y * h as f32) as usize).min(h - 1);
+        self.marginal.pdf_continuous(p.y) * self.conditional[row].pdf_continuous(p.x)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cosine_hemisphere_is_normalised_and_upper() {
+        let n = 64;
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                let w = sample_cosine_hemisphere(u);
+                assert!((w.length() - 1.0).abs() < 1e-4);
+                assert!(w.z >= 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn distribution1d_samples_match_weights() {
+        let d = Distribution1D::new(&[0.0, 1.0, 3.0, 0.0]);
+        assert!((d.integral() - 1.0).abs() < 1e-6);
+        let mut counts = [0usize; 4];
+        let n = 10_000;
+        for k in 0..n {
+            let (x, pdf, i) = d.sample_continuous((k as f32 + 0.5) / n as f32);
+            assert!(pdf > 0.0);
+            assert_eq!(i, (x * 4.0) as usize);
+            counts[i] += 1;
+        }
+        assert_eq!(counts[0], 0);
+        assert_eq!(counts[3], 0);
+        assert!((counts[2] as f32 / counts[1] as f32 - 3.0).abs() < 0.01);
+        assert!((d.pdf_continuous(0.6) - 3.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn distribution2d_pdf_agrees_with_sampling() {
+        let w: Vec<f32> = (0..12).map(|i| (i % 5) as f32).collect();
+        let d = Distribution2D::new(&w, 4, 3);
+        for k in 0..200 {
+            let u = Vec2::new((k as f32 * 0.618_034) % 1.0, (k as f32 + 0.5) / 200.0);
+            let (p, pdf) = d.sample_continuous(u);
+            assert!((d.pdf(p) - pdf).abs() < 1e-4 * pdf.max(1.0), "{p:?}");
+        }
+    }
+
+    #[test]
+    fn power_heuristic_limits() {
+        assert_eq!(power_heuristic(1.0, 0.0), 1.0);
+        assert_eq!(power_heuristic(0.0, 0.0), 0.0);
+        assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
+        assert!((power_heuristic(1.0, 1.0) - 0.5).abs() < 1e-6);
+    }
+}

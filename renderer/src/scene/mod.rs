@@ -1,0 +1,483 @@
+//! Scene descriptions as loaded from files (glTF, OBJ), before acceleration structures and
+//! light samplers are built. Everything is in world space, y up, scene units.
+
+use crate::{Error, Result, Rgb};
+use glam::{Mat4, Vec2, Vec3};
+use std::path::{Path, PathBuf};
+
+pub mod gltf;
+pub mod obj;
+
+/// All triangles of a scene, flattened into world space.
+#[derive(Clone, Debug, Default)]
+pub struct Geometry {
+    /// Vertex positions, world space.
+    pub positions: Vec<Vec3>,
+    /// Unit shading normals per vertex, world space (computed from faces where a file has none).
+    pub normals: Vec<Vec3>,
+    /// Texture coordinates per vertex (glTF convention: v down), zero where a file has none.
+    pub uvs: Vec<Vec2>,
+    /// Vertex indices per triangle, counter-clockwise seen from the front side.
+    pub triangles: Vec<[u32; 3]>,
+    /// Index into [`SceneDescription::materials`] per triangle.
+    pub material_ids: Vec<u32>,
+}
+
+impl Geometry {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// World-space corners of triangle `i`.
+    #[inline]
+    pub fn triangle_positions(&self, i: usize) -> [Vec3; 3] {
+        let [a, b, c] = self.triangles[i];
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
+    }
+
+    /// Axis-aligned bounds `(min, max)` of all vertex positions; `None` when there are no
+    /// vertices.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let first = *self.positions.first()?;
+        Some(
+            self.positions
+                .iter()
+                .fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p))),
+        )
+    }
+
+    /// Replaces [`Geometry::normals`] by area-weighted smooth vertex normals
+    /// (see [`smooth_vertex_normals`]).
+    pub fn compute_vertex_normals(&mut self) {
+        self.normals = smooth_vertex_normals(&self.positions, &self.triangles);
+    }
+
+    /// Appends `other`, offsetting its vertex indices; its material ids are kept as they are.
+    ///
+    /// Fails, naming `source`, when the vertex count would no longer fit the `u32` indices.
+    pub fn append(&mut self, other: &Geometry, source: &Path) -> Result<()> {
+        let total = self.positions.len() + other.positions.len();
+        let offset = u32::try_from(self.positions.len())
+            .ok()
+            .filter(|_| u32::try_from(total).is_ok())
+            .ok_or_else(|| Error::invalid_file(source, "more than 2^32 - 1 vertices in all"))?;
+        self.positions.extend_from_slice(&other.positions);
+        self.normals.extend_from_slice(&other.normals);
+        self.uvs.extend_from_slice(&other.uvs);
+        self.triangles.extend(
+            other
+                .triangles
+                .iter()
+                .map(|t| [t[0] + offset, t[1] + offset, t[2] + offset]),
+        );
+        self.material_ids.extend_from_slice(&other.material_ids);
+        Ok(())
+    }
+}
+
+/// Area-weighted smooth vertex normals: each vertex gets the normalised sum of the
+/// (unnormalised) cross products of the triangles using it, so larger triangles weigh more
+/// and the orientation follows the counter-clockwise winding.
+///
+/// Vertices that no triangle of non-zero area uses get +y. Triangle indices must be in range.
+///
+/// # Panics
+/// If a triangle index is out of range of `positions`.
+pub fn smooth_vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut sums = vec![Vec3::ZERO; positions.len()];
+    for &[a, b, c] in triangles {
+        let (pa, pb, pc) = (
+            positions[a as usize],
+            positions[b as usize],
+            positions[c as usize],
+        );
+        let n = (pb - pa).cross(pc - pa);
+        if n.is_finite() {
+            for i in [a, b, c] {
+                sums[i as usize] += n;
+            }
+        }
+    }
+    sums.into_iter()
+        .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
+        .collect()
+}
+
+/// How a material's surface scatters light.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SurfaceModel {
+    /// Lambertian with albedo = base colour (glTF material with `extras.bsdf == "diffuse"`,
+    /// or OBJ materials without a specular term).
+    Lambert,
+    /// glTF metallic-roughness (GGX specular over a Lambertian base).
+    MetallicRoughness,
+    /// A measured or neural BRDF, bound by a specification string such as
+    /// `merl:path/alum-bronze.binary`; resolved when the scene is prepared for rendering.
+    Bound(String),
+}
+
+/// A surface material.
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub name: String,
+    pub model: SurfaceModel,
+    /// Linear base colour (albedo of the diffuse base, F0 tint of metals).
+    pub base_color: Rgb,
+    /// Index into [`SceneDescription::textures`] of a base-colour texture multiplying
+    /// `base_color`.
+    pub base_color_texture: Option<usize>,
+    /// glTF metallic factor in [0, 1].
+    pub metallic: f32,
+    /// glTF perceptual roughness in [0, 1] (GGX α = roughness²).
+    pub roughness: f32,
+    /// Emitted radiance in W/(m² sr) (emissiveFactor × emissive strength), emitted from
+    /// the front side only.
+    pub emission: Rgb,
+    /// Whether the back side scatters light too (glTF `doubleSided`). A single-sided
+    /// material is black seen from behind, as Mitsuba's BSDFs are.
+    pub double_sided: bool,
+}
+
+impl Material {
+    /// A grey Lambertian material, used where a file gives none.
+    pub fn default_diffuse(name: &str) -> Self {
+        Material {
+            name: name.to_string(),
+            model: SurfaceModel::Lambert,
+            base_color: Rgb::splat(0.8),
+            base_color_texture: None,
+            metallic: 0.0,
+            roughness: 1.0,
+            emission: Rgb::ZERO,
+            double_sided: true,
+        }
+    }
+}
+
+/// A texture of linear RGB texels, row-major from the top row (glTF's v = 0).
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<Rgb>,
+}
+
+impl Texture {
+    /// Bilinear look-up with repeat wrapping; `uv` in glTF convention.
+    pub fn lookup(&self, uv: Vec2) -> Rgb {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let x = uv.x.rem_euclid(1.0) * w as f32 - 0.5;
+        let y = uv.y.rem_euclid(1.0) * h as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let xi = |d: i64| (x0 as i64 + d).rem_euclid(w as i64) as usize;
+        let yi = |d: i64| (y0 as i64 + d).rem_euclid(h as i64) as usize;
+        let t = |xx: usize, yy: usize| self.texels[xx + w * yy];
+        let top = t(xi(0), yi(0)).lerp(t(xi(1), yi(0)), fx);
+        let bottom = t(xi(0), yi(1)).lerp(t(xi(1), yi(1)), fx);
+        top.lerp(bottom, fy)
+    }
+
+    /// Decodes an encoded colour image (PNG, or the HDR/EXR formats the `image` crate is
+    /// built with here) into linear texels.
+    ///
+    /// 8- and 16-bit images are taken as sRGB-encoded (glTF's rule for base-colour
+    /// textures) and decoded to linear with the sRGB transfer function; floating-point
+    /// images are taken as linear already. Alpha is dropped. `file` and `what` only name the
+    /// image in error messages (e.g. the scene file and "texture 'wood.png'").
+    pub fn from_encoded_srgb(bytes: &[u8], file: &Path, what: &str) -> Result<Texture> {
+        let image = image::load_from_memory(bytes)
+            .map_err(|e| Error::invalid_file(file, format!("cannot decode {what}: {e}")))?;
+        let (width, height) = (image.width(), image.height());
+        if width == 0 || height == 0 {
+            return Err(Error::invalid_file(file, format!("{what} is empty")));
+        }
+        let is_float = matches!(
+            image.color(),
+            image::ColorType::Rgb32F | image::ColorType::Rgba32F
+        );
+        let texels = image
+            .to_rgb32f()
+            .pixels()
+            .map(|p| {
+                let c = Rgb::from_array(p.0);
+                if is_float {
+                    c
+                } else {
+                    Rgb::new(
+                        srgb_to_linear(c.x),
+                        srgb_to_linear(c.y),
+                        srgb_to_linear(c.z),
+                    )
+                }
+            })
+            .collect();
+        Ok(Texture {
+            width,
+            height,
+            texels,
+        })
+    }
+}
+
+/// The sRGB electro-optical transfer function (IEC 61966-2-1): encoded value in [0, 1] to
+/// linear.
+fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.040_45 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// A perspective camera.
+#[derive(Clone, Debug)]
+pub struct Camera {
+    pub name: String,
+    /// Camera-to-world transform (rigid); the camera looks down its local -z with +y up
+    /// (glTF's convention).
+    pub camera_to_world: Mat4,
+    /// Vertical field of view in radians.
+    pub yfov: f32,
+    /// Width / height the file asks for, if any; the rendered resolution decides otherwise.
+    pub aspect_ratio: Option<f32>,
+}
+
+impl Camera {
+    /// Vertical field of view of [`Camera::look_at_bounds`], degrees.
+    pub const FRAMING_YFOV_DEGREES: f32 = 40.0;
+
+    /// A camera named `name` on the +z side of the box `min`..`max`, looking down -z at its
+    /// centre, far enough that the box's bounding sphere fits both the vertical field of view
+    /// ([`Camera::FRAMING_YFOV_DEGREES`]) and the horizontal one implied by `aspect_ratio`
+    /// (width / height; 1 when `None`). Meant for files without cameras (OBJ).
+    pub fn look_at_bounds(name: &str, min: Vec3, max: Vec3, aspect_ratio: Option<f32>) -> Camera {
+        let yfov = Self::FRAMING_YFOV_DEGREES.to_radians();
+        let aspect = aspect_ratio
+            .filter(|a| a.is_finite() && *a > 0.0)
+            .unwrap_or(1.0);
+        let half_y = 0.5 * yfov;
+        let half_x = (aspect * half_y.tan()).atan();
+        let centre = 0.5 * (min + max);
+        let radius = 0.5 * (max - min).length();
+        let radius = if radius.is_finite() && radius > 0.0 {
+            radius
+        } else {
+            1.0
+        };
+        let distance = radius / half_y.min(half_x).sin();
+        let centre = if centre.is_finite() {
+            centre
+        } else {
+            Vec3::ZERO
+        };
+        Camera {
+            name: name.to_string(),
+            camera_to_world: Mat4::from_translation(centre + Vec3::new(0.0, 0.0, distance)),
+            yfov,
+            aspect_ratio,
+        }
+    }
+}
+
+/// A punctual light (KHR_lights_punctual). Intensities are taken as radiometric: W/sr for
+/// point and spot lights, W/m² for directional lights (the same scale as emissive radiance).
+#[derive(Clone, Debug, PartialEq)]
+pub enum PunctualLight {
+    Point {
+        position: Vec3,
+        /// Radiant intensity, W/sr.
+        intensity: Rgb,
+    },
+    Spot {
+        position: Vec3,
+        /// Unit direction the spot points to.
+        direction: Vec3,
+        /// Radiant intensity on the axis, W/sr.
+        intensity: Rgb,
+        /// Cosine of the inner cone angle (full intensity inside).
+        cos_inner: f32,
+        /// Cosine of the outer cone angle (zero outside).
+        cos_outer: f32,
+    },
+    Directional {
+        /// Unit direction the light travels in.
+        direction: Vec3,
+        /// Irradiance on a surface facing the light, W/m².
+        irradiance: Rgb,
+    },
+}
+
+/// Where an environment's radiance comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvironmentSource {
+    /// Equirectangular image file (.exr or .hdr), path resolved relative to the scene file.
+    Image(PathBuf),
+    /// The same radiance from every direction, W/(m² sr).
+    Constant(Rgb),
+}
+
+/// The distant environment surrounding a scene.
+///
+/// glTF scenes name it in the top-level scene's (or the asset's) `extras`:
+/// `{"environment": {"image": "studio.exr", "strength": 1.0, "rotation_degrees": 0.0}}` or
+/// `{"environment": {"color": [1.0, 1.0, 1.0]}}`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvironmentSpec {
+    pub source: EnvironmentSource,
+    /// Multiplier on the image's radiance.
+    pub strength: f32,
+    /// Rotation about the world +y axis, radians.
+    pub rotation: f32,
+}
+
+/// What a scene file describes, in world space.
+#[derive(Clone, Debug, Default)]
+pub struct SceneDescription {
+    /// The file it was read from (for error messages).
+    pub source: PathBuf,
+    pub geometry: Geometry,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub cameras: Vec<Camera>,
+    pub lights: Vec<PunctualLight>,
+    pub environment: Option<EnvironmentSpec>,
+}
+
+impl SceneDescription {
+    /// Loads a scene file, choosing the loader by extension (case-insensitive): `.gltf` and
+    /// `.glb` with [`gltf::load`], `.obj` with [`obj::load`].
+    pub fn load(path: &Path) -> Result<SceneDescription> {
+        let extension = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match extension.as_deref() {
+            Some("gltf") | Some("glb") => gltf::load(path),
+            Some("obj") => obj::load(path),
+            _ => Err(Error::invalid_file(
+                path,
+                "unknown scene format (expected a .gltf, .glb or .obj file)",
+            )),
+        }
+    }
+
+    /// The camera named `name`, or the file's first camera when `name` is `None`.
+    ///
+    /// Fails with [`Error::UnknownName`] (listing the cameras there are) when no camera has
+    /// that name, and with [`Error::InvalidFile`] when `name` is `None` and the file has no
+    /// camera (see [`SceneDescription::camera_or_default`]).
+    pub fn camera(&self, name: Option<&str>) -> Result<&Camera> {
+        match name {
+            Some(name) => {
+                self.cameras
+                    .iter()
+                    .find(|c| c.name == name)
+                    .ok_or_else(|| Error::UnknownName {
+                        what: "camera",
+                        name: name.to_string(),
+                        available: self.cameras.iter().map(|c| c.name.clone()).collect(),
+                    })
+            }
+            None => self
+                .cameras
+                .first()
+                .ok_or_else(|| Error::invalid_file(&self.source, "contains no perspective camera")),
+        }
+    }
+
+    /// Like [`SceneDescription::camera`], but when `name` is `None` and the file has no
+    /// camera, a camera named "default" framing the geometry's bounds
+    /// ([`Camera::look_at_bounds`]).
+    pub fn camera_or_default(
+        &self,
+        name: Option<&str>,
+        aspect_ratio: Option<f32>,
+    ) -> Result<Camera> {
+        if name.is_none() && self.cameras.is_empty() {
+            let (min, max) = self.geometry.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+            return Ok(Camera::look_at_bounds("default", min, max, aspect_ratio));
+        }
+        self.camera(name).cloned()
+    }
+
+    /// Checks what the renderer relies on: at least one triangle, finite vertex positions,
+    /// one normal and one texture coordinate per vertex, vertex indices in range, one
+    /// material id per triangle naming an existing material, texture indices in range and
+    /// cameras with a field of view in (0, π). Errors name [`SceneDescription::source`].
+    /// Degenerate (zero-area) triangles are allowed.
+    pub fn validate(&self) -> Result<()> {
+        let fail = |reason: String| Err(Error::invalid_file(&self.source, reason));
+        let g = &self.geometry;
+        if g.triangles.is_empty() {
+            return fail("contains no triangles".into());
+        }
+        if let Some(i) = g.positions.iter().position(|p| !p.is_finite()) {
+            return fail(format!("non-finite vertex position (vertex {i})"));
+        }
+        let n = g.positions.len();
+        if g.normals.len() != n || g.uvs.len() != n {
+            return fail(format!(
+                "{} positions but {} normals and {} texture coordinates",
+                n,
+                g.normals.len(),
+                g.uvs.len()
+            ));
+        }
+        if let Some(i) = g.normals.iter().position(|v| !v.is_finite()) {
+            return fail(format!("non-finite vertex normal (vertex {i})"));
+        }
+        if let Some(i) = g.uvs.iter().position(|v| !v.is_finite()) {
+            return fail(format!("non-finite texture coordinate (vertex {i})"));
+        }
+        if let Some(t) = g
+            .triangles
+            .iter()
+            .position(|t| t.iter().any(|&v| v as usize >= n))
+        {
+            return fail(format!(
+                "triangle {t} has a vertex index out of range ({n} vertices)"
+            ));
+        }
+        if g.material_ids.len() != g.triangles.len() {
+            return fail(format!(
+                "{} triangles but {} material ids",
+                g.triangles.len(),
+                g.material_ids.len()
+            ));
+        }
+        if let Some(t) = g
+            .material_ids
+            .iter()
+            .position(|&m| m as usize >= self.materials.len())
+        {
+            return fail(format!(
+                "triangle {t} uses material {} of {}",
+                g.material_ids[t],
+                self.materials.len()
+            ));
+        }
+        for m in &self.materials {
+            if m.base_color_texture
+                .is_some_and(|t| t >= self.textures.len())
+            {
+                return fail(format!("material '{}' uses a missing texture", m.name));
+            }
+        }
+        for c in &self.cameras {
+            let fov_ok = c.yfov > 0.0 && c.yfov < std::f32::consts::PI;
+            if !fov_ok || !c.camera_to_world.is_finite() {
+                return fail(format!(
+                    "camera '{}' has an invalid field of view or transform",
+                    c.name
+                ));
+            }
+        }
+        Ok(())
+    }
+}
