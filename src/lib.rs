@@ -1,1 +1,48 @@
-//! Shared helpers of the integration tests in `tests/`.
+//! Shared helpers of the integration tests in `tests/`: procedural shapes, rendering a scene
+//! description to mean and variance images, and the statistical image comparison used by the
+//! regression tests.
+
+pub mod shapes;
+pub mod ztest;
+
+use renderer::camera::PinholeCamera;
+use renderer::integrator::PathTracer;
+use renderer::render::{Budget, Renderer};
+use renderer::render_scene::RenderScene;
+use renderer::scene::Camera;
+use renderer::Rgb;
+use std::sync::atomic::AtomicBool;
+
+/// Mean and variance-of-the-mean images of a render.
+pub struct Rendered {
+    pub width: u32,
+    pub height: u32,
+    pub mean: Vec<Rgb>,
+    pub variance: Vec<Rgb>,
+    pub discarded: u64,
+}
+
+/// Renders `scene` through `camera` with `spp` samples per pixel on the current rayon pool.
+pub fn render(scene: &RenderScene, camera: &Camera, width: u32, height: u32, spp: u32, integrator: PathTracer, seed: u64) -> Rendered {
+    let renderer = Renderer {
+        scene,
+        camera: PinholeCamera::new(camera, width, height),
+        integrator,
+        seed,
+    };
+    let cancel = AtomicBool::new(false);
+    let (film, stats) = renderer.render(width, height, Budget::Spp(spp), &cancel, &|_| {}, &mut |_, _| {});
+    Rendered {
+        width,
+        height,
+        mean: film.mean(),
+        variance: film.variance_of_mean(),
+        discarded: stats.discarded_samples,
+    }
+}
+
+/// Mean of an image per channel.
+pub fn mean_rgb(pixels: &[Rgb]) -> Rgb {
+    let sum = pixels.iter().fold(glam::DVec3::ZERO, |a, p| a + p.as_dvec3());
+    (sum / pixels.len() as f64).as_vec3()
+}

@@ -12,7 +12,9 @@ use std::time::Duration;
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {
     pub origin: Vec3,
-    /// Unit direction.
+    /// Unit direction for [`Bvh::intersect`]; [`Bvh::occluded`] also takes an unnormalised
+    /// direction, with `t_max` in units of its length (a segment from origin to
+    /// origin + t_max · direction).
     pub direction: Vec3,
     /// Upper bound of the parametric interval (distance along `direction`).
     pub t_max: f32,

@@ -13,7 +13,7 @@
 //! ([`Chi2Domain`]); θ is measured from the local +z axis, φ ∈ [−π, π) from +x, and the
 //! horizon (θ = π/2) is always a cell boundary. `sample_count` directions are drawn with a
 //! seeded [`Pcg32`] and binned (the observed counts). The expected count of a cell is
-//! `sample_count` times the integral of the pdf over the cell, computed by composite
+//! `sample_count` times the integral of the pdf over the cell, computed in (θ, φ) by composite
 //! Simpson's rule refined per cell (8, 16, 32, … sub-intervals per axis) until the change is
 //! a small fraction of the cell's Poisson standard deviation. Cells are sorted by expected
 //! count and those expected below `min_expected_count` (5) are pooled, exactly as Mitsuba's
@@ -73,26 +73,12 @@ impl Chi2Domain {
     /// The unit direction at normalised coordinates (s, t) ∈ [0, 1]²: φ = 2π s − π.
     fn direction(self, s: f64, t: f64) -> Vec3 {
         let phi = 2.0 * PI * s - PI;
-        let (sin_theta, cos_theta) = match self {
-            Chi2Domain::CosThetaPhi => {
-                let c = 1.0 - 2.0 * t;
-                ((1.0 - c * c).max(0.0).sqrt(), c)
-            }
-            Chi2Domain::ThetaPhi => (PI * t).sin_cos(),
-        };
+        let (sin_theta, cos_theta) = self.theta(t).sin_cos();
         Vec3::new(
             (sin_theta * phi.cos()) as f32,
             (sin_theta * phi.sin()) as f32,
             cos_theta as f32,
         )
-    }
-
-    /// Solid angle per unit area of the (s, t) square: dω = J(t) ds dt.
-    fn jacobian(self, t: f64) -> f64 {
-        match self {
-            Chi2Domain::CosThetaPhi => 4.0 * PI,
-            Chi2Domain::ThetaPhi => 2.0 * PI * PI * (PI * t).sin(),
-        }
     }
 
     /// Normalised coordinates (s, t) ∈ [0, 1]² of a unit direction.
@@ -464,7 +450,6 @@ where
 
     // Expected counts.
     let mut integrator = CellIntegrator {
-        domain,
         pdf: &pdf,
         sample_count: n as f64,
         tolerance: config.integration_tolerance,
@@ -474,9 +459,15 @@ where
     let mut expected = vec![0.0f64; theta_cells * phi_cells];
     for row in 0..theta_cells {
         for column in 0..phi_cells {
-            let s = (column as f64 / phi_cells as f64, (column + 1) as f64 / phi_cells as f64);
-            let t = (row as f64 / theta_cells as f64, (row + 1) as f64 / theta_cells as f64);
-            expected[column + phi_cells * row] = n as f64 * integrator.integrate(s, t);
+            let theta = (
+                domain.theta(row as f64 / theta_cells as f64),
+                domain.theta((row + 1) as f64 / theta_cells as f64),
+            );
+            let phi = (
+                2.0 * PI * column as f64 / phi_cells as f64 - PI,
+                2.0 * PI * (column + 1) as f64 / phi_cells as f64 - PI,
+            );
+            expected[column + phi_cells * row] = n as f64 * integrator.integrate(theta, phi);
         }
     }
     if let Some((w, value)) = integrator.bad_value {
@@ -611,8 +602,11 @@ fn pooled_chi_square(
 }
 
 /// Integrates a pdf over grid cells with refined composite Simpson rules.
+///
+/// Whatever the grid's domain, each cell is integrated in (θ, φ) with dω = sin θ dθ dφ:
+/// the integrand is then smooth at the poles, where in cos θ it would have a square-root
+/// singularity that slows Simpson's rule down.
 struct CellIntegrator<'a, P> {
-    domain: Chi2Domain,
     pdf: &'a P,
     sample_count: f64,
     tolerance: f64,
@@ -622,14 +616,15 @@ struct CellIntegrator<'a, P> {
 }
 
 impl<P: Fn(Vec3) -> f32> CellIntegrator<'_, P> {
-    /// ∫ pdf dω over the cell s ∈ [s.0, s.1], t ∈ [t.0, t.1], refining from 8 sub-intervals
-    /// per axis until the expected count changes by less than `tolerance` · √E.
-    fn integrate(&mut self, s: (f64, f64), t: (f64, f64)) -> f64 {
+    /// ∫ pdf dω over θ ∈ [theta.0, theta.1], φ ∈ [phi.0, phi.1] (radians), refining from 8
+    /// sub-intervals per axis until the expected count changes by less than
+    /// `tolerance` · √E or `max_subdivisions` is reached.
+    fn integrate(&mut self, theta: (f64, f64), phi: (f64, f64)) -> f64 {
         let mut subdivisions = 8;
-        let mut previous = self.simpson(s, t, subdivisions);
+        let mut previous = self.simpson(theta, phi, subdivisions);
         while subdivisions < self.max_subdivisions {
             subdivisions *= 2;
-            let current = self.simpson(s, t, subdivisions);
+            let current = self.simpson(theta, phi, subdivisions);
             let count = self.sample_count * current;
             let change = self.sample_count * (current - previous).abs();
             previous = current;
@@ -641,21 +636,25 @@ impl<P: Fn(Vec3) -> f32> CellIntegrator<'_, P> {
     }
 
     /// Composite Simpson's rule with `n` (even) sub-intervals per axis.
-    fn simpson(&mut self, s: (f64, f64), t: (f64, f64), n: usize) -> f64 {
+    fn simpson(&mut self, theta: (f64, f64), phi: (f64, f64), n: usize) -> f64 {
         let weight = |i: usize| match i {
             0 => 1.0,
             i if i == n => 1.0,
             i if i % 2 == 1 => 4.0,
             _ => 2.0,
         };
-        let (ds, dt) = ((s.1 - s.0) / n as f64, (t.1 - t.0) / n as f64);
+        let (d_theta, d_phi) = ((theta.1 - theta.0) / n as f64, (phi.1 - phi.0) / n as f64);
         let mut sum = 0.0f64;
         for j in 0..=n {
-            let tj = t.0 + dt * j as f64;
-            let jacobian = self.domain.jacobian(tj);
+            let (sin_theta, cos_theta) = (theta.0 + d_theta * j as f64).sin_cos();
             let mut row = 0.0f64;
             for i in 0..=n {
-                let w = self.domain.direction(s.0 + ds * i as f64, tj);
+                let (sin_phi, cos_phi) = (phi.0 + d_phi * i as f64).sin_cos();
+                let w = Vec3::new(
+                    (sin_theta * cos_phi) as f32,
+                    (sin_theta * sin_phi) as f32,
+                    cos_theta as f32,
+                );
                 let value = (self.pdf)(w);
                 if !(value >= 0.0 && value.is_finite()) {
                     self.bad_value.get_or_insert((w, value));
@@ -663,9 +662,9 @@ impl<P: Fn(Vec3) -> f32> CellIntegrator<'_, P> {
                 }
                 row += weight(i) * value as f64;
             }
-            sum += weight(j) * jacobian * row;
+            sum += weight(j) * sin_theta * row;
         }
-        sum * ds * dt / 9.0
+        sum * d_theta * d_phi / 9.0
     }
 }
 

@@ -12,6 +12,20 @@ use crate::sampler::Sampler;
 use crate::sampling::power_heuristic;
 use crate::Rgb;
 
+/// Which estimators gather light at each path vertex.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Strategy {
+    /// Light sampling and BSDF sampling combined by MIS (power heuristic).
+    #[default]
+    Mis,
+    /// BSDF sampling only: emitters count only when a path hits them (punctual lights,
+    /// which cannot be hit, are still sampled).
+    BsdfOnly,
+    /// Light sampling only: emitters hit by BSDF-sampled rays are ignored (except those seen
+    /// directly from the camera).
+    LightOnly,
+}
+
 /// Settings of the path tracer.
 #[derive(Clone, Copy, Debug)]
 pub struct PathTracer {
@@ -19,6 +33,8 @@ pub struct PathTracer {
     pub max_depth: i32,
     /// Path depth (segments) from which Russian roulette may end paths (Mitsuba's default 5).
     pub rr_depth: u32,
+    /// Estimators to combine; all give the same expected image.
+    pub strategy: Strategy,
 }
 
 impl Default for PathTracer {
@@ -26,6 +42,7 @@ impl Default for PathTracer {
         PathTracer {
             max_depth: -1,
             rr_depth: 5,
+            strategy: Strategy::Mis,
         }
     }
 }
@@ -39,8 +56,8 @@ pub struct PathCounters {
     pub shadow_rays: u64,
 }
 
-/// Fraction of a shadow ray's length left out at the light end, so the ray does not hit the
-/// light itself.
+/// Fraction of a shadow ray's length left out at the light end (beyond the offset of the
+/// light point by its error bound).
 const SHADOW_EPSILON: f32 = 1e-4;
 
 impl PathTracer {
@@ -48,6 +65,17 @@ impl PathTracer {
     #[inline]
     fn allows(&self, segments: u32) -> bool {
         self.max_depth < 0 || segments <= self.max_depth as u32
+    }
+
+    /// MIS weight of emission found by a ray: camera rays and BSDF-only rendering weigh it 1,
+    /// light-only rendering 0, MIS by the power heuristic against the light-sampling density.
+    #[inline]
+    fn hit_weight(&self, bsdf_pdf: Option<f32>, light_pdf: impl FnOnce() -> f32) -> f32 {
+        match (bsdf_pdf, self.strategy) {
+            (None, _) | (Some(_), Strategy::BsdfOnly) => 1.0,
+            (Some(_), Strategy::LightOnly) => 0.0,
+            (Some(pdf), Strategy::Mis) => power_heuristic(pdf, light_pdf()),
+        }
     }
 
     /// Radiance arriving along `ray` (a camera ray), estimated with one path.
@@ -67,10 +95,7 @@ impl PathTracer {
             let Some(hit) = scene.bvh.intersect(&ray) else {
                 if let Some(env) = scene.lights.environment() {
                     let le = env.radiance(ray.direction);
-                    let w = match prev_bsdf_pdf {
-                        None => 1.0,
-                        Some(pdf) => power_heuristic(pdf, scene.lights.pdf_environment(ray.direction)),
-                    };
+                    let w = self.hit_weight(prev_bsdf_pdf, || scene.lights.pdf_environment(ray.direction));
                     l += beta * le * w;
                 }
                 break;
@@ -80,10 +105,7 @@ impl PathTracer {
             };
             let le = scene.emission(&sp);
             if le.max_element() > 0.0 {
-                let w = match prev_bsdf_pdf {
-                    None => 1.0,
-                    Some(pdf) => power_heuristic(pdf, scene.lights.pdf_triangle(hit.triangle, prev_p, sp.p)),
-                };
+                let w = self.hit_weight(prev_bsdf_pdf, || scene.lights.pdf_triangle(hit.triangle, prev_p, sp.p));
                 l += beta * le * w;
             }
             if !self.allows(segments + 1) {
@@ -100,25 +122,28 @@ impl PathTracer {
             // Next-event estimation.
             let u_light = sampler.next_1d();
             let u_light2 = sampler.next_2d();
-            if let Some(ls) = scene.lights.sample(sp.p, u_light, u_light2) {
+            let light = scene.lights.sample(sp.p, u_light, u_light2);
+            if let Some(ls) = light.filter(|l| l.is_delta || self.strategy != Strategy::BsdfOnly) {
                 if ls.direction.dot(sp.ng_facing) > 0.0 {
                     let wi = sp.frame.to_local(ls.direction);
                     let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
                     if wi.z > 0.0 && f.max_element() > 0.0 {
                         let origin = offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, ls.direction);
-                        let t_max = if ls.distance.is_finite() {
-                            ls.distance * (1.0 - SHADOW_EPSILON)
-                        } else {
-                            f32::MAX
+                        // Toward a point: an unnormalised direction and t in (0, 1 − ε).
+                        let shadow = match ls.shadow_target {
+                            Some(target) => Ray {
+                                origin,
+                                direction: target - origin,
+                                t_max: 1.0 - SHADOW_EPSILON,
+                            },
+                            None => Ray::new(origin, ls.direction),
                         };
                         counters.shadow_rays += 1;
-                        let shadow = Ray {
-                            origin,
-                            direction: ls.direction,
-                            t_max,
-                        };
                         if !scene.bvh.occluded(&shadow) {
-                            let w = if ls.is_delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
+                            let w = match (ls.is_delta, self.strategy) {
+                                (true, _) | (false, Strategy::LightOnly) => 1.0,
+                                (false, _) => power_heuristic(ls.pdf, bsdf_pdf),
+                            };
                             l += beta * f * ls.radiance * (wi.z * w / ls.pdf);
                         }
                     }

@@ -246,12 +246,16 @@ impl MerlTable {
     }
 
     /// The table as f_r in 1/sr per bin (within-channel index order), f32, unmeasured (negative)
-    /// entries set to 0: the form the renderer evaluates.
+    /// entries set to 0 and values beyond f32's range clamped to `f32::MAX`: the form the
+    /// renderer evaluates (finite, ≥ 0).
     pub fn to_render_values(&self) -> Vec<[f32; 3]> {
         (0..BIN_COUNT)
             .into_par_iter()
             .with_min_len(4096)
-            .map(|i| self.value(i).map(|v| if v > 0.0 { v as f32 } else { 0.0 }))
+            .map(|i| {
+                self.value(i)
+                    .map(|v| if v > 0.0 { v.min(f32::MAX as f64) as f32 } else { 0.0 })
+            })
             .collect()
     }
 

@@ -15,8 +15,11 @@ use glam::{Vec2, Vec3};
 
 pub mod lambert;
 pub mod measured;
+pub mod merl;
 pub mod metallic_roughness;
 pub mod microfacet;
+pub mod nbrdf;
+pub mod tabulated_sampling;
 
 pub use lambert::Lambert;
 pub use measured::MeasuredBsdf;

@@ -10,9 +10,12 @@
 //! - x = |φh − φo| / π ∈ [0, 1) (isotropic BRDFs are mirror-symmetric about the plane of
 //!   incidence, so the sign of φh − φo is drawn with probability ½ each).
 //!
-//! Each cell's weight is the cell average (`supersampling`² points, both signs) of
-//! mean_rgb(f(wo, wi)) · cos θi · |dωi / dx dy|, with wi = reflect(wo, h) and
-//! |dωi / dx dy| = 4 (wo·h) · 2π² y sin θh; cells whose wi falls below the horizon weigh 0.
+//! Within a cell h is uniform in solid angle (1 − cos θh and φh uniform), so the density is
+//! piecewise constant in h and bounded, even at h = n. A cell's probability is proportional
+//! to its solid angle Ω times the cell average (`supersampling`² points, both signs of
+//! φh − φo) of mean_rgb(f(wo, wi)) · cos θi · 4 (wo·h), with wi = reflect(wo, h) — i.e. to
+//! ∫ f cos θi dωi over the wi the cell reflects to; cells whose wi falls below the horizon
+//! weigh 0.
 //!
 //! Sampling mixes three parts: with probability `cosine_fraction` a cosine-weighted
 //! direction (so the density is positive wherever f·cos θi is, whatever the fit missed);
@@ -67,11 +70,25 @@ impl Default for TabulatedSamplerConfig {
 const MAX_NODE_THETA_O: f32 = FRAC_PI_2 - 1e-3;
 
 /// The fitted sampler; see the module documentation.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct TabulatedSampler {
-    /// One distribution per θo node; x = |φh − φo| / π (width), y = sqrt(θh / (π/2)) (height).
+    /// One distribution per θo node over the cells; x = |φh − φo| / π (width),
+    /// y = sqrt(θh / (π/2)) (height).
     tables: Vec<Distribution2D>,
+    /// 1 − cos θh at the row boundaries (`theta_h_cells + 1` entries, from 0).
+    row_v: Vec<f32>,
+    /// Columns per table (cells along |φh − φo|).
+    phi_cells: usize,
     cosine_fraction: f32,
+}
+
+impl std::fmt::Debug for TabulatedSampler {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TabulatedSampler")
+            .field("theta_o_nodes", &self.tables.len())
+            .field("cosine_fraction", &self.cosine_fraction)
+            .finish_non_exhaustive()
+    }
 }
 
 /// cos and sin of the azimuth of `v` (1 and 0 when `v` is along z).
@@ -85,14 +102,20 @@ fn azimuth(v: Vec3) -> (f32, f32) {
     }
 }
 
-/// Half vector of the table point (x, y) with the given sign of φh − φo, in the frame where
-/// `wo` has azimuth 0; also returns sin θh.
+/// 1 − cos θh at the boundary y = sqrt(θh / (π/2)) of a row, accurate near 0.
+fn one_minus_cos_theta_h(y: f64) -> f32 {
+    let theta_h = y * y * std::f64::consts::FRAC_PI_2;
+    let s = (theta_h / 2.0).sin();
+    (2.0 * s * s) as f32
+}
+
+/// Half vector with 1 − cos θh = `v` and |φh − φo| = `x`·π with the given sign, in the frame
+/// where `wo` has azimuth 0.
 #[inline]
-fn half_vector_at(x: f32, y: f32, sign: f32) -> (Vec3, f32) {
-    let theta_h = y * y * FRAC_PI_2;
-    let (st, ct) = theta_h.sin_cos();
+fn half_vector_at(v: f32, x: f32, sign: f32) -> Vec3 {
+    let sin_h = (v * (2.0 - v)).max(0.0).sqrt();
     let (sp, cp) = (sign * x * PI).sin_cos();
-    (Vec3::new(st * cp, st * sp, ct), st)
+    Vec3::new(sin_h * cp, sin_h * sp, 1.0 - v)
 }
 
 impl TabulatedSampler {
@@ -107,18 +130,23 @@ impl TabulatedSampler {
             c.theta_o_nodes >= 2 && c.theta_h_cells > 0 && c.phi_h_cells > 0 && c.supersampling > 0,
             "invalid TabulatedSamplerConfig {c:?}"
         );
+        let row_v: Vec<f32> = (0..=c.theta_h_cells)
+            .map(|r| one_minus_cos_theta_h(r as f64 / c.theta_h_cells as f64))
+            .collect();
         let tables = (0..c.theta_o_nodes)
             .into_par_iter()
             .map(|k| {
                 let theta_o = (k as f32 / (c.theta_o_nodes - 1) as f32 * FRAC_PI_2).min(MAX_NODE_THETA_O);
                 let (so, co) = theta_o.sin_cos();
                 let wo = Vec3::new(so, 0.0, co);
-                let weights = fit_weights(&brdf, wo, &c);
+                let weights = fit_weights(&brdf, wo, &row_v, &c);
                 Distribution2D::new(&weights, c.phi_h_cells, c.theta_h_cells)
             })
             .collect();
         TabulatedSampler {
             tables,
+            row_v,
+            phi_cells: c.phi_h_cells,
             cosine_fraction: c.cosine_fraction.clamp(0.0, 1.0),
         }
     }
@@ -153,11 +181,13 @@ impl TabulatedSampler {
         };
         let sign = if uc < 0.5 { 1.0 } else { -1.0 };
         let (p, _) = self.tables[node].sample_continuous(u);
-        let (hl, sin_h) = half_vector_at(p.x, p.y, sign);
-        if p.y * sin_h <= 0.0 {
-            // h = n exactly: a single direction where the density is infinite.
-            return None;
-        }
+        // Uniform in solid angle within the cell: 1 − cos θh linear in the row's fraction.
+        let ny = self.row_v.len() - 1;
+        let yc = p.y * ny as f32;
+        let row = (yc as usize).min(ny - 1);
+        let t_row = (yc - row as f32).clamp(0.0, 1.0);
+        let v = self.row_v[row] + t_row * (self.row_v[row + 1] - self.row_v[row]);
+        let hl = half_vector_at(v, p.x, sign);
         let (c, s) = azimuth(wo);
         let h = Vec3::new(c * hl.x - s * hl.y, s * hl.x + c * hl.y, hl.z);
         let wi = crate::bsdf::microfacet::reflect(wo, h);
@@ -178,23 +208,28 @@ impl TabulatedSampler {
     #[inline]
     fn table_pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let h = (wo + wi).normalize();
+        let cos_oh = wo.dot(h);
+        if !(cos_oh > 0.0) {
+            return 0.0;
+        }
         let (c, s) = azimuth(wo);
         let hx = c * h.x + s * h.y;
         let hy = -s * h.x + c * h.y;
-        let sin_h = (hx * hx + hy * hy).sqrt();
-        let y = (sin_h.atan2(h.z) / FRAC_PI_2).sqrt();
-        let x = hy.atan2(hx).abs() / PI;
-        let jacobian = 4.0 * wo.dot(h) * 2.0 * PI * PI * y * sin_h;
-        if !(jacobian > 0.0) {
-            return 0.0;
-        }
+        let y = (hx.hypot(hy).atan2(h.z) / FRAC_PI_2).sqrt().min(1.0);
+        let x = (hy.atan2(hx).abs() / PI).min(1.0);
+        let (nx, ny) = (self.phi_cells, self.row_v.len() - 1);
+        let row = ((y * ny as f32) as usize).min(ny - 1);
         let (k, t) = self.nodes(wo);
-        let p = Vec2::new(x.min(1.0), y.min(1.0));
-        let mut pdf_xy = (1.0 - t) * self.tables[k].pdf(p);
+        let p = Vec2::new(x, y);
+        let mut density_xy = (1.0 - t) * self.tables[k].pdf(p);
         if t > 0.0 {
-            pdf_xy += t * self.tables[k + 1].pdf(p);
+            density_xy += t * self.tables[k + 1].pdf(p);
         }
-        let pdf = pdf_xy / jacobian;
+        // Cell probability over the cell's solid angle (both signs of φh − φo: 2π/nx per
+        // column), then the reflection Jacobian dωh/dωi = 1 / (4 wo·h).
+        let cell_probability = density_xy / (nx * ny) as f32;
+        let cell_solid_angle = (self.row_v[row + 1] - self.row_v[row]) * 2.0 * PI / nx as f32;
+        let pdf = cell_probability / (cell_solid_angle * 4.0 * cos_oh);
         if pdf.is_finite() {
             pdf
         } else {
@@ -208,19 +243,21 @@ impl TabulatedSampler {
     }
 }
 
-/// Cell weights of one θo node, row-major (x fastest).
-fn fit_weights(brdf: &impl Fn(Vec3, Vec3) -> Rgb, wo: Vec3, c: &TabulatedSamplerConfig) -> Vec<f32> {
+/// Cell weights of one θo node, row-major (x fastest): ∫ f cos θi dωi over each cell, up to
+/// a constant factor.
+fn fit_weights(brdf: &impl Fn(Vec3, Vec3) -> Rgb, wo: Vec3, row_v: &[f32], c: &TabulatedSamplerConfig) -> Vec<f32> {
     let (nx, ny, ss) = (c.phi_h_cells, c.theta_h_cells, c.supersampling);
     let mut weights = vec![0f32; nx * ny];
     for iy in 0..ny {
+        let (v0, v1) = (row_v[iy], row_v[iy + 1]);
         for ix in 0..nx {
             let mut acc = 0f64;
             for a in 0..ss {
                 for b in 0..ss {
                     let x = (ix as f32 + (a as f32 + 0.5) / ss as f32) / nx as f32;
-                    let y = (iy as f32 + (b as f32 + 0.5) / ss as f32) / ny as f32;
+                    let v = v0 + (b as f32 + 0.5) / ss as f32 * (v1 - v0);
                     let sign = if (a + b) % 2 == 0 { 1.0 } else { -1.0 };
-                    let (h, sin_h) = half_vector_at(x, y, sign);
+                    let h = half_vector_at(v, x, sign);
                     let cos_oh = wo.dot(h);
                     if cos_oh <= 0.0 {
                         continue;
@@ -232,11 +269,11 @@ fn fit_weights(brdf: &impl Fn(Vec3, Vec3) -> Rgb, wo: Vec3, c: &TabulatedSampler
                     let f = brdf(wo, wi.normalize());
                     let mean = (f.x + f.y + f.z) / 3.0;
                     if mean.is_finite() && mean > 0.0 {
-                        acc += (mean * wi.z * 4.0 * cos_oh * y * sin_h) as f64;
+                        acc += (mean * wi.z * 4.0 * cos_oh) as f64;
                     }
                 }
             }
-            weights[ix + nx * iy] = (acc / (ss * ss) as f64) as f32;
+            weights[ix + nx * iy] = (acc / (ss * ss) as f64 * (v1 - v0) as f64) as f32;
         }
     }
     weights

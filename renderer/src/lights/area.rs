@@ -1,6 +1,6 @@
 //! Emissive triangles: one-sided area lights sampled uniformly by area.
 
-use crate::accel::interpolate_point;
+use crate::accel::{interpolate_point, offset_ray_origin};
 use crate::sampling::sample_uniform_triangle;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -27,6 +27,9 @@ pub struct AreaSample {
     pub radiance: Rgb,
     /// Solid-angle density at the shading point, 1/sr.
     pub pdf: f32,
+    /// The light point moved off the light toward the shading point by its rounding-error
+    /// bound: where a shadow ray must stop so it cannot hit the light itself.
+    pub shadow_target: Vec3,
 }
 
 impl TriangleLight {
@@ -46,7 +49,7 @@ impl TriangleLight {
     /// Uniform point by area, converted to a solid-angle density at `p`.
     #[inline]
     pub fn sample(&self, p: Vec3, u: Vec2) -> Option<AreaSample> {
-        let (q, _) = interpolate_point(self.corners, sample_uniform_triangle(u));
+        let (q, q_error) = interpolate_point(self.corners, sample_uniform_triangle(u));
         let to = q - p;
         let d2 = to.length_squared();
         if d2 <= 0.0 {
@@ -64,6 +67,7 @@ impl TriangleLight {
             distance,
             radiance: self.radiance,
             pdf,
+            shadow_target: offset_ray_origin(q, q_error, self.normal, -direction),
         })
     }
 

@@ -28,6 +28,8 @@ pub struct LightSample {
     pub pdf: f32,
     /// True for punctual lights, which BSDF sampling can never hit (no MIS).
     pub is_delta: bool,
+    /// Where a shadow ray toward the light must end (`None`: at infinity).
+    pub shadow_target: Option<Vec3>,
 }
 
 enum Light {
@@ -127,6 +129,7 @@ impl LightSet {
                 radiance: s.radiance,
                 pdf: s.pdf * select_pdf,
                 is_delta: false,
+                shadow_target: Some(s.shadow_target),
             }),
             Light::Punctual(l) => punctual::illuminate(l, p).map(|s| LightSample {
                 direction: s.direction,
@@ -134,6 +137,7 @@ impl LightSet {
                 radiance: s.value,
                 pdf: select_pdf,
                 is_delta: true,
+                shadow_target: s.distance.is_finite().then(|| p + s.direction * s.distance),
             }),
             Light::Environment => {
                 let env = self.environment.as_ref()?;
@@ -143,6 +147,7 @@ impl LightSet {
                     radiance: s.radiance,
                     pdf: s.pdf * select_pdf,
                     is_delta: false,
+                    shadow_target: None,
                 })
             }
         }

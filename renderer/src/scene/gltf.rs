@@ -41,6 +41,10 @@
 //!   (`strength` and `rotation_degrees` optional, defaults 1 and 0). The image itself is
 //!   read by the renderer's environment code, not here.
 //!
+//! - Not read: animations, skins and morph targets (the rest pose is used), sparse
+//!   accessors, and extensions other than the two above (files that *require* another
+//!   extension are rejected by the `gltf` crate's validation).
+//!
 //! Errors: a missing scene or buffer file is [`Error::Io`] naming that file; everything else
 //! is [`Error::InvalidFile`] naming the glTF file and the problem (the `gltf` crate's message
 //! for malformed JSON or invalid references).
@@ -57,7 +61,7 @@ use ::gltf::mesh::Mode;
 use ::gltf::{Accessor, Document, Gltf, Node, Primitive};
 use glam::{Mat3, Mat4, Vec2, Vec3};
 use serde_json::Value;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// Kinds of binding specification (`kind:argument`) whose argument is a file path or path
@@ -107,7 +111,7 @@ pub fn load(path: &Path) -> Result<SceneDescription> {
     Ok(loader.scene)
 }
 
-/// Resolves a binding specification found in the glTF file at `base`'s directory: for the
+/// Resolves a binding specification found in a glTF file whose directory is `base`: for the
 /// kinds in [`PATH_SPEC_KINDS`] (`merl:`, `nbrdf:`) a relative path after the prefix is
 /// joined to `base`; absolute paths, other kinds (e.g. `neural:NAME`) and strings without a
 /// `kind:` prefix are returned unchanged.
@@ -239,12 +243,12 @@ impl Loader<'_> {
 
     /// Walks the scene's node trees depth first (without recursion), each node visited once.
     fn walk(&mut self, gltf_scene: &::gltf::Scene) -> Result<()> {
-        let mut visited = HashMap::new();
+        let mut visited = HashSet::new();
         let mut stack: Vec<(Node, Mat4)> =
             gltf_scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
         stack.reverse();
         while let Some((node, parent)) = stack.pop() {
-            if visited.insert(node.index(), ()).is_some() {
+            if !visited.insert(node.index()) {
                 return Err(self.invalid(format!(
                     "node {} is reached twice in the node hierarchy (a cycle or a shared child)",
                     node_label(&node)
@@ -719,8 +723,8 @@ fn surface_model(
     };
     match keys.first().copied() {
         Some("bsdf") => match string("bsdf")? {
-            "diffuse" | "lambert" => Ok(SurfaceModel::Lambert),
-            "metallic-roughness" | "metallic_roughness" => Ok(SurfaceModel::MetallicRoughness),
+            "diffuse" => Ok(SurfaceModel::Lambert),
+            "metallic-roughness" => Ok(SurfaceModel::MetallicRoughness),
             other => Err(format!(
                 "material '{material}' extras: unknown bsdf '{other}' (expected diffuse or metallic-roughness)"
             )),
@@ -846,7 +850,7 @@ mod tests {
 
     impl Bin {
         fn push(&mut self, data: &[u8], accessor: Value) -> usize {
-            while self.bytes.len() % 4 != 0 {
+            while !self.bytes.len().is_multiple_of(4) {
                 self.bytes.push(0);
             }
             self.views.push(
@@ -861,9 +865,16 @@ mod tests {
 
         fn vec3(&mut self, v: &[[f32; 3]]) -> usize {
             let data: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+            // glTF requires POSITION bounds; NaN is left out of them (f32::min ignores it).
+            let bound = |f: fn(f32, f32) -> f32, start: f32| {
+                (0..3)
+                    .map(|k| v.iter().map(|p| p[k]).fold(start, f))
+                    .collect::<Vec<f32>>()
+            };
             self.push(
                 &data,
-                json!({"componentType": 5126, "count": v.len(), "type": "VEC3"}),
+                json!({"componentType": 5126, "count": v.len(), "type": "VEC3",
+                       "min": bound(f32::min, f32::MAX), "max": bound(f32::max, f32::MIN)}),
             )
         }
 
@@ -1085,7 +1096,7 @@ mod tests {
         let g = load_doc(&doc).expect("load").geometry;
         assert_eq!(
             g.triangles,
-            vec![[0, 1, 2], [2, 1, 3], [5, 6, 4], [6, 7, 4]]
+            vec![[0, 1, 2], [1, 3, 2], [5, 6, 4], [6, 7, 4]]
         );
         for t in 0..4 {
             let [a, b, c] = g.triangle_positions(t);
@@ -1131,6 +1142,29 @@ mod tests {
         let message = scene.camera(Some("top")).expect_err("unknown").to_string();
         assert!(message.contains("camera 'top' not found"), "{message}");
         assert!(message.contains("main, side"), "{message}");
+    }
+
+    #[test]
+    fn degenerate_camera_and_light_transforms_are_errors() {
+        let cameras = json!({"cameras": [
+            {"name": "flat", "type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}
+        ]});
+        let doc = triangle_doc(
+            json!([{"mesh": 0}, {"camera": 0, "scale": [0.0, 0.0, 0.0]}]),
+            json!([0, 1]),
+            cameras,
+        );
+        expect_error(&doc, "camera 'flat' has a degenerate node transform");
+        let lights = json!({
+            "extensionsUsed": ["KHR_lights_punctual"],
+            "extensions": {"KHR_lights_punctual": {"lights": [{"name": "sun", "type": "directional"}]}}
+        });
+        let doc = triangle_doc(
+            json!([{"mesh": 0}, {"scale": [1.0, 1.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}]),
+            json!([0, 1]),
+            lights,
+        );
+        expect_error(&doc, "light 'sun' has a degenerate node transform");
     }
 
     #[test]
@@ -1354,10 +1388,10 @@ mod tests {
         });
         let (root, mut bin_chunk) = bin.finish(root, None);
         let mut json_chunk = serde_json::to_vec(&root).expect("serialise");
-        while json_chunk.len() % 4 != 0 {
+        while !json_chunk.len().is_multiple_of(4) {
             json_chunk.push(b' ');
         }
-        while bin_chunk.len() % 4 != 0 {
+        while !bin_chunk.len().is_multiple_of(4) {
             bin_chunk.push(0);
         }
         let total = 12 + 8 + json_chunk.len() + 8 + bin_chunk.len();

@@ -481,3 +481,154 @@ impl SceneDescription {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One unit right triangle in the xy plane, facing +z, with a grey material.
+    fn triangle_scene() -> SceneDescription {
+        let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        SceneDescription {
+            source: PathBuf::from("mem.gltf"),
+            geometry: Geometry {
+                normals: vec![Vec3::Z; 3],
+                uvs: vec![Vec2::ZERO; 3],
+                triangles: vec![[0, 1, 2]],
+                material_ids: vec![0],
+                positions,
+            },
+            materials: vec![Material::default_diffuse("grey")],
+            ..SceneDescription::default()
+        }
+    }
+
+    #[test]
+    fn smooth_normals_weigh_by_area_and_tolerate_degenerate_triangles() {
+        let positions = [
+            Vec3::ZERO,
+            Vec3::Y,
+            Vec3::new(-3.0, 0.0, 0.0),
+            Vec3::NEG_Z,
+            Vec3::splat(7.0),
+        ];
+        let normals = smooth_vertex_normals(&positions, &[[0, 1, 2], [0, 3, 1], [4, 4, 4]]);
+        assert!(normals[0].abs_diff_eq(Vec3::new(1.0, 0.0, 3.0).normalize(), 1e-6));
+        assert_eq!(normals[2], Vec3::Z);
+        assert_eq!(normals[3], Vec3::X);
+        assert_eq!(
+            normals[4],
+            Vec3::Y,
+            "only a degenerate triangle: fallback +y"
+        );
+    }
+
+    #[test]
+    fn append_offsets_indices() {
+        let mut g = triangle_scene().geometry;
+        let other = g.clone();
+        g.append(&other, Path::new("x.obj")).expect("append");
+        assert_eq!(g.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(g.bounds(), Some((Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0))));
+        assert_eq!(Geometry::default().bounds(), None);
+    }
+
+    #[test]
+    fn validate_rejects_what_the_renderer_cannot_use() {
+        assert!(triangle_scene().validate().is_ok());
+        type Breakage = (fn(&mut SceneDescription), &'static str);
+        let cases: [Breakage; 5] = [
+            (
+                |s| s.geometry = Geometry::default(),
+                "mem.gltf: contains no triangles",
+            ),
+            (
+                |s| s.geometry.positions[1].x = f32::NAN,
+                "mem.gltf: non-finite vertex position (vertex 1)",
+            ),
+            (
+                |s| s.geometry.triangles[0][2] = 3,
+                "vertex index out of range",
+            ),
+            (|s| s.geometry.material_ids[0] = 1, "uses material 1 of 1"),
+            (
+                |s| {
+                    s.geometry.normals.pop();
+                },
+                "3 positions but 2 normals",
+            ),
+        ];
+        for (break_it, problem) in cases {
+            let mut scene = triangle_scene();
+            break_it(&mut scene);
+            let message = scene.validate().expect_err(problem).to_string();
+            assert!(message.contains(problem), "{message}");
+        }
+    }
+
+    #[test]
+    fn camera_lookup_and_default_framing() {
+        let mut scene = triangle_scene();
+        let message = scene.camera(None).expect_err("no camera").to_string();
+        assert_eq!(message, "mem.gltf: contains no perspective camera");
+        let framed = scene
+            .camera_or_default(None, Some(2.0))
+            .expect("default camera");
+        assert_eq!(framed.name, "default");
+        let eye = framed.camera_to_world.transform_point3(Vec3::ZERO);
+        let centre = Vec3::new(0.5, 0.5, 0.0);
+        assert!((eye - centre).normalize().abs_diff_eq(Vec3::Z, 1e-6));
+        let radius = 0.5 * 2f32.sqrt();
+        let half = 0.5 * Camera::FRAMING_YFOV_DEGREES.to_radians();
+        assert!(((eye - centre).length() - radius / half.sin()).abs() < 1e-5);
+
+        scene.cameras.push(framed.clone());
+        scene.cameras.push(Camera {
+            name: "top".into(),
+            ..framed
+        });
+        assert_eq!(scene.camera(Some("top")).expect("top").name, "top");
+        assert_eq!(scene.camera(None).expect("first").name, "default");
+        let message = scene.camera(Some("side")).expect_err("unknown").to_string();
+        assert_eq!(message, "camera 'side' not found (available: default, top)");
+    }
+
+    #[test]
+    fn load_dispatches_on_the_extension() {
+        let message = SceneDescription::load(Path::new("scene.fbx"))
+            .expect_err("unknown format")
+            .to_string();
+        assert_eq!(
+            message,
+            "scene.fbx: unknown scene format (expected a .gltf, .glb or .obj file)"
+        );
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("TRI.OBJ");
+        std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").expect("write");
+        let scene = SceneDescription::load(&path).expect("load OBJ by upper-case extension");
+        assert_eq!(scene.geometry.triangle_count(), 1);
+    }
+
+    #[test]
+    fn srgb_textures_are_decoded_to_linear() {
+        let mut png = Vec::new();
+        image::RgbImage::from_raw(1, 1, vec![0, 188, 255])
+            .expect("image")
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .expect("encode");
+        let t = Texture::from_encoded_srgb(&png, Path::new("a.gltf"), "image 0").expect("decode");
+        assert!(
+            t.texels[0].abs_diff_eq(Rgb::new(0.0, 0.502_886, 1.0), 1e-4),
+            "{}",
+            t.texels[0]
+        );
+        assert_eq!(t.lookup(Vec2::new(0.3, 0.9)), t.texels[0]);
+        let message = Texture::from_encoded_srgb(b"not an image", Path::new("a.gltf"), "image 0")
+            .expect_err("garbage")
+            .to_string();
+        assert!(
+            message.starts_with("a.gltf: cannot decode image 0"),
+            "{message}"
+        );
+    }
+}

@@ -1,4 +1,5 @@
-//! Wavefront OBJ/MTL loader (via `tobj`: faces triangulated, one index per vertex).
+//! Wavefront OBJ/MTL loader (via `tobj`: faces triangulated, one index per vertex; point
+//! and line elements skipped).
 //!
 //! OBJ files are taken as world space, y up, counter-clockwise fronts; texture coordinates
 //! are flipped to glTF's convention (v down). Objects without normals get area-weighted
@@ -34,6 +35,8 @@ pub fn load(path: &Path) -> Result<SceneDescription> {
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
         ..tobj::LoadOptions::default()
     };
     let mtl_error: RefCell<Option<Error>> = RefCell::new(None);
@@ -216,4 +219,167 @@ fn convert_material(
 /// 2007), roughness = sqrt(α), in (0, 1].
 fn phong_exponent_to_roughness(ns: f32) -> f32 {
     (2.0 / (ns + 2.0)).sqrt().sqrt().clamp(0.0, 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OBJ: &str = "mtllib scene.mtl
+o plain
+v 0 0 5
+v 1 0 5
+v 0 1 5
+f 1 2 3
+o floor
+v -1 0 -1
+v 1 0 -1
+v 1 0 1
+v -1 0 1
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+usemtl matte
+f 7/4 6/3 5/2 4/1
+o lamp
+v 0 2 0
+v 1 2 0
+v 0 2 1
+vn 0 -1 0
+usemtl light
+f 8//1 10//1 9//1
+o shiny
+v 0 1 0
+v 1 1 0
+v 0 1.5 0
+usemtl glossy
+f 11 12 13
+";
+
+    const MTL: &str = "newmtl matte
+Kd 0.5 0.25 0.125
+Ks 0 0 0
+newmtl light
+Kd 0 0 0
+Ke 10 9 8
+newmtl glossy
+Kd 0.1 0.2 0.3
+Ks 0.5 0.5 0.5
+Ns 98
+";
+
+    fn write_files(dir: &Path, obj: &str, mtl: Option<&str>) -> std::path::PathBuf {
+        let path = dir.join("scene.obj");
+        std::fs::write(&path, obj).expect("write obj");
+        if let Some(mtl) = mtl {
+            std::fs::write(dir.join("scene.mtl"), mtl).expect("write mtl");
+        }
+        path
+    }
+
+    #[test]
+    fn obj_with_mtl_loads() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = write_files(dir.path(), OBJ, Some(MTL));
+        let scene = SceneDescription::load(&path).expect("load");
+        let g = &scene.geometry;
+        assert_eq!(g.triangle_count(), 5);
+        assert!(scene.cameras.is_empty() && scene.lights.is_empty());
+        let by_name = |name: &str| {
+            scene
+                .materials
+                .iter()
+                .find(|m| m.name == name)
+                .unwrap_or_else(|| panic!("material {name}"))
+        };
+        let matte = by_name("matte");
+        assert_eq!(matte.model, SurfaceModel::Lambert);
+        assert_eq!(matte.base_color, Rgb::new(0.5, 0.25, 0.125));
+        let light = by_name("light");
+        assert_eq!(light.emission, Rgb::new(10.0, 9.0, 8.0));
+        let glossy = by_name("glossy");
+        assert_eq!(glossy.model, SurfaceModel::MetallicRoughness);
+        assert!((glossy.roughness - 0.02f32.sqrt().sqrt()).abs() < 1e-6);
+        assert_eq!(glossy.metallic, 0.0);
+        // The floor quad (two triangles) faces +y, computed smooth normals agree.
+        for t in 1..3 {
+            let [a, b, c] = g.triangle_positions(t);
+            assert!((b - a).cross(c - a).normalize().abs_diff_eq(Vec3::Y, 1e-6));
+            let [i, _, _] = g.triangles[t];
+            assert!(g.normals[i as usize].abs_diff_eq(Vec3::Y, 1e-6));
+        }
+        // v is flipped to glTF's convention: the vertex with vt 0 1 gets uv (0, 0).
+        let corner = g
+            .positions
+            .iter()
+            .position(|p| *p == Vec3::new(-1.0, 0.0, 1.0))
+            .expect("corner");
+        assert_eq!(g.uvs[corner], Vec2::new(0.0, 0.0));
+        // The lamp's file normals are kept.
+        let lamp = g
+            .material_ids
+            .iter()
+            .position(|&m| scene.materials[m as usize].name == "light");
+        let [i, _, _] = g.triangles[lamp.expect("lamp triangle")];
+        assert_eq!(g.normals[i as usize], Vec3::NEG_Y);
+        // Faces before any "usemtl" get the default material.
+        assert_eq!(scene.materials[g.material_ids[0] as usize].name, "default");
+    }
+
+    #[test]
+    fn obj_without_materials_gets_the_default() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = write_files(dir.path(), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", None);
+        let scene = load(&path).expect("load");
+        assert_eq!(scene.materials.len(), 1);
+        assert_eq!(scene.materials[0].name, "default");
+        assert_eq!(scene.geometry.normals, vec![Vec3::Z; 3]);
+        let camera = scene.camera_or_default(None, None).expect("default camera");
+        assert_eq!(camera.name, "default");
+    }
+
+    #[test]
+    fn missing_obj_and_mtl_files_are_io_errors() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let missing = dir.path().join("none.obj");
+        let error = load(&missing).expect_err("missing obj");
+        assert!(
+            matches!(error, Error::Io { ref path, .. } if path == &missing),
+            "{error}"
+        );
+        let path = write_files(dir.path(), OBJ, None);
+        let error = load(&path).expect_err("missing mtl");
+        assert!(
+            matches!(error, Error::Io { ref path, .. } if path.ends_with("scene.mtl")),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn bad_obj_input_is_an_invalid_file() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = write_files(dir.path(), "v 0 0 0\nv 1 0 0\nf 1 2 7\n", None);
+        let message = load(&path).expect_err("bad index").to_string();
+        assert!(
+            message.starts_with(&path.display().to_string()),
+            "{message}"
+        );
+        let path = write_files(dir.path(), "v 0 0 0\nv 1 0 0\n", None);
+        let message = load(&path).expect_err("no faces").to_string();
+        assert!(message.contains("contains no triangles"), "{message}");
+        let path = write_files(dir.path(), "v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n", None);
+        let message = load(&path).expect_err("inf").to_string();
+        assert!(
+            message.contains("non-finite vertex position in object"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn phong_exponent_maps_to_walter_roughness() {
+        assert_eq!(phong_exponent_to_roughness(0.0), 1.0);
+        let r = phong_exponent_to_roughness(98.0);
+        assert!((r * r - (2.0f32 / 100.0).sqrt()).abs() < 1e-6);
+    }
 }

@@ -1,0 +1,126 @@
+//! NBRDF network ([`crate::nbrdf`]) as a BSDF, evaluated natively per shading point.
+//!
+//! The network sees (sin θh, 0, cos θh, d) of (wi, wo) with φd folded into [0, π)
+//! ([`crate::brdf_coords::network_input`]), which makes the BSDF reciprocal by construction at
+//! the cost of one network evaluation; its output is clamped to f_r = max(exp(y) − 1, 0) and
+//! kept finite, and it is zero below either horizon. The network is never asked for a
+//! density: importance sampling uses a [`TabulatedSampler`] fitted from the network's values
+//! at construction.
+//!
+//! ```no_run
+//! use renderer::bsdf::nbrdf::NbrdfBsdf;
+//! let bsdf = NbrdfBsdf::load("../shared/data/nbrdf/merl/alum-bronze")?;
+//! # Ok::<(), renderer::Error>(())
+//! ```
+
+use super::tabulated_sampling::{TabulatedSampler, TabulatedSamplerConfig};
+use super::{BsdfSample, Bxdf};
+use crate::nbrdf::NbrdfNetwork;
+use crate::{Result, Rgb};
+use glam::{Vec2, Vec3};
+use std::path::Path;
+
+/// An NBRDF network as a BSDF.
+#[derive(Clone, Debug)]
+pub struct NbrdfBsdf {
+    network: NbrdfNetwork,
+    sampler: TabulatedSampler,
+}
+
+/// f_r(wo, wi) of a network; zero below either horizon.
+#[inline]
+fn eval_network(network: &NbrdfNetwork, wo: Vec3, wi: Vec3) -> Rgb {
+    if wo.z <= 0.0 || wi.z <= 0.0 {
+        return Rgb::ZERO;
+    }
+    network.eval_input(crate::brdf_coords::network_input(wi, wo))
+}
+
+impl NbrdfBsdf {
+    /// Loads `<prefix>_fc1.npy` ... `<prefix>_b3.npy` (see [`NbrdfNetwork::load`]) with the
+    /// default sampler.
+    pub fn load(prefix: impl AsRef<Path>) -> Result<Self> {
+        Ok(Self::new(NbrdfNetwork::load(prefix)?, &TabulatedSamplerConfig::default()))
+    }
+
+    /// Wraps a network; fits the sampler (≈ 0.4 M network evaluations, parallel).
+    pub fn new(network: NbrdfNetwork, sampling: &TabulatedSamplerConfig) -> Self {
+        let sampler = TabulatedSampler::new(|wo, wi| eval_network(&network, wo, wi), sampling);
+        NbrdfBsdf { network, sampler }
+    }
+
+    /// The network.
+    pub fn network(&self) -> &NbrdfNetwork {
+        &self.network
+    }
+
+    /// The importance sampler fitted to this network.
+    pub fn sampler(&self) -> &TabulatedSampler {
+        &self.sampler
+    }
+}
+
+impl Bxdf for NbrdfBsdf {
+    #[inline]
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        eval_network(&self.network, wo, wi)
+    }
+
+    #[inline]
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.sampler.pdf(wo, wi)
+    }
+
+    fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
+        let wi = self.sampler.sample(wo, u, uc)?;
+        let pdf = self.sampler.pdf(wo, wi);
+        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample {
+            wi,
+            f: self.eval(wo, wi),
+            pdf,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::measured::tests::{check_chi2, check_stability, nbrdf_bsdf, CHI2_MATERIALS, CHI2_THETAS};
+
+    #[test]
+    fn eval_matches_network_and_is_reciprocal() {
+        let bsdf = nbrdf_bsdf("alum-bronze");
+        let a = crate::brdf_coords::HalfDiffAngles {
+            theta_h: 0.3,
+            phi_h: 1.0,
+            theta_d: 0.5,
+            phi_d: 2.0,
+        };
+        let (wi, wo) = crate::brdf_coords::directions_from_angles(&a);
+        let want = bsdf.network().eval_angles(0.3, 0.5, 2.0);
+        let got = bsdf.eval(wo, wi);
+        assert!((got - want).abs().max_element() < 1e-4 * want.max_element(), "{got} vs {want}");
+        // Swapping the directions maps φd to φd + π, folded back to the same input.
+        let swapped = bsdf.eval(wi, wo);
+        assert!((swapped - got).abs().max_element() < 1e-4 * got.max_element());
+        assert_eq!(bsdf.eval(Vec3::new(0.0, 0.6, -0.8), wi), Rgb::ZERO);
+        assert_eq!(bsdf.eval(wo, Vec3::new(0.0, 0.6, -0.8)), Rgb::ZERO);
+    }
+
+    #[test]
+    fn stability_on_difficult_materials() {
+        for name in ["chrome", "black-obsidian", "black-phenolic"] {
+            check_stability(&nbrdf_bsdf(name));
+        }
+    }
+
+    #[test]
+    fn sampling_passes_chi2() {
+        for name in CHI2_MATERIALS {
+            let bsdf = nbrdf_bsdf(name);
+            for theta_o in CHI2_THETAS {
+                check_chi2(&bsdf, name, theta_o);
+            }
+        }
+    }
+}

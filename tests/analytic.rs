@@ -1,0 +1,94 @@
+//! Scenes with a known answer (as pbrt-v4's integrator tests): the white furnace and the
+//! inside of a uniformly emitting, uniformly reflecting sphere, for every estimator.
+
+use glam::{Mat4, Vec3};
+use neural_brdf_tests::{mean_rgb, render, shapes::add_sphere};
+use renderer::integrator::{PathTracer, Strategy};
+use renderer::render_scene::RenderScene;
+use renderer::scene::{Camera, EnvironmentSource, EnvironmentSpec, Geometry, Material, SceneDescription, SurfaceModel};
+use renderer::Rgb;
+
+fn camera_at(position: Vec3, target: Vec3) -> Camera {
+    Camera {
+        name: "camera".into(),
+        camera_to_world: {
+            let forward = (target - position).normalize();
+            let right = forward.cross(Vec3::Y).normalize();
+            let up = right.cross(forward);
+            Mat4::from_cols(right.extend(0.0), up.extend(0.0), (-forward).extend(0.0), position.extend(1.0))
+        },
+        yfov: 40f32.to_radians(),
+        aspect_ratio: None,
+    }
+}
+
+fn lambert(name: &str, albedo: f32, emission: f32) -> Material {
+    Material {
+        name: name.into(),
+        model: SurfaceModel::Lambert,
+        base_color: Rgb::splat(albedo),
+        emission: Rgb::splat(emission),
+        ..Material::default_diffuse(name)
+    }
+}
+
+/// A white Lambertian sphere under a uniform environment of radiance 1 reflects radiance 1
+/// everywhere (white furnace), with unlimited depth.
+#[test]
+fn white_furnace_lambert() {
+    let mut geometry = Geometry::default();
+    add_sphere(&mut geometry, Vec3::ZERO, 1.0, 32, 64, false, 0);
+    let description = SceneDescription {
+        geometry,
+        materials: vec![lambert("white", 1.0, 0.0)],
+        environment: Some(EnvironmentSpec {
+            source: EnvironmentSource::Constant(Rgb::ONE),
+            strength: 1.0,
+            rotation: 0.0,
+        }),
+        ..SceneDescription::default()
+    };
+    let scene = RenderScene::new(description).expect("scene");
+    let camera = camera_at(Vec3::new(0.0, 0.0, 3.5), Vec3::ZERO);
+    for strategy in [Strategy::Mis, Strategy::BsdfOnly, Strategy::LightOnly] {
+        let integrator = PathTracer {
+            max_depth: -1,
+            strategy,
+            ..PathTracer::default()
+        };
+        let img = render(&scene, &camera, 24, 24, 64, integrator, 1);
+        let mean = mean_rgb(&img.mean);
+        assert!((mean - Rgb::ONE).abs().max_element() < 0.01, "{strategy:?}: mean {mean}");
+        assert_eq!(img.discarded, 0);
+    }
+}
+
+/// Inside a closed sphere whose surface emits Le and reflects with albedo a, the radiance
+/// is Le / (1 − a) in every direction, whatever the estimator.
+#[test]
+fn emitting_sphere_interior_is_le_over_one_minus_albedo() {
+    let (le, albedo) = (0.5f32, 0.6f32);
+    let expected = le / (1.0 - albedo);
+    let mut geometry = Geometry::default();
+    add_sphere(&mut geometry, Vec3::ZERO, 1.0, 24, 48, true, 0);
+    let description = SceneDescription {
+        geometry,
+        materials: vec![lambert("glow", albedo, le)],
+        ..SceneDescription::default()
+    };
+    let scene = RenderScene::new(description).expect("scene");
+    let camera = camera_at(Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.5, -0.2, -0.4));
+    for strategy in [Strategy::Mis, Strategy::BsdfOnly, Strategy::LightOnly] {
+        let integrator = PathTracer {
+            max_depth: -1,
+            strategy,
+            ..PathTracer::default()
+        };
+        let img = render(&scene, &camera, 16, 16, 128, integrator, 2);
+        let mean = mean_rgb(&img.mean);
+        assert!(
+            ((mean - Rgb::splat(expected)) / expected).abs().max_element() < 0.025,
+            "{strategy:?}: mean {mean}, expected {expected}"
+        );
+    }
+}
