@@ -1,1 +1,3 @@
 //! Learns neural materials from measured BRDFs; see the crate README.
+
+pub mod tabulate;

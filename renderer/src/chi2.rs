@@ -358,7 +358,9 @@ impl Chi2Result {
         };
         let mut cells: Vec<usize> = (0..self.observed.len()).collect();
         cells.sort_by(|&a, &b| contribution(b).total_cmp(&contribution(a)));
-        let mut s = String::from("worst cells:   θ range (°)      φ range (°)    observed    expected   (O-E)²/E\n");
+        let mut s = String::from(
+            "worst cells:   θ range (°)      φ range (°)    observed    expected   (O-E)²/E\n",
+        );
         for &i in cells.iter().take(count) {
             let (row, column) = (i / self.phi_cells, i % self.phi_cells);
             let (t0, t1) = self.row_range_degrees(row);
@@ -471,14 +473,16 @@ where
         }
     }
     if let Some((w, value)) = integrator.bad_value {
-        problems.push(format!("the pdf is negative or not finite: pdf({w}) = {value}"));
+        problems.push(format!(
+            "the pdf is negative or not finite: pdf({w}) = {value}"
+        ));
     }
     let pdf_integral = if n > 0 {
         expected.iter().sum::<f64>() / n as f64
     } else {
         0.0
     };
-    if !(pdf_integral <= 1.0 + config.pdf_integral_tolerance) {
+    if pdf_integral.is_nan() || pdf_integral > 1.0 + config.pdf_integral_tolerance {
         problems.push(format!(
             "the pdf integrates to {pdf_integral:.6} > 1 over the sphere"
         ));
@@ -522,7 +526,7 @@ where
             }
         }
     };
-    if pooled.degrees_of_freedom >= 1 && !(p_value >= threshold) {
+    if pooled.degrees_of_freedom >= 1 && (p_value.is_nan() || p_value < threshold) {
         problems.push(format!(
             "the samples do not follow the pdf: p = {p_value:.3e} < {threshold:.3e}"
         ));
@@ -558,10 +562,7 @@ struct PooledChiSquare {
 /// with nothing expected and nothing observed are skipped, consecutive cells expected below
 /// `threshold` are merged until their pool reaches it (Mitsuba's `chi2` in
 /// `src/core/python/...`/`util.chi2`).
-fn pooled_chi_square(
-    cells: impl Iterator<Item = (f64, f64)>,
-    threshold: f64,
-) -> PooledChiSquare {
+fn pooled_chi_square(cells: impl Iterator<Item = (f64, f64)>, threshold: f64) -> PooledChiSquare {
     let (mut statistic, mut cell_count, mut pooled_in) = (0.0f64, 0usize, 0usize);
     let (mut pool_observed, mut pool_expected) = (0.0f64, 0.0f64);
     let term = |o: f64, e: f64| {
@@ -669,34 +670,55 @@ impl<P: Fn(Vec3) -> f32> CellIntegrator<'_, P> {
 }
 
 /// Seed of the jitter in [`directional_albedo`].
-const ALBEDO_SEED: u64 = 0x5eed_a1be_d0;
+const ALBEDO_SEED: u64 = 0x05ee_da1b_ed00;
 
 /// Directional albedo ρ(wo) = ∫ f(wo, wi) cos θi dωi over the upper hemisphere (per channel,
-/// dimensionless; ≤ 1 for an energy-conserving BSDF), by Monte Carlo with stratified
-/// cosine-weighted directions, independent of the BSDF's own sampler: ⌈√n⌉² jittered strata
-/// of the unit square (so at least `n` evaluations of `eval`) through the concentric
-/// mapping, with a fixed seed. `wo` is a unit vector in the local frame.
+/// dimensionless; ≤ 1 for an energy-conserving BSDF), by Monte Carlo independent of the
+/// BSDF's own sampler and pdf. `wo` is a unit vector in the local frame.
 ///
-/// Stratification keeps the error low for smooth lobes; for very sharp lobes (GGX α below
-/// about 0.05) the estimate is noisy and needs a large `n`.
+/// Two BSDF-agnostic techniques are combined by multi-sample MIS with the balance heuristic:
+/// cosine-weighted directions (good for lobes around the normal) and uniform hemisphere
+/// directions (good for lobes near the horizon, where cosine sampling rarely goes). Each
+/// technique draws one jittered sample in each of ⌈√(n/2)⌉² strata of the unit square, so
+/// `eval` is called about `n` times; the jitter uses a fixed seed, so the result is
+/// deterministic.
+///
+/// Accuracy (white GGX metal, n = 500,000): about 10⁻³ for α ≥ 0.09 up to θo = 80°, about
+/// 10⁻² at θo = 89°; lobes sharper than α ≈ 0.05 need a much larger `n`.
 pub fn directional_albedo<B: Bxdf + ?Sized>(bxdf: &B, wo: Vec3, n: usize) -> Rgb {
-    let m = (n.max(1) as f64).sqrt().ceil() as usize;
+    let m = (n.max(2) as f64 / 2.0).sqrt().ceil() as usize;
     let mut rng = Pcg32::seed_from_u64(ALBEDO_SEED);
     let mut sum = DVec3::ZERO;
+    let mut add = |wi: Vec3| {
+        if wi.z > 0.0 {
+            // Balance heuristic over both techniques: f cos θi / (p_cos + p_uniform).
+            let cos_theta = wi.z as f64;
+            let density = cos_theta / PI + 0.5 / PI;
+            sum += bxdf.eval(wo, wi).as_dvec3() * (cos_theta / density);
+        }
+    };
     for i in 0..m {
         for j in 0..m {
-            let u = Vec2::new(
-                (i as f32 + rng.random::<f32>()) / m as f32,
-                (j as f32 + rng.random::<f32>()) / m as f32,
-            );
-            let wi = sample_cosine_hemisphere(u);
-            if wi.z > 0.0 {
-                // f cos θi / (cos θi / π) = π f.
-                sum += bxdf.eval(wo, wi).as_dvec3();
-            }
+            let mut jittered = || {
+                Vec2::new(
+                    (i as f32 + rng.random::<f32>()) / m as f32,
+                    (j as f32 + rng.random::<f32>()) / m as f32,
+                )
+            };
+            add(sample_cosine_hemisphere(jittered()));
+            let u = jittered();
+            add(sample_uniform_hemisphere(u));
         }
     }
-    (sum * (PI / (m * m) as f64)).as_vec3()
+    (sum / (m * m) as f64).as_vec3()
+}
+
+/// Uniform direction on the upper hemisphere (density 1 / 2π per steradian).
+fn sample_uniform_hemisphere(u: Vec2) -> Vec3 {
+    let z = u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * std::f32::consts::PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
 /// Most problems listed individually by [`ConsistencyReport`].
@@ -781,10 +803,16 @@ pub fn check_sample_consistency<B: Bxdf + ?Sized>(
             report.problem(format!("wi is below the horizon ({at})"));
         }
         if !(s.pdf > 0.0 && s.pdf.is_finite()) {
-            report.problem(format!("sample pdf {} is not finite and positive ({at})", s.pdf));
+            report.problem(format!(
+                "sample pdf {} is not finite and positive ({at})",
+                s.pdf
+            ));
         }
         if !(s.f.is_finite() && s.f.min_element() >= 0.0) {
-            report.problem(format!("sample f {} is not finite and non-negative ({at})", s.f));
+            report.problem(format!(
+                "sample f {} is not finite and non-negative ({at})",
+                s.f
+            ));
         }
         let f = bxdf.eval(wo, s.wi);
         let pdf = bxdf.pdf(wo, s.wi);
@@ -854,7 +882,11 @@ mod tests {
             );
             assert_eq!(result.theta_cells, 18);
             assert!(result.passed(), "{domain:?}\n{result}");
-            assert!((result.pdf_integral - 1.0).abs() < 1e-4, "{}", result.pdf_integral);
+            assert!(
+                (result.pdf_integral - 1.0).abs() < 1e-4,
+                "{}",
+                result.pdf_integral
+            );
             assert_eq!(result.failed_samples, 0);
         }
     }
@@ -884,7 +916,11 @@ mod tests {
         };
         let result = test_bxdf(&b, Vec3::Z, &config());
         assert!(!result.passed(), "{result}");
-        assert!((result.pdf_integral - 1.0).abs() < 1e-3, "{}", result.pdf_integral);
+        assert!(
+            (result.pdf_integral - 1.0).abs() < 1e-3,
+            "{}",
+            result.pdf_integral
+        );
         assert!(result.p_value < result.threshold);
         assert!(result.residual_map().contains('#'));
     }
@@ -893,12 +929,21 @@ mod tests {
     fn samples_outside_the_pdf_support_fail() {
         let result = test_sampler(
             |u, _| Some(sample_uniform_sphere(u)),
-            |w| if w.z > 0.0 { 2.0 * uniform_sphere_pdf() } else { 0.0 },
+            |w| {
+                if w.z > 0.0 {
+                    2.0 * uniform_sphere_pdf()
+                } else {
+                    0.0
+                }
+            },
             &config(),
         );
         assert!(!result.passed());
         assert!(result.residual_map().contains('!'));
-        assert!(result.problems.iter().any(|p| p.contains("integrates to zero")));
+        assert!(result
+            .problems
+            .iter()
+            .any(|p| p.contains("integrates to zero")));
     }
 
     #[test]
@@ -926,7 +971,10 @@ mod tests {
         let text = result.to_string();
         assert!(text.starts_with("chi-square test passed"));
         assert!(text.contains("worst cells"));
-        assert_eq!(result.observed_map().lines().count(), 1 + result.theta_cells);
+        assert_eq!(
+            result.observed_map().lines().count(),
+            1 + result.theta_cells
+        );
     }
 
     #[test]

@@ -10,6 +10,7 @@
 //! - Angles are in radians, solid-angle densities in 1/sr.
 
 pub mod accel;
+pub mod analytic;
 pub mod brdf_coords;
 pub mod bsdf;
 pub mod camera;

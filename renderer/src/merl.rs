@@ -472,6 +472,33 @@ mod tests {
     }
 
     #[test]
+    fn table_from_network_round_trips_to_f32_precision() {
+        // A full table written from an NBRDF network and read back returns the network's
+        // f32 values at every bin centre.
+        let net = crate::nbrdf::tests::merl_network("alum-bronze");
+        let eval = |i: usize| {
+            let [th, td, pd] = bin_centre(i);
+            net.eval_angles(th as f32, td as f32, pd as f32)
+        };
+        let table = MerlTable::from_fn(|th, td, pd| net.eval_angles(th, td, pd));
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("alum-bronze.binary");
+        table.write(&path).unwrap();
+        let back = MerlTable::read(&path).unwrap();
+        let worst = (0..BIN_COUNT)
+            .into_par_iter()
+            .map(|i| {
+                let want = eval(i);
+                let got = back.value(i);
+                (0..3)
+                    .map(|c| (got[c] as f32 - want[c]).abs() / want[c].abs().max(f32::MIN_POSITIVE))
+                    .fold(0.0f32, f32::max)
+            })
+            .reduce(|| 0.0, f32::max);
+        assert!(worst <= f32::EPSILON, "worst relative difference {worst:e}");
+    }
+
+    #[test]
     fn trilinear_reproduces_bin_centres_and_interpolates() {
         let table = MerlTable::from_fn(|th, td, _| Rgb::new(th, td, 1.0));
         let [th, td, pd] = bin_centre(bin_index(40, 30, 20));

@@ -39,12 +39,12 @@ pub const MAX_ALPHA: f32 = 1.0;
 /// finite when both directions lie on (or within 10⁻³⁰ of) the horizon.
 const MIN_VISIBILITY_DENOMINATOR: f32 = 1e-30;
 
-/// The GGX (Trowbridge–Reitz) distribution of microfacet normals, with Smith's
-/// masking-shadowing for its uncorrelated-height microsurface.
+/// The GGX (Trowbridge–Reitz) distribution of microfacet normals with its Smith
+/// masking-shadowing functions.
 ///
 /// Conventions: `h` is a microfacet normal, `wo` and `wi` are the outgoing (viewer) and
 /// incoming (light) directions; all are unit vectors in the local frame (z = macro normal).
-/// The roughnesses are clamped to [[`MIN_ALPHA`], [`MAX_ALPHA`]] at construction.
+/// The roughnesses are clamped to [`MIN_ALPHA`] ..= [`MAX_ALPHA`] at construction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GgxDistribution {
     /// Roughness α along the local x axis, in [`MIN_ALPHA`], [`MAX_ALPHA`].
@@ -56,12 +56,16 @@ pub struct GgxDistribution {
 /// Clamps α to [`MIN_ALPHA`], [`MAX_ALPHA`]; NaN becomes [`MIN_ALPHA`].
 #[inline]
 fn clamp_alpha(alpha: f32) -> f32 {
-    alpha.max(MIN_ALPHA).min(MAX_ALPHA)
+    if alpha.is_nan() {
+        MIN_ALPHA
+    } else {
+        alpha.clamp(MIN_ALPHA, MAX_ALPHA)
+    }
 }
 
 impl GgxDistribution {
     /// Anisotropic distribution with roughness `alpha_x` along x and `alpha_y` along y
-    /// (dimensionless slopes' scale). Each is clamped to [[`MIN_ALPHA`], [`MAX_ALPHA`]]
+    /// (dimensionless slopes' scale). Each is clamped to [`MIN_ALPHA`] ..= [`MAX_ALPHA`]
     /// (NaN becomes [`MIN_ALPHA`]).
     #[inline]
     pub fn new(alpha_x: f32, alpha_y: f32) -> Self {
@@ -188,9 +192,13 @@ impl GgxDistribution {
         let cap = Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), z);
         // Halfway vector in the hemisphere configuration, warped back to the ellipsoid.
         let h_std = cap + wo_std;
-        Vec3::new(h_std.x * self.alpha_x, h_std.y * self.alpha_y, h_std.z.max(0.0))
-            .try_normalize()
-            .unwrap_or(Vec3::Z)
+        Vec3::new(
+            h_std.x * self.alpha_x,
+            h_std.y * self.alpha_y,
+            h_std.z.max(0.0),
+        )
+        .try_normalize()
+        .unwrap_or(Vec3::Z)
     }
 
     /// Density (1/sr, over microfacet normals `h`) of [`Self::sample_visible_normal`]:
@@ -313,7 +321,10 @@ mod tests {
         for (ax, ay) in [(0.05, 0.05), (0.3, 0.3), (1.0, 1.0), (0.1, 0.4)] {
             let g = GgxDistribution::new(ax, ay);
             let integral = integrate_hemisphere(|h| g.d(h) * h.z, 4000, 360);
-            assert!((integral - 1.0).abs() < 2e-3, "α = ({ax}, {ay}): {integral}");
+            assert!(
+                (integral - 1.0).abs() < 2e-3,
+                "α = ({ax}, {ay}): {integral}"
+            );
         }
     }
 
@@ -351,7 +362,10 @@ mod tests {
                     // At normal incidence wi stays above the horizon iff θh < 45°, which
                     // has probability tan² 45° / (α² + tan² 45°) under D(h) cos θh.
                     let expected = 1.0 / (1.0 + (alpha * alpha) as f64);
-                    assert!((integral - expected).abs() < 2e-3, "α = {alpha}: {integral}");
+                    assert!(
+                        (integral - expected).abs() < 2e-3,
+                        "α = {alpha}: {integral}"
+                    );
                 }
             }
         }
@@ -381,7 +395,11 @@ mod tests {
     #[test]
     fn visible_normals_are_unit_and_visible() {
         let g = GgxDistribution::new(0.05, 0.5);
-        for wo in [Vec3::Z, spherical(1.0, 1.0), Vec3::new(1.0, 0.0, 1e-7).normalize()] {
+        for wo in [
+            Vec3::Z,
+            spherical(1.0, 1.0),
+            Vec3::new(1.0, 0.0, 1e-7).normalize(),
+        ] {
             for i in 0..32 {
                 for j in 0..32 {
                     let u = Vec2::new((i as f32 + 0.5) / 32.0, j as f32 / 32.0);
@@ -424,7 +442,10 @@ mod tests {
                 |h| g.visible_normal_pdf(wo, h),
                 &vndf_config(),
             );
-            assert!(result.passed(), "α = ({ax}, {ay}), θo = {theta_o}\n{result}");
+            assert!(
+                result.passed(),
+                "α = ({ax}, {ay}), θo = {theta_o}\n{result}"
+            );
         }
     }
 

@@ -1,34 +1,38 @@
-//! Tabulated importance sampling for measured and neural BRDFs, fitted once from the BRDF
-//! itself and with an exact density.
+//! Tabulated importance sampling for measured and neural BRDFs, fitted once from the BRDF's
+//! values and with an exact, continuous density.
 //!
 //! # Method
 //! For `theta_o_nodes` viewing angles θo (equal steps over [0, π/2]; isotropy makes φo
-//! irrelevant) a 2D piecewise-constant distribution ([`Distribution2D`]) is fitted over the
-//! half vector h, expressed relative to the azimuth of `wo`:
-//! - y = sqrt(θh / (π/2)) ∈ [0, 1) (the MERL warp: resolution concentrates at h ≈ n, where
-//!   every specular peak lies whatever θo, since h = n is the mirror configuration);
-//! - x = |φh − φo| / π ∈ [0, 1) (isotropic BRDFs are mirror-symmetric about the plane of
-//!   incidence, so the sign of φh − φo is drawn with probability ½ each).
+//! irrelevant) a density over the half vector h is tabulated, with h expressed relative to
+//! the azimuth of `wo`:
+//! - x = |φh − φo| / π ∈ [0, 1], in `phi_h_cells` equal columns (isotropic BRDFs are
+//!   mirror-symmetric about the plane of incidence, so the sign of φh − φo is drawn with
+//!   probability ½ each);
+//! - v = 1 − cos θh ∈ [0, 1], in `theta_h_cells` rows whose boundaries are equally spaced in
+//!   sqrt(θh / (π/2)) (the MERL warp), so rows are finest at h = n, where every specular peak
+//!   lies whatever θo (h = n is the mirror configuration).
 //!
-//! Within a cell h is uniform in solid angle (1 − cos θh and φh uniform), so the density is
-//! piecewise constant in h and bounded, even at h = n. A cell's probability is proportional
-//! to its solid angle Ω times the cell average (`supersampling`² points, both signs of
-//! φh − φo) of mean_rgb(f(wo, wi)) · cos θi · 4 (wo·h), with wi = reflect(wo, h) — i.e. to
-//! ∫ f cos θi dωi over the wi the cell reflects to; cells whose wi falls below the horizon
-//! weigh 0.
+//! Since dωh = dv dφh, a density in (x, v) is a density in solid angle of h up to the constant
+//! π. The density is bilinear within each cell between its four vertex values, which are
+//! mean_rgb(f(wo, wi)) · cos θi · 4 (wo·h) at the vertex (averaged over both signs), with
+//! wi = reflect(wo, h) — i.e. f cos θi per unit solid angle of h — and 0 where wi falls below
+//! the horizon. It is therefore continuous and bounded everywhere, h = n included, and it is
+//! sampled exactly by inversion: the row from the row masses, v within the row from its
+//! linear marginal, x from the conditional whose cumulative distribution interpolates those
+//! of the two vertex lines (Mitsuba's `Marginal2D` does the same on a uniform grid).
 //!
-//! Sampling mixes three parts: with probability `cosine_fraction` a cosine-weighted
-//! direction (so the density is positive wherever f·cos θi is, whatever the fit missed);
-//! otherwise the table of one of the two θo nodes around θo(wo), the upper one with
-//! probability equal to the linear-interpolation weight (so the density varies continuously
-//! with θo). The density returned by [`TabulatedSampler::pdf`] is that of the whole mixture,
-//! in 1/sr of wi, and is exactly the density of [`TabulatedSampler::sample`] (directions whose
-//! reflection falls below the horizon are returned as `None` and their mass is lost, so the
-//! density integrates to at most 1 over the upper hemisphere).
+//! Sampling mixes this with a cosine lobe: with probability `cosine_fraction` a
+//! cosine-weighted direction (so the density is positive wherever f·cos θi is, whatever the
+//! fit missed); otherwise the table of one of the two θo nodes around θo(wo), the upper one
+//! with probability equal to the linear-interpolation weight (so the density varies
+//! continuously with θo as well). [`TabulatedSampler::pdf`] returns the density of the whole
+//! mixture, in 1/sr of wi, which is exactly the density of [`TabulatedSampler::sample`];
+//! directions whose reflection falls below the horizon are returned as `None` and their mass
+//! is lost, so the density integrates to at most 1 over the upper hemisphere.
 //!
 //! The BRDF is never asked for a density: only its values enter the fit.
 
-use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, Distribution2D};
+use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, Distribution1D};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -40,26 +44,22 @@ pub struct TabulatedSamplerConfig {
     /// Viewing angles θo at which a table is fitted, equally spaced over [0, π/2] with both
     /// ends included (at least 2). The last node is evaluated at θo = π/2 − 10⁻³.
     pub theta_o_nodes: usize,
-    /// Cells along y = sqrt(θh / (π/2)).
+    /// Rows along θh (equal steps of sqrt(θh / (π/2))).
     pub theta_h_cells: usize,
-    /// Cells along |φh − φo| ∈ [0, π).
+    /// Columns along |φh − φo| ∈ [0, π].
     pub phi_h_cells: usize,
-    /// Points per cell and axis at which the BRDF is evaluated during the fit.
-    pub supersampling: usize,
     /// Probability of drawing from the cosine lobe, in [0, 1]; values below ~0.05 lose the
     /// robustness the lobe gives.
     pub cosine_fraction: f32,
 }
 
 impl Default for TabulatedSamplerConfig {
-    /// 24 θo nodes, 64 × 32 cells, 2 × 2 points per cell (393,216 BRDF evaluations per fit),
-    /// a 10% cosine lobe.
+    /// 24 θo nodes, 64 × 32 cells (≈ 0.1 M BRDF evaluations per fit), a 10% cosine lobe.
     fn default() -> Self {
         TabulatedSamplerConfig {
             theta_o_nodes: 24,
             theta_h_cells: 64,
             phi_h_cells: 32,
-            supersampling: 2,
             cosine_fraction: 0.1,
         }
     }
@@ -72,12 +72,11 @@ const MAX_NODE_THETA_O: f32 = FRAC_PI_2 - 1e-3;
 /// The fitted sampler; see the module documentation.
 #[derive(Clone)]
 pub struct TabulatedSampler {
-    /// One distribution per θo node over the cells; x = |φh − φo| / π (width),
-    /// y = sqrt(θh / (π/2)) (height).
-    tables: Vec<Distribution2D>,
-    /// 1 − cos θh at the row boundaries (`theta_h_cells + 1` entries, from 0).
+    /// One table per θo node.
+    tables: Vec<BilinearTable>,
+    /// v = 1 − cos θh at the row boundaries (`theta_h_cells + 1` entries, 0 to 1).
     row_v: Vec<f32>,
-    /// Columns per table (cells along |φh − φo|).
+    /// Columns per table.
     phi_cells: usize,
     cosine_fraction: f32,
 }
@@ -86,8 +85,122 @@ impl std::fmt::Debug for TabulatedSampler {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("TabulatedSampler")
             .field("theta_o_nodes", &self.tables.len())
+            .field("theta_h_cells", &(self.row_v.len() - 1))
+            .field("phi_h_cells", &self.phi_cells)
             .field("cosine_fraction", &self.cosine_fraction)
-            .finish_non_exhaustive()
+            .finish()
+    }
+}
+
+/// A density over [0, 1] × [0, 1] ∋ (x, v), bilinear in each cell of a grid with equal
+/// columns in x and the sampler's row boundaries in v.
+#[derive(Clone)]
+struct BilinearTable {
+    /// Vertex values, `rows + 1` lines of `columns + 1`, line-major; finite, ≥ 0.
+    values: Vec<f32>,
+    /// Per vertex line, ∫ from x = 0 to each vertex (`columns + 1` entries from 0).
+    line_cdf: Vec<f32>,
+    /// Row masses ∫∫ over each row.
+    rows: Distribution1D,
+    /// Sum of the row masses (> 0).
+    total: f32,
+}
+
+/// s ∈ [0, 1] where the integral of the linear function (1 − t) a + t b over [0, s] is the
+/// fraction `u` of its integral over [0, 1]; a, b ≥ 0.
+#[inline]
+fn invert_linear(a: f32, b: f32, u: f32) -> f32 {
+    let (a, b, u) = (a as f64, b as f64, u as f64);
+    let c = u * 0.5 * (a + b);
+    let denominator = a + (a * a + 2.0 * (b - a) * c).max(0.0).sqrt();
+    if denominator > 0.0 {
+        (2.0 * c / denominator).clamp(0.0, 1.0) as f32
+    } else {
+        u as f32
+    }
+}
+
+impl BilinearTable {
+    /// Builds from vertex values (negative and non-finite count as 0; all zero becomes
+    /// uniform).
+    fn new(mut values: Vec<f32>, columns: usize, row_v: &[f32]) -> Self {
+        let line = columns + 1;
+        for v in values.iter_mut() {
+            if !(v.is_finite() && *v > 0.0) {
+                *v = 0.0;
+            }
+        }
+        if values.iter().all(|&v| v == 0.0) {
+            values.fill(1.0);
+        }
+        let dx = 1.0 / columns as f32;
+        let mut line_cdf = vec![0f32; values.len()];
+        for (cdf, vals) in line_cdf.chunks_exact_mut(line).zip(values.chunks_exact(line)) {
+            let mut acc = 0f64;
+            for i in 0..columns {
+                acc += 0.5 * (vals[i] + vals[i + 1]) as f64 * dx as f64;
+                cdf[i + 1] = acc as f32;
+            }
+        }
+        let line_total = |r: usize| line_cdf[r * line + columns];
+        let masses: Vec<f32> = (0..row_v.len() - 1)
+            .map(|r| (row_v[r + 1] - row_v[r]) * 0.5 * (line_total(r) + line_total(r + 1)))
+            .collect();
+        let total = masses.iter().map(|&m| m as f64).sum::<f64>() as f32;
+        BilinearTable {
+            values,
+            line_cdf,
+            rows: Distribution1D::new(&masses),
+            total,
+        }
+    }
+
+    /// Draws (x, v) from `u`.
+    #[inline]
+    fn sample(&self, u: Vec2, columns: usize, row_v: &[f32]) -> (f32, f32) {
+        let line = columns + 1;
+        let (r, _, u_row) = self.rows.sample_discrete(u.y);
+        let (c0, c1) = (&self.line_cdf[r * line..(r + 1) * line], &self.line_cdf[(r + 1) * line..(r + 2) * line]);
+        let s = invert_linear(c0[columns], c1[columns], u_row);
+        let q_cdf = |i: usize| (1.0 - s) * c0[i] + s * c1[i];
+        let target = u.x * q_cdf(columns);
+        let (mut lo, mut hi) = (0usize, columns);
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            if q_cdf(mid) <= target {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let (v0, v1) = (&self.values[r * line..(r + 1) * line], &self.values[(r + 1) * line..(r + 2) * line]);
+        let q = |i: usize| (1.0 - s) * v0[i] + s * v1[i];
+        let (qa, qb) = (q(lo), q(lo + 1));
+        let segment = 0.5 * (qa + qb) / columns as f32;
+        let fraction = if segment > 0.0 {
+            ((target - q_cdf(lo)) / segment).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        let tau = invert_linear(qa, qb, fraction);
+        let x = (lo as f32 + tau) / columns as f32;
+        let v = row_v[r] + s * (row_v[r + 1] - row_v[r]);
+        (x, v)
+    }
+
+    /// Density at (x, v) in row `r` with respect to dx dv.
+    #[inline]
+    fn density(&self, x: f32, v: f32, r: usize, columns: usize, row_v: &[f32]) -> f32 {
+        let line = columns + 1;
+        let s = ((v - row_v[r]) / (row_v[r + 1] - row_v[r])).clamp(0.0, 1.0);
+        let xc = (x * columns as f32).clamp(0.0, columns as f32);
+        let i = (xc as usize).min(columns - 1);
+        let tau = xc - i as f32;
+        let at = |line_index: usize| {
+            let vals = &self.values[line_index * line..(line_index + 1) * line];
+            (1.0 - tau) * vals[i] + tau * vals[i + 1]
+        };
+        ((1.0 - s) * at(r) + s * at(r + 1)) / self.total
     }
 }
 
@@ -102,15 +215,15 @@ fn azimuth(v: Vec3) -> (f32, f32) {
     }
 }
 
-/// 1 − cos θh at the boundary y = sqrt(θh / (π/2)) of a row, accurate near 0.
-fn one_minus_cos_theta_h(y: f64) -> f32 {
+/// v = 1 − cos θh at the row boundary y = sqrt(θh / (π/2)), accurate near 0.
+fn row_boundary_v(y: f64) -> f32 {
     let theta_h = y * y * std::f64::consts::FRAC_PI_2;
     let s = (theta_h / 2.0).sin();
     (2.0 * s * s) as f32
 }
 
-/// Half vector with 1 − cos θh = `v` and |φh − φo| = `x`·π with the given sign, in the frame
-/// where `wo` has azimuth 0.
+/// Half vector with 1 − cos θh = `v` and φh − φo = `sign` · `x` · π, in the frame where `wo`
+/// has azimuth 0.
 #[inline]
 fn half_vector_at(v: f32, x: f32, sign: f32) -> Vec3 {
     let sin_h = (v * (2.0 - v)).max(0.0).sqrt();
@@ -127,11 +240,11 @@ impl TabulatedSampler {
     pub fn new(brdf: impl Fn(Vec3, Vec3) -> Rgb + Sync, config: &TabulatedSamplerConfig) -> Self {
         let c = *config;
         assert!(
-            c.theta_o_nodes >= 2 && c.theta_h_cells > 0 && c.phi_h_cells > 0 && c.supersampling > 0,
+            c.theta_o_nodes >= 2 && c.theta_h_cells > 0 && c.phi_h_cells > 0,
             "invalid TabulatedSamplerConfig {c:?}"
         );
         let row_v: Vec<f32> = (0..=c.theta_h_cells)
-            .map(|r| one_minus_cos_theta_h(r as f64 / c.theta_h_cells as f64))
+            .map(|r| row_boundary_v(r as f64 / c.theta_h_cells as f64))
             .collect();
         let tables = (0..c.theta_o_nodes)
             .into_par_iter()
@@ -139,8 +252,7 @@ impl TabulatedSampler {
                 let theta_o = (k as f32 / (c.theta_o_nodes - 1) as f32 * FRAC_PI_2).min(MAX_NODE_THETA_O);
                 let (so, co) = theta_o.sin_cos();
                 let wo = Vec3::new(so, 0.0, co);
-                let weights = fit_weights(&brdf, wo, &row_v, &c);
-                Distribution2D::new(&weights, c.phi_h_cells, c.theta_h_cells)
+                BilinearTable::new(vertex_values(&brdf, wo, &row_v, c.phi_h_cells), c.phi_h_cells, &row_v)
             })
             .collect();
         TabulatedSampler {
@@ -180,14 +292,8 @@ impl TabulatedSampler {
             (k + 1, (uc - (1.0 - t)) / t)
         };
         let sign = if uc < 0.5 { 1.0 } else { -1.0 };
-        let (p, _) = self.tables[node].sample_continuous(u);
-        // Uniform in solid angle within the cell: 1 − cos θh linear in the row's fraction.
-        let ny = self.row_v.len() - 1;
-        let yc = p.y * ny as f32;
-        let row = (yc as usize).min(ny - 1);
-        let t_row = (yc - row as f32).clamp(0.0, 1.0);
-        let v = self.row_v[row] + t_row * (self.row_v[row + 1] - self.row_v[row]);
-        let hl = half_vector_at(v, p.x, sign);
+        let (x, v) = self.tables[node].sample(u, self.phi_cells, &self.row_v);
+        let hl = half_vector_at(v, x, sign);
         let (c, s) = azimuth(wo);
         let h = Vec3::new(c * hl.x - s * hl.y, s * hl.x + c * hl.y, hl.z);
         let wi = crate::bsdf::microfacet::reflect(wo, h);
@@ -215,21 +321,21 @@ impl TabulatedSampler {
         let (c, s) = azimuth(wo);
         let hx = c * h.x + s * h.y;
         let hy = -s * h.x + c * h.y;
-        let y = (hx.hypot(hy).atan2(h.z) / FRAC_PI_2).sqrt().min(1.0);
+        let sin_h = hx.hypot(hy);
+        let theta_h = sin_h.atan2(h.z);
+        let ny = self.row_v.len() - 1;
+        let row = (((theta_h / FRAC_PI_2).sqrt() * ny as f32) as usize).min(ny - 1);
+        let half = 0.5 * theta_h;
+        let v = 2.0 * half.sin() * half.sin();
         let x = (hy.atan2(hx).abs() / PI).min(1.0);
-        let (nx, ny) = (self.phi_cells, self.row_v.len() - 1);
-        let row = ((y * ny as f32) as usize).min(ny - 1);
         let (k, t) = self.nodes(wo);
-        let p = Vec2::new(x, y);
-        let mut density_xy = (1.0 - t) * self.tables[k].pdf(p);
+        let mut density = (1.0 - t) * self.tables[k].density(x, v, row, self.phi_cells, &self.row_v);
         if t > 0.0 {
-            density_xy += t * self.tables[k + 1].pdf(p);
+            density += t * self.tables[k + 1].density(x, v, row, self.phi_cells, &self.row_v);
         }
-        // Cell probability over the cell's solid angle (both signs of φh − φo: 2π/nx per
-        // column), then the reflection Jacobian dωh/dωi = 1 / (4 wo·h).
-        let cell_probability = density_xy / (nx * ny) as f32;
-        let cell_solid_angle = (self.row_v[row + 1] - self.row_v[row]) * 2.0 * PI / nx as f32;
-        let pdf = cell_probability / (cell_solid_angle * 4.0 * cos_oh);
+        // Per dx dv of one sign -> per solid angle of h over both signs (dωh = π dv dx, ½ per
+        // sign) -> per solid angle of wi (dωh / dωi = 1 / (4 wo·h)).
+        let pdf = density / (2.0 * PI * 4.0 * cos_oh);
         if pdf.is_finite() {
             pdf
         } else {
@@ -243,40 +349,35 @@ impl TabulatedSampler {
     }
 }
 
-/// Cell weights of one θo node, row-major (x fastest): ∫ f cos θi dωi over each cell, up to
-/// a constant factor.
-fn fit_weights(brdf: &impl Fn(Vec3, Vec3) -> Rgb, wo: Vec3, row_v: &[f32], c: &TabulatedSamplerConfig) -> Vec<f32> {
-    let (nx, ny, ss) = (c.phi_h_cells, c.theta_h_cells, c.supersampling);
-    let mut weights = vec![0f32; nx * ny];
-    for iy in 0..ny {
-        let (v0, v1) = (row_v[iy], row_v[iy + 1]);
-        for ix in 0..nx {
-            let mut acc = 0f64;
-            for a in 0..ss {
-                for b in 0..ss {
-                    let x = (ix as f32 + (a as f32 + 0.5) / ss as f32) / nx as f32;
-                    let v = v0 + (b as f32 + 0.5) / ss as f32 * (v1 - v0);
-                    let sign = if (a + b) % 2 == 0 { 1.0 } else { -1.0 };
-                    let h = half_vector_at(v, x, sign);
-                    let cos_oh = wo.dot(h);
-                    if cos_oh <= 0.0 {
-                        continue;
-                    }
-                    let wi = crate::bsdf::microfacet::reflect(wo, h);
-                    if wi.z <= 0.0 {
-                        continue;
-                    }
-                    let f = brdf(wo, wi.normalize());
-                    let mean = (f.x + f.y + f.z) / 3.0;
-                    if mean.is_finite() && mean > 0.0 {
-                        acc += (mean * wi.z * 4.0 * cos_oh) as f64;
-                    }
+/// Vertex values of one θo node, line-major: f cos θi per unit solid angle of h, averaged
+/// over both signs of φh − φo.
+fn vertex_values(brdf: &impl Fn(Vec3, Vec3) -> Rgb, wo: Vec3, row_v: &[f32], columns: usize) -> Vec<f32> {
+    let line = columns + 1;
+    let mut values = vec![0f32; row_v.len() * line];
+    for (r, &v) in row_v.iter().enumerate() {
+        for i in 0..line {
+            let x = i as f32 / columns as f32;
+            let mut acc = 0f32;
+            for sign in [1.0, -1.0] {
+                let h = half_vector_at(v, x, sign);
+                let cos_oh = wo.dot(h);
+                if cos_oh <= 0.0 {
+                    continue;
+                }
+                let wi = crate::bsdf::microfacet::reflect(wo, h);
+                if wi.z <= 0.0 {
+                    continue;
+                }
+                let f = brdf(wo, wi.normalize());
+                let mean = (f.x + f.y + f.z) / 3.0;
+                if mean.is_finite() && mean > 0.0 {
+                    acc += 0.5 * mean * wi.z * 4.0 * cos_oh;
                 }
             }
-            weights[ix + nx * iy] = (acc / (ss * ss) as f64 * (v1 - v0) as f64) as f32;
+            values[r * line + i] = acc;
         }
     }
-    weights
+    values
 }
 
 #[cfg(test)]
@@ -284,7 +385,7 @@ mod tests {
     use super::*;
     use crate::bsdf::microfacet::GgxDistribution;
 
-    /// A rough GGX lobe over a small diffuse term: a BRDF with a known shape.
+    /// A GGX lobe over a small diffuse term: a BRDF with a known shape.
     fn ggx_brdf(alpha: f32) -> impl Fn(Vec3, Vec3) -> Rgb + Sync {
         let ggx = GgxDistribution::isotropic(alpha);
         move |wo: Vec3, wi: Vec3| {
@@ -296,8 +397,7 @@ mod tests {
         }
     }
 
-    /// Numerical integral of the density over the upper hemisphere (θ, φ grid refined near
-    /// the mirror direction is not needed for α ≥ 0.1).
+    /// ∫ pdf dωi over the upper hemisphere by the midpoint rule in (θ, φ).
     fn integrate_pdf(s: &TabulatedSampler, wo: Vec3) -> f64 {
         let (nt, np) = (400, 800);
         let mut sum = 0.0f64;
@@ -317,14 +417,95 @@ mod tests {
     }
 
     #[test]
-    fn density_integrates_to_at_most_one() {
+    fn invert_linear_inverts() {
+        for (a, b) in [(1.0f32, 1.0f32), (0.0, 2.0), (3.0, 0.0), (0.5, 4.0), (0.0, 0.0)] {
+            for k in 0..=10 {
+                let u = k as f32 / 10.0;
+                let s = invert_linear(a, b, u);
+                let mass = a * s + 0.5 * (b - a) * s * s;
+                let want = if a + b > 0.0 { u * 0.5 * (a + b) } else { 0.0 };
+                assert!((mass - want).abs() < 1e-5, "a {a} b {b} u {u}: s {s}");
+                assert!((0.0..=1.0).contains(&s));
+            }
+        }
+    }
+
+    #[test]
+    fn bilinear_table_samples_its_density() {
+        // A 2 × 2-cell table with uneven rows: the density of each sample equals the density
+        // of the points around it (histogram check), and it integrates to 1.
+        let row_v = [0.0f32, 0.2, 1.0];
+        let values = vec![1.0, 3.0, 0.0, 2.0, 0.5, 1.0, 0.0, 4.0, 2.0];
+        let table = BilinearTable::new(values, 2, &row_v);
+        let n = 256;
+        let mut hist = vec![0f64; 16];
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                let (x, v) = table.sample(u, 2, &row_v);
+                assert!((0.0..=1.0).contains(&x) && (0.0..=1.0).contains(&v));
+                let cell = ((x * 4.0) as usize).min(3) + 4 * ((v * 4.0) as usize).min(3);
+                hist[cell] += 1.0 / (n * n) as f64;
+            }
+        }
+        let mut total = 0.0f64;
+        for cell in 0..16 {
+            let (cx, cv) = (cell % 4, cell / 4);
+            let mut mass = 0.0f64;
+            let m = 64;
+            for a in 0..m {
+                for b in 0..m {
+                    let x = (cx as f32 + (a as f32 + 0.5) / m as f32) / 4.0;
+                    let v = (cv as f32 + (b as f32 + 0.5) / m as f32) / 4.0;
+                    let r = if v < 0.2 { 0 } else { 1 };
+                    mass += table.density(x, v, r, 2, &row_v) as f64 / (16 * m * m) as f64;
+                }
+            }
+            total += mass;
+            assert!((hist[cell] - mass).abs() < 3e-3, "cell {cell}: sampled {} vs density {mass}", hist[cell]);
+        }
+        assert!((total - 1.0).abs() < 1e-3, "{total}");
+    }
+
+    /// Fraction of `sample` calls (stratified u, uc) that return a direction.
+    fn success_rate(s: &TabulatedSampler, wo: Vec3) -> f64 {
+        let n = 128u32;
+        let mut ok = 0usize;
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                let uc = ((i * 31 + j * 17) % 97) as f32 / 97.0;
+                ok += s.sample(wo, u, uc).is_some() as usize;
+            }
+        }
+        ok as f64 / (n * n) as f64
+    }
+
+    #[test]
+    fn density_integrates_to_the_sampled_fraction() {
         let s = TabulatedSampler::new(ggx_brdf(0.3), &TabulatedSamplerConfig::default());
         for theta_o in [0.0f32, 0.7, 1.3, 1.55] {
             let wo = Vec3::new(theta_o.sin(), 0.0, theta_o.cos());
             let total = integrate_pdf(&s, wo);
-            // The tabulated part loses only the mass of cells straddling the horizon.
-            assert!(total > 0.9 && total < 1.0 + 2e-3, "θo {theta_o}: ∫pdf = {total}");
+            let rate = success_rate(&s, wo);
+            assert!(total < 1.0 + 1e-3, "θo {theta_o}: ∫pdf = {total}");
+            assert!((total - rate).abs() < 5e-3, "θo {theta_o}: ∫pdf = {total}, sampled {rate}");
         }
+    }
+
+    #[test]
+    fn chi2_passes_and_detects_a_mismatched_density() {
+        let config = crate::chi2::Chi2Config::default()
+            .with_sample_count(200_000)
+            .with_domain(crate::chi2::Chi2Domain::ThetaPhi)
+            .with_test_count(2);
+        let sampled = TabulatedSampler::new(ggx_brdf(0.1), &TabulatedSamplerConfig::default());
+        let other = TabulatedSampler::new(ggx_brdf(0.13), &TabulatedSamplerConfig::default());
+        let wo = Vec3::new(0.5, 0.3, 0.81).normalize();
+        let good = crate::chi2::test_sampler(|u, uc| sampled.sample(wo, u, uc), |wi| sampled.pdf(wo, wi), &config);
+        assert!(good.passed(), "{good}");
+        let bad = crate::chi2::test_sampler(|u, uc| sampled.sample(wo, u, uc), |wi| other.pdf(wo, wi), &config);
+        assert!(!bad.passed(), "{bad}");
     }
 
     #[test]
@@ -333,7 +514,7 @@ mod tests {
         let wo = Vec3::new(0.5, -0.2, 0.8).normalize();
         let mut drawn = 0;
         for i in 0..4096u32 {
-            let u = Vec2::new((i as f32 + 0.5) / 4096.0, (i.wrapping_mul(2654435761) >> 8) as f32 / 16_777_216.0);
+            let u = Vec2::new((i as f32 + 0.5) / 4096.0, (i.wrapping_mul(2_654_435_761) >> 8) as f32 / 16_777_216.0);
             let uc = ((i * 7919) % 4096) as f32 / 4096.0;
             if let Some(wi) = s.sample(wo, u, uc) {
                 drawn += 1;
@@ -350,7 +531,9 @@ mod tests {
     #[test]
     fn zero_brdf_falls_back_to_a_valid_density() {
         let s = TabulatedSampler::new(|_, _| Rgb::ZERO, &TabulatedSamplerConfig::default());
-        let total = integrate_pdf(&s, Vec3::new(0.6, 0.0, 0.8));
-        assert!(total > 0.5 && total < 1.0 + 2e-3, "{total}");
+        let wo = Vec3::new(0.6, 0.0, 0.8);
+        let total = integrate_pdf(&s, wo);
+        let rate = success_rate(&s, wo);
+        assert!(total > 0.1 && (total - rate).abs() < 5e-3, "∫pdf = {total}, sampled {rate}");
     }
 }

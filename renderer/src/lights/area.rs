@@ -91,7 +91,7 @@ mod tests {
     #[test]
     fn solid_angle_pdf_matches_sample_and_back_side_is_dark() {
         let light = TriangleLight::new(
-            [Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(1.0, 1.0, 0.0)],
+            [Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 1.0)],
             Rgb::ONE,
         )
         .expect("non-degenerate");

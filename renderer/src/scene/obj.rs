@@ -37,7 +37,6 @@ pub fn load(path: &Path) -> Result<SceneDescription> {
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
-        ..tobj::LoadOptions::default()
     };
     let mtl_error: RefCell<Option<Error>> = RefCell::new(None);
     let parsed = tobj::load_obj_buf(&mut Cursor::new(bytes), &options, |mtl: &Path| {

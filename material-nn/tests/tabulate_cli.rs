@@ -1,0 +1,77 @@
+//! The `material-nn tabulate` command line: outputs, and one-line errors with exit code 2.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn material_nn(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_material-nn"))
+        .args(args)
+        .output()
+        .expect("material-nn runs")
+}
+
+fn nbrdf_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/nbrdf/merl")
+}
+
+fn path_str(p: &Path) -> &str {
+    p.to_str().expect("UTF-8 temporary path")
+}
+
+/// The one-line error of a failed run (exit code 2).
+fn error_line(out: &Output) -> String {
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
+    assert!(stderr.starts_with("error: ") && !stderr.contains('\n'), "{stderr}");
+    stderr
+}
+
+#[test]
+fn analytic_and_median_tables_are_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.binary"), dir.path().join("b.binary"));
+    for (kind, path) in [("ggx", &a), ("oren-nayar", &b)] {
+        let out = material_nn(&["tabulate", "--analytic", kind, "--albedo", "0.5,0.3,0.1", "--out", path_str(path)]);
+        assert!(out.status.success(), "{out:?}");
+        assert_eq!(std::fs::metadata(path).unwrap().len(), renderer::merl::FILE_BYTES);
+    }
+    let median = dir.path().join("median.binary");
+    let out = material_nn(&["tabulate", "--median", "--out", path_str(&median), path_str(&a), path_str(&b)]);
+    assert!(out.status.success(), "{out:?}");
+    let m = renderer::merl::MerlTable::read(&median).unwrap();
+    let (ta, tb) = (renderer::merl::MerlTable::read(&a).unwrap(), renderer::merl::MerlTable::read(&b).unwrap());
+    let i = renderer::merl::bin_index(30, 40, 50);
+    let (va, vb, vm) = (ta.value(i), tb.value(i), m.value(i));
+    assert!((vm[0] - 0.5 * (va[0] + vb[0])).abs() < 1e-12, "{vm:?}");
+}
+
+#[test]
+fn errors_are_one_line_with_exit_code_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("short.binary");
+    let mut bytes: Vec<u8> = [90i32, 90, 180].iter().flat_map(|d| d.to_le_bytes()).collect();
+    bytes.extend_from_slice(&[0u8; 28]);
+    std::fs::write(&bad, bytes).unwrap();
+    let out_file = dir.path().join("m.binary");
+    let e = error_line(&material_nn(&["tabulate", "--median", "--out", path_str(&out_file), path_str(&bad)]));
+    assert!(e.contains("short.binary") && e.contains("truncated"), "{e}");
+    assert!(!out_file.exists());
+
+    let e = error_line(&material_nn(&[
+        "tabulate",
+        "--nbrdf",
+        path_str(&nbrdf_dir()),
+        "--materials",
+        "chrome,no-such-material",
+        "--out",
+        path_str(dir.path()),
+    ]));
+    assert!(e.contains("no-such-material"), "{e}");
+
+    let e = error_line(&material_nn(&["tabulate", "--nbrdf", path_str(dir.path()), "--out", path_str(dir.path())]));
+    assert!(e.contains("no NBRDF networks"), "{e}");
+
+    // Usage errors (clap) also exit with 2.
+    let out = material_nn(&["tabulate", "--analytic", "phong", "--out", "x.binary"]);
+    assert_eq!(out.status.code(), Some(2));
+}

@@ -1,0 +1,49 @@
+//! BVH build time and traversal throughput (closest hit and occlusion, Mrays/s) on the
+//! shipped scenes, with incoherent rays from points inside the scene's bounds.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use glam::Vec3;
+use renderer::accel::{Bvh, Ray};
+use renderer::sampler::Sampler;
+use renderer::sampling::sample_uniform_sphere;
+use renderer::scene::SceneDescription;
+use std::hint::black_box;
+use std::path::Path;
+
+fn load(name: &str) -> SceneDescription {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name).join("scene.gltf");
+    SceneDescription::load(&path).expect("shipped scene")
+}
+
+fn rays(scene: &SceneDescription, n: usize) -> Vec<Ray> {
+    let (lo, hi) = scene.geometry.bounds().expect("geometry");
+    let mut s = Sampler::new(1, 2, 3);
+    (0..n)
+        .map(|_| {
+            let t = Vec3::new(s.next_1d(), s.next_1d(), s.next_1d());
+            let origin = lo + (hi - lo) * (0.1 + 0.8 * t);
+            Ray::new(origin, sample_uniform_sphere(s.next_2d()))
+        })
+        .collect()
+}
+
+fn bench(c: &mut Criterion) {
+    for name in ["cornell-box", "material-preview"] {
+        let scene = load(name);
+        let g = &scene.geometry;
+        let corners = || (0..g.triangle_count()).map(|i| g.triangle_positions(i));
+        let mut group = c.benchmark_group(format!("bvh/{name} ({} triangles)", g.triangle_count()));
+        group.bench_function("build", |b| b.iter(|| black_box(Bvh::build(corners()))));
+        let bvh = Bvh::build(corners());
+        let rays = rays(&scene, 4096);
+        group.throughput(Throughput::Elements(rays.len() as u64));
+        group.bench_function("closest hit", |b| {
+            b.iter(|| rays.iter().filter(|r| bvh.intersect(r).is_some()).count())
+        });
+        group.bench_function("occlusion", |b| b.iter(|| rays.iter().filter(|r| bvh.occluded(r)).count()));
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
