@@ -5,7 +5,13 @@
 use anyhow::{bail, Context};
 use clap::{ArgGroup, Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
+use material_nn::config::TrainConfig;
+use material_nn::dataset::MaterialTable;
+use material_nn::inference::TrainedRun;
 use material_nn::tabulate::{self, TableOutcome};
+use material_nn::training::{self, Event, Outcome, TrainRequest};
+use renderer::latent_file::{LatentFile, NamedLatent, WeightType};
+use std::sync::atomic::{AtomicBool, Ordering};
 use renderer::analytic::AnalyticBrdf;
 use renderer::Rgb;
 use std::path::PathBuf;
@@ -29,6 +35,89 @@ enum Command {
     ///   material-nn tabulate --analytic ggx --albedo 0.5,0.3,0.1 --alpha 0.2 --out ggx.binary
     #[command(verbatim_doc_comment)]
     Tabulate(TabulateArgs),
+    /// Train HyperBRDF / FreNBRDF on the MERL-layout tables of a directory (see docs/training.md).
+    ///
+    ///   material-nn train --data data/merl-fitted --out runs/frenbrdf [--config cfg.json]
+    ///   material-nn train --data data/merl-fitted --out runs/frenbrdf --resume
+    ///
+    /// Ctrl-C stops after the current step with a checkpoint; --resume goes on from it.
+    #[command(verbatim_doc_comment)]
+    Train(TrainArgs),
+    /// Write a run's decoder, f_ref and the latent codes of materials to one latent.bin.
+    ///
+    ///   material-nn export --run runs/frenbrdf --out scenes/materials/latent.bin
+    #[command(verbatim_doc_comment)]
+    Export(ExportArgs),
+    /// Encode one material (a table or a sparse CSV sample set) into a latent code.
+    ///
+    ///   material-nn encode --run runs/frenbrdf --table gold.binary
+    ///   material-nn encode --run runs/frenbrdf --samples measured.csv --name mine --add-to latent.bin
+    #[command(verbatim_doc_comment)]
+    Encode(EncodeArgs),
+}
+
+#[derive(Args)]
+struct TrainArgs {
+    /// Directory of MERL-layout tables (NAME.binary).
+    #[arg(long, value_name = "DIR")]
+    data: PathBuf,
+    /// Run directory (created): configuration, split, f_ref, checkpoints.
+    #[arg(long, value_name = "RUN")]
+    out: PathBuf,
+    /// Configuration JSON (any subset of the fields; defaults otherwise).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Continue the run from its checkpoint.
+    #[arg(long)]
+    resume: bool,
+    /// Stop with a checkpoint after this many optimiser steps in all (as Ctrl-C would).
+    #[arg(long, value_name = "N")]
+    stop_after_steps: Option<u64>,
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// Run directory of `train`.
+    #[arg(long, value_name = "RUN")]
+    run: PathBuf,
+    /// Output latent file.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Materials to encode (comma-separated names), default every material of the data.
+    #[arg(long, value_name = "A,B,...", value_delimiter = ',')]
+    materials: Option<Vec<String>>,
+    /// Directory of the tables to encode (default: the run's data directory).
+    #[arg(long, value_name = "DIR")]
+    data: Option<PathBuf>,
+    /// Store the hypernetwork weights as f16 (half the size).
+    #[arg(long)]
+    half_weights: bool,
+}
+
+#[derive(Args)]
+#[command(group(ArgGroup::new("input").required(true).args(["table", "samples"])))]
+struct EncodeArgs {
+    /// Run directory of `train`.
+    #[arg(long, value_name = "RUN")]
+    run: PathBuf,
+    /// A MERL-layout table to encode.
+    #[arg(long, value_name = "FILE")]
+    table: Option<PathBuf>,
+    /// A sparse sample set: CSV lines theta_h,theta_d,phi_d,r,g,b (radians, 1/sr).
+    #[arg(long, value_name = "CSV")]
+    samples: Option<PathBuf>,
+    /// Samples drawn from --table.
+    #[arg(long, default_value_t = material_nn::export::ENCODE_SAMPLES)]
+    count: usize,
+    /// Seed of the samples drawn from --table.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Name of the latent code (default: the input's file stem).
+    #[arg(long)]
+    name: Option<String>,
+    /// Add (or replace) the code in this latent file.
+    #[arg(long, value_name = "LATENT_BIN")]
+    add_to: Option<PathBuf>,
 }
 
 /// Analytic model families for `tabulate --analytic`.
@@ -191,10 +280,105 @@ fn tabulate(args: TabulateArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Set by Ctrl-C; the training loop stops after the current step.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+fn train(args: TrainArgs) -> anyhow::Result<()> {
+    let config = args.config.as_deref().map(TrainConfig::read).transpose()?;
+    ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst)).context("cannot install the Ctrl-C handler")?;
+    let request = TrainRequest {
+        data_dir: args.data,
+        run_dir: args.out.clone(),
+        config,
+        resume: args.resume,
+        stop_after_steps: args.stop_after_steps,
+    };
+    let bar = progress_bar(0, "train");
+    let mut last_epoch = String::new();
+    let start = Instant::now();
+    let outcome = training::train(&request, &STOP, &mut |event| match event {
+        Event::Start { total_steps, done, parameters } => {
+            bar.set_length(total_steps);
+            bar.set_position(done);
+            bar.println(format!("{parameters} parameters, {total_steps} steps"));
+        }
+        Event::Step { step, losses } => {
+            bar.set_position(step);
+            bar.set_message(format!("loss {:.4} rec {:.4} fre {:.2e}{last_epoch}", losses[0], losses[1], losses[2]));
+        }
+        Event::Epoch(r) => {
+            let val = r.validation.map_or("-".to_string(), |v| format!("{v:.4}"));
+            last_epoch = format!(" | epoch {} val {val}", r.epoch);
+            bar.println(format!(
+                "epoch {:>3}: train {:.5} (rec {:.5}, fre {:.3e}), validation {val}, {:.1} s",
+                r.epoch, r.train_loss, r.train_rec, r.train_fre, r.seconds
+            ));
+        }
+    });
+    bar.finish_and_clear();
+    let outcome = outcome?;
+    let what = match outcome {
+        Outcome::Completed => "completed".to_string(),
+        Outcome::EarlyStopped { best_epoch } => format!("stopped early (best epoch {best_epoch})"),
+        Outcome::Interrupted { step } => format!("stopped after step {step}; continue with --resume"),
+    };
+    println!("{}: {what} in {:.1} s", args.out.display(), start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn export(args: ExportArgs) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let run = TrainedRun::load(&args.run)?;
+    let data = args.data.clone().unwrap_or_else(|| run.info.data_dir.clone());
+    let names = args.materials.clone().unwrap_or_else(|| run.info.materials.clone());
+    let weight_type = if args.half_weights { WeightType::F16 } else { WeightType::F32 };
+    let file = material_nn::export::export(&run, &data, &names, weight_type, &args.out)?;
+    let size = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
+    println!(
+        "{}: {} latent codes, {:.1} MB, in {:.1} s",
+        args.out.display(),
+        file.latents.len(),
+        size as f64 / 1e6,
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn encode(args: EncodeArgs) -> anyhow::Result<()> {
+    let run = TrainedRun::load(&args.run)?;
+    let (input, z) = if let Some(table) = &args.table {
+        let t = MaterialTable::read(table)?;
+        (table.clone(), run.encode_table(&t, args.count, args.seed)?)
+    } else if let Some(csv) = &args.samples {
+        let set = material_nn::inference::read_sample_csv(csv, &run.sampler)?;
+        (csv.clone(), run.encode_samples(&set)?)
+    } else {
+        bail!("encode needs --table or --samples");
+    };
+    let name = match args.name {
+        Some(n) => n,
+        None => material_nn::dataset::material_name(&input)?,
+    };
+    if let Some(path) = &args.add_to {
+        let mut file = LatentFile::read(path)?;
+        if file.latent_dim != z.len() {
+            bail!("{}: latent size {} differs from the run's {}", path.display(), file.latent_dim, z.len());
+        }
+        file.latents.retain(|l| l.name != name);
+        file.latents.push(NamedLatent { name: name.clone(), z: z.clone() });
+        file.write(path)?;
+    }
+    println!("{}", serde_json::json!({ "name": name, "z": z }));
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Tabulate(args) => tabulate(args),
+        Command::Train(args) => train(args),
+        Command::Export(args) => export(args),
+        Command::Encode(args) => encode(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

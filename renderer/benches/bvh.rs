@@ -3,6 +3,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
+use obvhs::BvhBuildParams;
 use renderer::accel::{Bvh, Ray};
 use renderer::sampler::Sampler;
 use renderer::sampling::sample_uniform_sphere;
@@ -34,13 +35,23 @@ fn bench(c: &mut Criterion) {
         let corners = || (0..g.triangle_count()).map(|i| g.triangle_positions(i));
         let mut group = c.benchmark_group(format!("bvh/{name} ({} triangles)", g.triangle_count()));
         group.bench_function("build", |b| b.iter(|| black_box(Bvh::build(corners()))));
-        let bvh = Bvh::build(corners());
         let rays = rays(&scene, 4096);
         group.throughput(Throughput::Elements(rays.len() as u64));
-        group.bench_function("closest hit", |b| {
-            b.iter(|| rays.iter().filter(|r| bvh.intersect(r).is_some()).count())
-        });
-        group.bench_function("occlusion", |b| b.iter(|| rays.iter().filter(|r| bvh.occluded(r)).count()));
+        let presets = [
+            ("fast", BvhBuildParams::fast_build()),
+            ("medium", BvhBuildParams::medium_build()),
+            ("slow", BvhBuildParams::slow_build()),
+            ("very slow", BvhBuildParams::very_slow_build()),
+        ];
+        for (preset, params) in presets {
+            let bvh = Bvh::build_with(corners(), params);
+            group.bench_function(format!("closest hit, {preset} build"), |b| {
+                b.iter(|| rays.iter().filter(|r| bvh.intersect(r).is_some()).count())
+            });
+            group.bench_function(format!("occlusion, {preset} build"), |b| {
+                b.iter(|| rays.iter().filter(|r| bvh.occluded(r)).count())
+            });
+        }
         group.finish();
     }
 }

@@ -371,3 +371,62 @@ pub(crate) mod tests {
         );
     }
 }
+#[cfg(test)]
+mod tmp_perf {
+    use super::tests::*;
+    use super::*;
+    use crate::bsdf::merl::Interpolation;
+    use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
+    #[test]
+    fn tmp_perf() {
+        let t0 = std::time::Instant::now();
+        let table = merl_fitted_table("alum-bronze");
+        println!("tabulate in memory: {:?}", t0.elapsed());
+        let t0 = std::time::Instant::now();
+        let merl = MerlBsdf::new(&table, Interpolation::Trilinear, &TabulatedSamplerConfig::default());
+        println!("MerlBsdf::new (render values + sampler fit): {:?}", t0.elapsed());
+        let near = MerlBsdf::new(&table, Interpolation::Nearest, &TabulatedSamplerConfig::default());
+        let t0 = std::time::Instant::now();
+        let nb = nbrdf_bsdf("alum-bronze");
+        println!("NbrdfBsdf::new: {:?} fma {}", t0.elapsed(), nb.network().uses_fma());
+        let n = 2_000_000;
+        let dirs: Vec<(Vec3, Vec3)> = (0..4096).map(|k| {
+            let a = (k as f32 * 0.618034) % 1.0; let b = (k as f32 * 0.75487) % 1.0; let c = (k as f32 * 0.5698) % 1.0; let d = (k as f32 * 0.3247) % 1.0;
+            let wo = Vec3::new((a*1.5).sin()*(c*6.28).cos(), (a*1.5).sin()*(c*6.28).sin(), (a*1.5).cos());
+            let wi = Vec3::new((b*1.5).sin()*(d*6.28).cos(), (b*1.5).sin()*(d*6.28).sin(), (b*1.5).cos());
+            (wo, wi)}).collect();
+        for (name, b) in [("merl trilinear", &merl as &dyn Bxdf), ("merl nearest", &near as &dyn Bxdf), ("nbrdf", &nb as &dyn Bxdf)] {
+            let t0 = std::time::Instant::now();
+            let mut acc = Rgb::ZERO;
+            for k in 0..n { let (wo, wi) = dirs[k & 4095]; acc += b.eval(wo, wi); }
+            let te = t0.elapsed().as_nanos() as f64 / n as f64;
+            let t0 = std::time::Instant::now();
+            let mut p = 0.0;
+            for k in 0..n { let (wo, wi) = dirs[k & 4095]; p += b.pdf(wo, wi); }
+            let tp = t0.elapsed().as_nanos() as f64 / n as f64;
+            let t0 = std::time::Instant::now();
+            let mut q = 0.0;
+            for k in 0..n { let (wo, wi) = dirs[k & 4095]; if let Some(s) = b.sample(wo, Vec2::new(wi.x.abs(), wi.y.abs()), (k as f32 * 0.618) % 1.0) { q += s.pdf; } }
+            let ts = t0.elapsed().as_nanos() as f64 / n as f64;
+            println!("{name}: eval {te:.1} ns, pdf {tp:.1} ns, sample {ts:.1} ns ({acc} {p} {q})");
+        }
+        let net = nb.network();
+        let inputs: Vec<[f32; 6]> = (0..4096).map(|k| crate::brdf_coords::network_input_from_angles((k & 1023) as f32 * 1e-3, 0.3 + (k as f32) * 1e-4, 0.2)).collect();
+        let t0 = std::time::Instant::now();
+        let mut acc = 0.0f32;
+        for k in 0..n { let y = net.forward(std::hint::black_box(inputs[k & 4095])); acc += y[0]; }
+        println!("forward only: {:.1} ns {acc}", t0.elapsed().as_nanos() as f64 / n as f64);
+        let t0 = std::time::Instant::now();
+        let mut acc = Rgb::ZERO;
+        for k in 0..n { acc += net.eval_input(std::hint::black_box(inputs[k & 4095])); }
+        println!("eval_input: {:.1} ns {acc}", t0.elapsed().as_nanos() as f64 / n as f64);
+        let t0 = std::time::Instant::now();
+        let mut acc = 0.0;
+        for k in 0..n { let (wo, wi) = dirs[k & 4095]; acc += crate::brdf_coords::network_input(std::hint::black_box(wi), wo)[3]; }
+        println!("network_input: {:.1} ns {acc}", t0.elapsed().as_nanos() as f64 / n as f64);
+        let t0 = std::time::Instant::now();
+        let mut acc = 0.0;
+        for k in 0..n { let (wo, wi) = dirs[k & 4095]; acc += crate::brdf_coords::isotropic_angles(std::hint::black_box(wi), wo)[2]; }
+        println!("isotropic_angles: {:.1} ns {acc}", t0.elapsed().as_nanos() as f64 / n as f64);
+    }
+}

@@ -1,0 +1,375 @@
+//! Materials as training data: MERL-layout tables from a directory, the split by material,
+//! the reference BRDF f_ref, and uniform samples with log-relative mapped values.
+//!
+//! - A data directory holds `NAME.binary` tables (MERL layout, read by [`renderer::merl`]);
+//!   the material's name is the file stem. Tables are kept in memory as f32 f_r (1/sr),
+//!   bin-major RGB (52 MB each); negative entries are unmeasured.
+//! - Split: the names, sorted, are shuffled with the run's seed and cut by the configured
+//!   fractions (at least one training material); recorded in the run as `split.json`.
+//! - f_ref: the per-bin, per-channel median of the training split's tables, unmeasured
+//!   entries left out (Nielsen et al. 2015).
+//! - Samples: θh, θd uniform in [0, π/2], φd uniform in [0, 2π); f and f_ref by trilinear
+//!   look-up between bin centres (unmeasured corners left out); samples where either is
+//!   unmeasured are dropped and redrawn. Network input: the 6D (sin θh, 0, cos θh, d) of
+//!   [`renderer::brdf_coords::network_input_from_angles`]; value y = mapping(f, f_ref) per
+//!   channel; weight cos θi = clamp(wi · n, 0, 1) with wi from (θh, φh = 0, θd, φd).
+
+use crate::error::{Error, Result};
+use burn::data::dataset::Dataset;
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use renderer::brdf_coords::{directions_from_angles, network_input_from_angles, HalfDiffAngles};
+use renderer::latent_file::MappingForm;
+use renderer::merl::{trilinear_corners, MerlTable, BIN_COUNT, SCALE};
+use serde::{Deserialize, Serialize};
+use std::f32::consts::{FRAC_PI_2, TAU};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// One material's table in memory.
+#[derive(Clone, Debug)]
+pub struct MaterialTable {
+    /// Material name (file stem).
+    pub name: String,
+    /// f_r per bin (within-channel MERL index), RGB, 1/sr; negative = unmeasured.
+    pub values: Vec<[f32; 3]>,
+}
+
+impl MaterialTable {
+    /// From a MERL table (values scaled to 1/sr; beyond-f32 values clamped).
+    pub fn from_merl(name: impl Into<String>, table: &MerlTable) -> Self {
+        let raw = table.raw();
+        let values = (0..BIN_COUNT)
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|i| {
+                [0, 1, 2].map(|c| {
+                    let v = raw[c * BIN_COUNT + i];
+                    if v < 0.0 {
+                        -1.0
+                    } else {
+                        (v * SCALE[c]).min(f32::MAX as f64) as f32
+                    }
+                })
+            })
+            .collect();
+        MaterialTable { name: name.into(), values }
+    }
+
+    /// Reads a `.binary` table; errors name the file (and, for a non-finite value, the channel
+    /// and bin).
+    pub fn read(path: &Path) -> Result<Self> {
+        let name = material_name(path)?;
+        Ok(Self::from_merl(name, &MerlTable::read(path)?))
+    }
+
+    /// Trilinear look-up at (θh, θd, φd) (radians): f_r (1/sr), or `None` where every corner
+    /// is unmeasured.
+    pub fn lookup(&self, theta_h: f32, theta_d: f32, phi_d: f32) -> Option<[f32; 3]> {
+        let (idx, w) = trilinear_corners(theta_h, theta_d, phi_d);
+        let mut acc = [0f32; 3];
+        let mut wsum = 0f32;
+        for (&i, &wk) in idx.iter().zip(&w) {
+            let v = self.values[i];
+            if wk > 0.0 && v.iter().all(|&c| c >= 0.0) {
+                for c in 0..3 {
+                    acc[c] += wk * v[c];
+                }
+                wsum += wk;
+            }
+        }
+        (wsum > 0.0).then(|| acc.map(|a| a / wsum))
+    }
+
+    /// The per-bin, per-channel median of `tables` (unmeasured entries left out; −1 where
+    /// no table is measured). Errors on an empty list.
+    pub fn median(name: &str, tables: &[Arc<MaterialTable>]) -> Result<MaterialTable> {
+        if tables.is_empty() {
+            return Err(Error::Invalid("the median of no tables".to_string()));
+        }
+        let values = (0..BIN_COUNT)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map_init(
+                || Vec::with_capacity(tables.len()),
+                |buf, i| {
+                    [0, 1, 2].map(|c| {
+                        buf.clear();
+                        buf.extend(tables.iter().map(|t| t.values[i][c] as f64));
+                        crate::tabulate::median_of_measured(buf) as f32
+                    })
+                },
+            )
+            .collect();
+        Ok(MaterialTable { name: name.to_string(), values })
+    }
+
+    /// As a MERL table (raw values = f_r / scale), for writing.
+    pub fn to_merl(&self) -> Result<MerlTable> {
+        let mut raw = vec![0f64; 3 * BIN_COUNT];
+        for (i, v) in self.values.iter().enumerate() {
+            for c in 0..3 {
+                raw[c * BIN_COUNT + i] = if v[c] < 0.0 { -1.0 } else { v[c] as f64 / SCALE[c] };
+            }
+        }
+        Ok(MerlTable::from_raw(raw, &self.name)?)
+    }
+}
+
+/// The material name of a table path (its file stem).
+pub fn material_name(path: &Path) -> Result<String> {
+    path.file_stem()
+        .and_then(|s| s.to_str())
+        .map(str::to_string)
+        .ok_or_else(|| Error::invalid_file(path, "table file name is not valid UTF-8"))
+}
+
+/// The `.binary` tables of a directory, sorted by name. Errors if there are none.
+pub fn list_tables(dir: &Path) -> Result<Vec<PathBuf>> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let mut paths = Vec::new();
+    for entry in entries {
+        let path = entry.map_err(|e| Error::io(dir, e))?.path();
+        if path.extension().is_some_and(|e| e == crate::tabulate::TABLE_EXTENSION) && path.is_file() {
+            paths.push(path);
+        }
+    }
+    if paths.is_empty() {
+        return Err(Error::invalid_file(dir, "no MERL tables (*.binary) in this directory"));
+    }
+    paths.sort();
+    Ok(paths)
+}
+
+/// The split of the materials by name.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Split {
+    /// Seed that made it.
+    pub seed: u64,
+    /// Training materials.
+    pub train: Vec<String>,
+    /// Validation materials (early stopping).
+    pub validation: Vec<String>,
+    /// Test materials (evaluation only).
+    pub test: Vec<String>,
+}
+
+impl Split {
+    /// Shuffles the sorted `names` with `seed` and cuts them by `fractions` (train, validation,
+    /// test): validation and test take round(fraction · n) each (test first), training keeps
+    /// the rest and at least one.
+    pub fn new(names: &[String], fractions: [f64; 3], seed: u64) -> Self {
+        let mut names = names.to_vec();
+        names.sort();
+        names.shuffle(&mut rand_pcg::Pcg64::seed_from_u64(seed ^ 0x5eed_5911));
+        let n = names.len();
+        let test = ((fractions[2] * n as f64).round() as usize).min(n.saturating_sub(1));
+        let validation = ((fractions[1] * n as f64).round() as usize).min(n.saturating_sub(1 + test));
+        let train = n - test - validation;
+        Split {
+            seed,
+            test: names[train + validation..].to_vec(),
+            validation: names[train..train + validation].to_vec(),
+            train: names[..train].to_vec(),
+        }
+    }
+}
+
+/// A burn [`Dataset`] of materials (cheap to clone items).
+#[derive(Clone, Debug, Default)]
+pub struct MaterialDataset {
+    items: Vec<Arc<MaterialTable>>,
+}
+
+impl MaterialDataset {
+    /// Reads the named materials' tables from `dir` (`NAME.binary`) in parallel.
+    pub fn load(dir: &Path, names: &[String]) -> Result<Self> {
+        let items = names
+            .par_iter()
+            .map(|n| MaterialTable::read(&dir.join(format!("{n}.{}", crate::tabulate::TABLE_EXTENSION))).map(Arc::new))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(MaterialDataset { items })
+    }
+
+    /// From tables in memory.
+    pub fn from_tables(items: Vec<Arc<MaterialTable>>) -> Self {
+        MaterialDataset { items }
+    }
+
+    /// The tables.
+    pub fn tables(&self) -> &[Arc<MaterialTable>] {
+        &self.items
+    }
+}
+
+impl Dataset<Arc<MaterialTable>> for MaterialDataset {
+    fn get(&self, index: usize) -> Option<Arc<MaterialTable>> {
+        self.items.get(index).cloned()
+    }
+
+    fn len(&self) -> usize {
+        self.items.len()
+    }
+}
+
+/// Samples of one material, as the networks consume them (row-major).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SampleSet {
+    /// 6D network inputs, [n, 6].
+    pub inputs: Vec<f32>,
+    /// Mapped values y, [n, 3].
+    pub values: Vec<f32>,
+    /// cos θi of each sample, [n].
+    pub cos_i: Vec<f32>,
+}
+
+impl SampleSet {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.cos_i.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.cos_i.is_empty()
+    }
+
+    /// The set encoder's input of the first `n` samples: [n, 9] = [inputs | values].
+    pub fn encoder_input(&self, n: usize) -> Vec<f32> {
+        let n = n.min(self.len());
+        let mut out = Vec::with_capacity(n * 9);
+        for i in 0..n {
+            out.extend_from_slice(&self.inputs[6 * i..6 * i + 6]);
+            out.extend_from_slice(&self.values[3 * i..3 * i + 3]);
+        }
+        out
+    }
+
+    /// The difference directions (unit vectors, = inputs 3..6) of the samples.
+    pub fn directions(&self) -> Vec<[f32; 3]> {
+        self.inputs.chunks_exact(6).map(|x| [x[3], x[4], x[5]]).collect()
+    }
+
+    /// Appends one sample.
+    pub fn push(&mut self, input: [f32; 6], value: [f32; 3], cos_i: f32) {
+        self.inputs.extend_from_slice(&input);
+        self.values.extend_from_slice(&value);
+        self.cos_i.push(cos_i);
+    }
+}
+
+/// Draws samples of materials and maps their values relative to f_ref.
+#[derive(Clone, Debug)]
+pub struct Sampler {
+    /// The reference BRDF f_ref.
+    pub reference: Arc<MaterialTable>,
+    /// Form of the mapping.
+    pub mapping: MappingForm,
+    /// ε of the mapping.
+    pub epsilon: f32,
+}
+
+/// Attempts per requested sample before giving up on a (mostly unmeasured) table.
+const MAX_ATTEMPTS_PER_SAMPLE: usize = 64;
+
+impl Sampler {
+    /// The sample at (θh, θd, φd) with measured value `f` (1/sr); `None` where f_ref is
+    /// unmeasured.
+    pub fn sample_at(&self, theta_h: f32, theta_d: f32, phi_d: f32, f: [f32; 3]) -> Option<([f32; 6], [f32; 3], f32)> {
+        let r = self.reference.lookup(theta_h, theta_d, phi_d)?;
+        let y = [0, 1, 2].map(|c| self.mapping.forward(f[c].max(0.0), r[c].max(0.0), self.epsilon));
+        let (wi, _) = directions_from_angles(&HalfDiffAngles {
+            theta_h,
+            phi_h: 0.0,
+            theta_d,
+            phi_d,
+        });
+        Some((network_input_from_angles(theta_h, theta_d, phi_d), y, wi.z.clamp(0.0, 1.0)))
+    }
+
+    /// `n` uniform samples of `table` (see the module documentation). Errors when the table
+    /// is (almost) entirely unmeasured.
+    pub fn draw(&self, table: &MaterialTable, n: usize, rng: &mut impl Rng) -> Result<SampleSet> {
+        let mut set = SampleSet::default();
+        let mut attempts = 0usize;
+        while set.len() < n {
+            attempts += 1;
+            if attempts > n.max(16) * MAX_ATTEMPTS_PER_SAMPLE {
+                return Err(Error::Invalid(format!(
+                    "material '{}': too few measured bins to draw {n} samples",
+                    table.name
+                )));
+            }
+            let theta_h = rng.random::<f32>() * FRAC_PI_2;
+            let theta_d = rng.random::<f32>() * FRAC_PI_2;
+            let phi_d = rng.random::<f32>() * TAU;
+            let Some(f) = table.lookup(theta_h, theta_d, phi_d) else { continue };
+            if let Some((x, y, c)) = self.sample_at(theta_h, theta_d, phi_d, f) {
+                set.push(x, y, c);
+            }
+        }
+        Ok(set)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn constant(name: &str, v: f32) -> MaterialTable {
+        MaterialTable {
+            name: name.into(),
+            values: vec![[v, 2.0 * v, 0.5 * v]; BIN_COUNT],
+        }
+    }
+
+    #[test]
+    fn split_is_seeded_and_complete() {
+        let names: Vec<String> = (0..100).map(|i| format!("m{i:03}")).collect();
+        let a = Split::new(&names, [0.7, 0.1, 0.2], 7);
+        assert_eq!((a.train.len(), a.validation.len(), a.test.len()), (70, 10, 20));
+        assert_eq!(a, Split::new(&names, [0.7, 0.1, 0.2], 7));
+        assert_ne!(a.train, Split::new(&names, [0.7, 0.1, 0.2], 8).train);
+        let mut all: Vec<String> = a.train.iter().chain(&a.validation).chain(&a.test).cloned().collect();
+        all.sort();
+        assert_eq!(all, names);
+        let three = Split::new(&names[..3], [0.7, 0.1, 0.2], 1);
+        assert_eq!((three.train.len(), three.validation.len(), three.test.len()), (2, 0, 1));
+        let one = Split::new(&names[..1], [0.7, 0.1, 0.2], 1);
+        assert_eq!(one.train.len(), 1);
+    }
+
+    #[test]
+    fn samples_map_relative_to_the_reference() {
+        let reference = Arc::new(constant("ref", 0.1));
+        let sampler = Sampler {
+            reference,
+            mapping: MappingForm::Talk,
+            epsilon: 0.002,
+        };
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
+        let set = sampler.draw(&constant("same", 0.1), 100, &mut rng).unwrap();
+        assert_eq!(set.len(), 100);
+        assert!(set.values.iter().all(|y| y.abs() < 1e-5));
+        assert!(set.cos_i.iter().all(|c| (0.0..=1.0).contains(c)));
+        assert_eq!(set.encoder_input(10).len(), 90);
+        let d = set.directions();
+        assert!(d.iter().all(|v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) - 1.0).abs() < 1e-5 && v[2] >= -1e-6));
+
+        let mut unmeasured = constant("hole", 0.1);
+        unmeasured.values.iter_mut().for_each(|v| *v = [-1.0; 3]);
+        let e = sampler.draw(&unmeasured, 10, &mut rng).unwrap_err().to_string();
+        assert!(e.contains("'hole'"), "{e}");
+    }
+
+    #[test]
+    fn median_leaves_out_unmeasured() {
+        let mut b = constant("b", 0.3);
+        b.values[5] = [-1.0; 3];
+        let tables = [constant("a", 0.1), b, constant("c", 0.2)].map(Arc::new);
+        let m = MaterialTable::median("m", &tables).unwrap();
+        assert!((m.values[0][0] - 0.2).abs() < 1e-7);
+        assert!((m.values[5][0] - 0.15).abs() < 1e-7);
+    }
+}

@@ -1,0 +1,519 @@
+//! The training loop of HyperBRDF / FreNBRDF (`material-nn train`).
+//!
+//! One step: for each of `materials_per_step` training materials (the method uses 1) draw a
+//! fresh uniform sample set ([`crate::dataset::Sampler`]), encode its first `encoder_samples`
+//! samples into z, decode z into target-net weights, evaluate the target net on every sample,
+//! and take an Adam step on L_rec (+ η L_fre for FreNBRDF) with the global gradient norm
+//! clipped. An epoch visits every training material once, in an order shuffled by the run's
+//! generator. After each epoch: validation (data term + η L_fre on a fixed sample set per
+//! validation material — the same sets every epoch), early stopping after `patience` epochs
+//! without improvement (on the training loss when there are no validation materials), and a
+//! checkpoint. A stop request (Ctrl-C) ends the run after the current step with a checkpoint.
+//!
+//! Run directory: `config.json`, `split.json`, `run.json` (data directory and materials),
+//! `reference.binary` (f_ref, MERL layout), `checkpoint.bin` (latest), `best.bin` (the
+//! checkpoint of the best epoch). Everything random comes from one seeded generator whose
+//! state is checkpointed, so a resumed run ends with the same weights as an uninterrupted one.
+
+use crate::checkpoint::{write_atomic, Checkpoint, EpochRecord, TrainState};
+use crate::config::TrainConfig;
+use crate::dataset::{list_tables, material_name, MaterialDataset, MaterialTable, SampleSet, Sampler, Split};
+use crate::error::{Error, Result};
+use crate::loss::{reconstruction_loss, FreOperator};
+use crate::model::HyperBrdf;
+use burn::module::{Module, ModuleVisitor, Param, ParamId};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::store::ModuleRecord;
+use burn::tensor::{Bytes, Device, Tensor, TensorData};
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Where a run keeps its files.
+#[derive(Clone, Debug)]
+pub struct RunDir(pub PathBuf);
+
+impl RunDir {
+    /// `config.json`.
+    pub fn config(&self) -> PathBuf {
+        self.0.join("config.json")
+    }
+    /// `split.json`.
+    pub fn split(&self) -> PathBuf {
+        self.0.join("split.json")
+    }
+    /// `run.json`.
+    pub fn info(&self) -> PathBuf {
+        self.0.join("run.json")
+    }
+    /// `reference.binary`: f_ref as a MERL table.
+    pub fn reference(&self) -> PathBuf {
+        self.0.join("reference.binary")
+    }
+    /// `checkpoint.bin`: the latest checkpoint.
+    pub fn checkpoint(&self) -> PathBuf {
+        self.0.join("checkpoint.bin")
+    }
+    /// `best.bin`: the checkpoint of the best epoch.
+    pub fn best(&self) -> PathBuf {
+        self.0.join("best.bin")
+    }
+}
+
+/// `run.json`: what the run was trained on.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunInfo {
+    /// The data directory given to `train`.
+    pub data_dir: PathBuf,
+    /// Every material of the data directory at the start of the run.
+    pub materials: Vec<String>,
+}
+
+/// Reads a JSON file of the run directory.
+pub fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| Error::invalid_file(path, format!("bad JSON: {e}")))
+}
+
+fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
+    write_atomic(path, text.as_bytes())
+}
+
+/// What `train` was asked to do.
+#[derive(Clone, Debug)]
+pub struct TrainRequest {
+    /// Directory of `.binary` tables.
+    pub data_dir: PathBuf,
+    /// Run directory (created if missing).
+    pub run_dir: PathBuf,
+    /// Configuration of a new run (defaults if `None`); with `resume`, must equal the
+    /// checkpoint's if given.
+    pub config: Option<TrainConfig>,
+    /// Continue from the run's checkpoint.
+    pub resume: bool,
+    /// Stop (with a checkpoint) once this many optimiser steps have been taken in all, as a
+    /// stop request would.
+    pub stop_after_steps: Option<u64>,
+}
+
+/// What happened during training, for progress display.
+#[derive(Clone, Debug)]
+pub enum Event {
+    /// Training starts: steps in the whole run and steps already done.
+    Start { total_steps: u64, done: u64, parameters: usize },
+    /// One optimiser step: (total, L_rec data term, L_fre).
+    Step { step: u64, losses: [f64; 3] },
+    /// An epoch ended.
+    Epoch(EpochRecord),
+}
+
+/// How a run ended.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Outcome {
+    /// All epochs done.
+    Completed,
+    /// Early stopping; the best epoch.
+    EarlyStopped { best_epoch: usize },
+    /// Stopped on request after this many steps, with a checkpoint.
+    Interrupted { step: u64 },
+}
+
+/// The device training runs on: burn's CPU backend `flex` (or, with the `gpu` feature, the
+/// CUDA device when `MATERIAL_NN_DEVICE=cuda`), with autodiff.
+pub fn training_device() -> Device {
+    #[cfg(feature = "gpu")]
+    {
+        if std::env::var("MATERIAL_NN_DEVICE").is_ok_and(|v| v == "cuda") {
+            return Device::cuda(0).autodiff();
+        }
+    }
+    Device::flex().autodiff()
+}
+
+/// Adam as the method uses it (β = 0.9, 0.999; ε = 1e-8, PyTorch's).
+pub fn optimizer() -> ModuleOptimizer {
+    AdamConfig::new().with_epsilon(1e-8).init()
+}
+
+/// Ids and ranks of a module's float parameters.
+struct ParamIds(Vec<(ParamId, usize)>);
+
+impl ModuleVisitor for ParamIds {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        self.0.push((param.id, D));
+    }
+}
+
+/// Scales all gradients so that their global L2 norm is at most `max_norm` (PyTorch's
+/// `clip_grad_norm_`). Returns the norm before clipping.
+fn clip_global_norm(grads: &mut GradientsParams, model: &HyperBrdf, max_norm: f32) -> f64 {
+    let mut ids = ParamIds(Vec::new());
+    model.visit(&mut ids);
+    let mut sq = 0f64;
+    for &(id, rank) in &ids.0 {
+        let s: Option<f32> = match rank {
+            1 => grads.get::<1>(id).map(|g| g.square().sum().into_scalar()),
+            2 => grads.get::<2>(id).map(|g| g.square().sum().into_scalar()),
+            _ => None,
+        };
+        sq += s.unwrap_or(0.0) as f64;
+    }
+    let norm = sq.sqrt();
+    if norm > max_norm as f64 {
+        let scale = (max_norm as f64 / (norm + 1e-6)) as f32;
+        for &(id, rank) in &ids.0 {
+            match rank {
+                1 => {
+                    if let Some(g) = grads.remove::<1>(id) {
+                        grads.register(id, g * scale);
+                    }
+                }
+                2 => {
+                    if let Some(g) = grads.remove::<2>(id) {
+                        grads.register(id, g * scale);
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    norm
+}
+
+/// Tensors of a batch of sample sets: (encoder input [B, M, 9], x [B, N, 6], y [B, N, 3],
+/// cos θi [B, N, 1]).
+fn batch_tensors(sets: &[SampleSet], encoder_samples: usize, device: &Device) -> (Tensor<3>, Tensor<3>, Tensor<3>, Tensor<3>) {
+    let b = sets.len();
+    let n = sets[0].len();
+    let m = encoder_samples.min(n);
+    let enc: Vec<f32> = sets.iter().flat_map(|s| s.encoder_input(m)).collect();
+    let x: Vec<f32> = sets.iter().flat_map(|s| s.inputs.iter().copied()).collect();
+    let y: Vec<f32> = sets.iter().flat_map(|s| s.values.iter().copied()).collect();
+    let c: Vec<f32> = sets.iter().flat_map(|s| s.cos_i.iter().copied()).collect();
+    (
+        Tensor::from_data(TensorData::new(enc, [b, m, 9]), device),
+        Tensor::from_data(TensorData::new(x, [b, n, 6]), device),
+        Tensor::from_data(TensorData::new(y, [b, n, 3]), device),
+        Tensor::from_data(TensorData::new(c, [b, n, 1]), device),
+    )
+}
+
+/// Forward pass and losses of a batch: (total, data term, L_fre) as tensors.
+fn batch_loss(
+    model: &HyperBrdf,
+    sets: &[SampleSet],
+    config: &TrainConfig,
+    fre: Option<&FreOperator>,
+    device: &Device,
+) -> Result<(Tensor<1>, Tensor<1>, Option<Tensor<1>>)> {
+    let (enc, x, y, cos) = batch_tensors(sets, config.encoder_samples, device);
+    let z = model.encode(enc);
+    let params = model.decode(z.clone());
+    let pred = model.target_forward(&params, x);
+    let (mut total, data) = reconstruction_loss(
+        config.rec_form,
+        pred.clone(),
+        y.clone(),
+        cos.clone(),
+        &params,
+        z,
+        config.lambda_weights,
+        config.lambda_latent,
+    );
+    let mut fre_total = None;
+    if let Some(op) = fre {
+        let n = sets[0].len();
+        let b = sets.len();
+        for (i, set) in sets.iter().enumerate() {
+            let splat = op.splat(&set.directions(), device)?;
+            let c = cos.clone().narrow(0, i, 1).reshape([n, 1]);
+            let p = pred.clone().narrow(0, i, 1).reshape([n, 3]) * c.clone();
+            let t = y.clone().narrow(0, i, 1).reshape([n, 3]) * c;
+            let l = op.loss(&splat, p, t) / b as f32;
+            fre_total = Some(match fre_total {
+                Some(acc) => acc + l,
+                None => l,
+            });
+        }
+        if let Some(l) = &fre_total {
+            total = total + l.clone() * config.fre.eta;
+        }
+    }
+    Ok((total, data, fre_total))
+}
+
+/// Mean validation loss (data term + η L_fre) over `tables`, each on a fixed sample set drawn
+/// from the run's seed and the material's position.
+pub fn validation_loss(
+    model: &HyperBrdf,
+    tables: &[Arc<MaterialTable>],
+    sampler: &Sampler,
+    config: &TrainConfig,
+    fre: Option<&FreOperator>,
+    device: &Device,
+) -> Result<Option<f64>> {
+    if tables.is_empty() {
+        return Ok(None);
+    }
+    let model = model.valid();
+    let mut sum = 0.0;
+    for (i, table) in tables.iter().enumerate() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(config.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ (i as u64 + 1));
+        let set = sampler.draw(table, config.validation_samples, &mut rng)?;
+        let (_, data, l_fre) = batch_loss(&model, std::slice::from_ref(&set), config, fre, device)?;
+        let mut v = data.into_scalar::<f32>() as f64;
+        if let Some(l) = l_fre {
+            v += config.fre.eta as f64 * l.into_scalar::<f32>() as f64;
+        }
+        sum += v;
+    }
+    Ok(Some(sum / tables.len() as f64))
+}
+
+fn model_bytes(model: &HyperBrdf, path: &Path) -> Result<Vec<u8>> {
+    let bytes = model
+        .clone()
+        .into_record()
+        .into_bytes()
+        .map_err(|e| Error::invalid_file(path, format!("cannot serialise the model: {e}")))?;
+    Ok(bytes.to_vec())
+}
+
+/// Loads model weights (burnpack bytes of a checkpoint) into a model of `config`'s shape.
+pub fn load_model(config: &TrainConfig, bytes: &[u8], device: &Device, path: &Path) -> Result<HyperBrdf> {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(0);
+    let model = HyperBrdf::init(&config.net, &mut rng, device);
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
+        .map_err(|e| Error::invalid_file(path, format!("bad model weights: {e}")))?;
+    model
+        .try_load_record(record)
+        .map_err(|e| Error::invalid_file(path, format!("model weights do not fit the configuration: {e}")))
+}
+
+/// Everything a run needs besides the model.
+struct Setup {
+    config: TrainConfig,
+    train: MaterialDataset,
+    validation: MaterialDataset,
+    sampler: Sampler,
+}
+
+fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
+    let config = req.config.clone().unwrap_or_default();
+    config.check().map_err(Error::Invalid)?;
+    let paths = list_tables(&req.data_dir)?;
+    let names = paths.iter().map(|p| material_name(p)).collect::<Result<Vec<_>>>()?;
+    let split = Split::new(&names, config.split, config.seed);
+    let train = MaterialDataset::load(&req.data_dir, &split.train)?;
+    let validation = MaterialDataset::load(&req.data_dir, &split.validation)?;
+    let reference = MaterialTable::median("reference", train.tables())?;
+    std::fs::create_dir_all(&run.0).map_err(|e| Error::io(&run.0, e))?;
+    crate::tabulate::write_table_atomic(&reference.to_merl()?, &run.reference())?;
+    write_json(&run.config(), &config)?;
+    write_json(&run.split(), &split)?;
+    write_json(
+        &run.info(),
+        &RunInfo {
+            data_dir: req.data_dir.clone(),
+            materials: names,
+        },
+    )?;
+    Ok(Setup {
+        sampler: Sampler {
+            reference: Arc::new(reference),
+            mapping: config.mapping,
+            epsilon: config.epsilon,
+        },
+        config,
+        train,
+        validation,
+    })
+}
+
+/// Loads what a finished or interrupted run needs to go on (or to be evaluated).
+fn existing_run(data_dir: &Path, run: &RunDir, config: TrainConfig) -> Result<Setup> {
+    let split: Split = read_json(&run.split())?;
+    let train = MaterialDataset::load(data_dir, &split.train)?;
+    let validation = MaterialDataset::load(data_dir, &split.validation)?;
+    let reference = MaterialTable::read(&run.reference())?;
+    Ok(Setup {
+        sampler: Sampler {
+            reference: Arc::new(reference),
+            mapping: config.mapping,
+            epsilon: config.epsilon,
+        },
+        config,
+        train,
+        validation,
+    })
+}
+
+/// Trains (or resumes) a run; see the module documentation. `stop` is polled after every
+/// step; `on_event` receives progress.
+pub fn train(req: &TrainRequest, stop: &AtomicBool, on_event: &mut dyn FnMut(Event)) -> Result<Outcome> {
+    let run = RunDir(req.run_dir.clone());
+    let device = training_device();
+    let ckpt_path = run.checkpoint();
+    let (setup, mut model, mut optim, mut state) = if req.resume {
+        let ckpt = Checkpoint::read(&ckpt_path)?;
+        if let Some(c) = &req.config {
+            if *c != ckpt.config {
+                return Err(Error::invalid_file(
+                    &ckpt_path,
+                    "the configuration given differs from the checkpoint's (resume without --config)",
+                ));
+            }
+        }
+        let setup = existing_run(&req.data_dir, &run, ckpt.config.clone())?;
+        let model = load_model(&setup.config, &ckpt.model, &device, &ckpt_path)?;
+        let optim = optimizer()
+            .from_bytes(Bytes::from_bytes_vec(ckpt.optimizer))
+            .map_err(|e| Error::invalid_file(&ckpt_path, format!("bad optimiser state: {e}")))?;
+        (setup, model, optim, ckpt.state)
+    } else {
+        if ckpt_path.exists() {
+            return Err(Error::invalid_file(
+                &ckpt_path,
+                "the run directory already holds a checkpoint: use --resume, or a new --out",
+            ));
+        }
+        let setup = new_run(req, &run)?;
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(setup.config.seed);
+        let model = HyperBrdf::init(&setup.config.net, &mut rng, &device);
+        let state = TrainState {
+            epoch: 0,
+            order: Vec::new(),
+            position: 0,
+            step: 0,
+            rng,
+            epoch_sums: [0.0; 3],
+            epoch_steps: 0,
+            best: None,
+            best_epoch: 0,
+            epochs_without_improvement: 0,
+            finished: false,
+            history: Vec::new(),
+        };
+        (setup, model, optimizer(), state)
+    };
+    let config = setup.config.clone();
+    let n_train = setup.train.tables().len();
+    let steps_per_epoch = n_train.div_ceil(config.materials_per_step) as u64;
+    let inner = device.clone().without_autodiff();
+    let fre = config.uses_fre().then(|| FreOperator::new(&config.fre, &device));
+    let fre_valid = config.uses_fre().then(|| FreOperator::new(&config.fre, &inner));
+    on_event(Event::Start {
+        total_steps: steps_per_epoch * config.epochs as u64,
+        done: state.step,
+        parameters: model.num_params(),
+    });
+    let mut epoch_start = Instant::now();
+    let save = |model: &HyperBrdf, optim: &ModuleOptimizer, state: &TrainState, path: &Path| -> Result<()> {
+        let optimizer = optim
+            .into_bytes()
+            .map_err(|e| Error::invalid_file(path, format!("cannot serialise the optimiser: {e}")))?
+            .to_vec();
+        Checkpoint {
+            config: config.clone(),
+            state: state.clone(),
+            model: model_bytes(model, path)?,
+            optimizer,
+        }
+        .write(path)
+    };
+    while !state.finished {
+        if state.order.is_empty() {
+            state.order = (0..n_train).collect();
+            state.order.shuffle(&mut state.rng);
+            state.position = 0;
+            state.epoch_sums = [0.0; 3];
+            state.epoch_steps = 0;
+        }
+        let end = (state.position + config.materials_per_step).min(state.order.len());
+        let mut sets = Vec::with_capacity(end - state.position);
+        for &i in &state.order[state.position..end] {
+            sets.push(setup.sampler.draw(&setup.train.tables()[i], config.samples_per_step, &mut state.rng)?);
+        }
+        let (total, data, l_fre) = batch_loss(&model, &sets, &config, fre.as_ref(), &device)?;
+        let grads = total.backward();
+        let mut grads = GradientsParams::from_grads(grads, &model);
+        if let Some(max) = config.grad_clip_norm {
+            clip_global_norm(&mut grads, &model, max);
+        }
+        model = optim.step(config.learning_rate, model, grads);
+        let losses = [
+            total.into_scalar::<f32>() as f64,
+            data.into_scalar::<f32>() as f64,
+            l_fre.map_or(0.0, |l| l.into_scalar::<f32>() as f64),
+        ];
+        if losses.iter().any(|l| !l.is_finite()) {
+            return Err(Error::Invalid(format!(
+                "the loss became non-finite at step {} ({losses:?}); lower the learning rate",
+                state.step + 1
+            )));
+        }
+        for (s, l) in state.epoch_sums.iter_mut().zip(losses) {
+            *s += l;
+        }
+        state.epoch_steps += 1;
+        state.position = end;
+        state.step += 1;
+        on_event(Event::Step { step: state.step, losses });
+        if state.position >= state.order.len() {
+            let validation = validation_loss(
+                &model,
+                setup.validation.tables(),
+                &setup.sampler,
+                &config,
+                fre_valid.as_ref(),
+                &inner,
+            )?;
+            let k = state.epoch_steps.max(1) as f64;
+            state.epoch += 1;
+            let record = EpochRecord {
+                epoch: state.epoch,
+                train_loss: state.epoch_sums[0] / k,
+                train_rec: state.epoch_sums[1] / k,
+                train_fre: state.epoch_sums[2] / k,
+                validation,
+                seconds: epoch_start.elapsed().as_secs_f64(),
+            };
+            epoch_start = Instant::now();
+            let score = validation.unwrap_or(record.train_loss);
+            let improved = state.best.is_none_or(|b| score < b);
+            if improved {
+                state.best = Some(score);
+                state.best_epoch = state.epoch;
+                state.epochs_without_improvement = 0;
+            } else {
+                state.epochs_without_improvement += 1;
+            }
+            state.history.push(record.clone());
+            state.order.clear();
+            state.position = 0;
+            let early = state.epochs_without_improvement >= config.patience.max(1);
+            state.finished = state.epoch >= config.epochs || early;
+            save(&model, &optim, &state, &ckpt_path)?;
+            if improved {
+                save(&model, &optim, &state, &run.best())?;
+            }
+            on_event(Event::Epoch(record));
+            if early && state.epoch < config.epochs {
+                return Ok(Outcome::EarlyStopped {
+                    best_epoch: state.best_epoch,
+                });
+            }
+        }
+        let requested = stop.load(Ordering::SeqCst) || req.stop_after_steps.is_some_and(|s| state.step >= s);
+        if requested && !state.finished {
+            save(&model, &optim, &state, &ckpt_path)?;
+            return Ok(Outcome::Interrupted { step: state.step });
+        }
+    }
+    Ok(Outcome::Completed)
+}

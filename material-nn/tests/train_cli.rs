@@ -1,0 +1,216 @@
+//! Training end to end on three small synthetic materials: decreasing loss, resume identity,
+//! export → latent.bin → the renderer's plain decoder, encode, and bad input (one-line errors,
+//! exit code 2).
+
+use material_nn::checkpoint::Checkpoint;
+use material_nn::config::{FreConfig, ModelConfig, TrainConfig};
+use material_nn::training::{train, Outcome, RunDir, TrainRequest};
+use renderer::analytic::AnalyticBrdf;
+use renderer::latent_file::LatentFile;
+use renderer::merl::{MerlTable, FILE_BYTES, HEADER_BYTES};
+use renderer::Rgb;
+use std::path::Path;
+use std::process::{Command, Output};
+use std::sync::atomic::AtomicBool;
+use std::sync::OnceLock;
+
+/// Three analytic materials as MERL tables, written once per test binary.
+fn data_dir() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let materials = [
+            ("red-plastic", AnalyticBrdf::LambertGgx { albedo: Rgb::new(0.6, 0.1, 0.1), specular: Rgb::splat(0.04), alpha: 0.15 }),
+            ("rough-gold", AnalyticBrdf::LambertGgx { albedo: Rgb::new(0.05, 0.04, 0.02), specular: Rgb::new(0.9, 0.7, 0.3), alpha: 0.3 }),
+            ("grey-clay", AnalyticBrdf::OrenNayar { albedo: Rgb::splat(0.4), sigma: 0.5 }),
+        ];
+        for (name, brdf) in materials {
+            let table = MerlTable::from_fn(|th, td, pd| brdf.eval_angles(th, td, pd));
+            table.write(dir.path().join(format!("{name}.binary"))).unwrap();
+        }
+        dir
+    })
+    .path()
+}
+
+/// A small, fast configuration: 2 training materials, 1 validation material.
+fn small_config(epochs: usize) -> TrainConfig {
+    TrainConfig {
+        split: [0.6, 0.4, 0.0],
+        samples_per_step: 1024,
+        encoder_samples: 256,
+        validation_samples: 512,
+        epochs,
+        patience: 100,
+        learning_rate: 1e-3,
+        fre: FreConfig { lmax: 8, ..FreConfig::default() },
+        net: ModelConfig {
+            latent_dim: 8,
+            encoder_hidden: vec![32, 32],
+            hyper_hidden: vec![32],
+            target_widths: vec![6, 16, 16, 3],
+            hyper_last_init_scale: 1e-2,
+        },
+        ..TrainConfig::default()
+    }
+}
+
+fn request(run: &Path, config: Option<TrainConfig>, resume: bool, stop: Option<u64>) -> TrainRequest {
+    TrainRequest {
+        data_dir: data_dir().to_path_buf(),
+        run_dir: run.to_path_buf(),
+        config,
+        resume,
+        stop_after_steps: stop,
+    }
+}
+
+fn material_nn(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_material-nn"))
+        .args(args)
+        .output()
+        .expect("material-nn runs")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("UTF-8 temporary path")
+}
+
+/// The one-line error of a failed run (exit code 2).
+fn error_line(out: &Output) -> String {
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
+    assert!(stderr.starts_with("error: ") && !stderr.contains('\n'), "{stderr}");
+    stderr
+}
+
+#[test]
+fn training_lowers_the_loss_and_exports_a_latent_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let stop = AtomicBool::new(false);
+    let outcome = train(&request(&run, Some(small_config(12)), false, None), &stop, &mut |_| {}).unwrap();
+    assert_eq!(outcome, Outcome::Completed);
+    let ckpt = Checkpoint::read(&RunDir(run.clone()).checkpoint()).unwrap();
+    let h = &ckpt.state.history;
+    assert_eq!(h.len(), 12);
+    let first = h[0].train_loss;
+    let last = h[h.len() - 1].train_loss;
+    assert!(last < 0.8 * first, "training loss {first} -> {last}");
+    assert!(h.iter().all(|r| r.train_fre > 0.0 && r.validation.is_some()));
+    for f in ["config.json", "split.json", "run.json", "reference.binary", "best.bin"] {
+        assert!(run.join(f).exists(), "{f}");
+    }
+
+    // Export through the command line; the renderer's plain decoder agrees with burn.
+    let latent = dir.path().join("latent.bin");
+    let out = material_nn(&["export", "--run", s(&run), "--out", s(&latent), "--materials", "grey-clay,red-plastic"]);
+    assert!(out.status.success(), "{out:?}");
+    let file = LatentFile::read(&latent).unwrap();
+    assert_eq!(file.latent_names(), vec!["grey-clay", "red-plastic"]);
+    assert_eq!(file.training_materials.len(), 2);
+    let trained = material_nn::inference::TrainedRun::load(&run).unwrap();
+    let z = file.latent("red-plastic").unwrap();
+    let x = renderer::brdf_coords::network_input_from_angles(0.3, 0.6, 1.1);
+    let burn_y = trained.predict(z, &x);
+    let plain_y = file.decode(z).forward(&x);
+    for c in 0..3 {
+        assert!((burn_y[c] - plain_y[c]).abs() < 1e-4 * burn_y[c].abs().max(1.0), "{burn_y:?} vs {plain_y:?}");
+    }
+
+    // Encode a sparse sample set and add it to the file.
+    let csv = dir.path().join("sparse.csv");
+    let mut text = String::from("theta_h,theta_d,phi_d,r,g,b\n");
+    for i in 0..200 {
+        let t = i as f32 / 200.0;
+        text.push_str(&format!("{},{},{},0.1,0.05,0.05\n", t * 1.5, (1.0 - t) * 1.5, t * 6.0));
+    }
+    std::fs::write(&csv, text).unwrap();
+    let out = material_nn(&["encode", "--run", s(&run), "--samples", s(&csv), "--name", "sparse", "--add-to", s(&latent)]);
+    assert!(out.status.success(), "{out:?}");
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["z"].as_array().unwrap().len(), 8);
+    assert_eq!(LatentFile::read(&latent).unwrap().latents.len(), 3);
+
+    // A latent file of another version is refused with its reason.
+    let mut bytes = std::fs::read(&latent).unwrap();
+    bytes[8] = 2;
+    let v2 = dir.path().join("v2.bin");
+    std::fs::write(&v2, bytes).unwrap();
+    let e = error_line(&material_nn(&["encode", "--run", s(&run), "--samples", s(&csv), "--add-to", s(&v2)]));
+    assert!(e.contains("v2.bin") && e.contains("version 2"), "{e}");
+}
+
+#[test]
+fn a_resumed_run_ends_with_the_same_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let stop = AtomicBool::new(false);
+    let whole = dir.path().join("whole");
+    train(&request(&whole, Some(small_config(3)), false, None), &stop, &mut |_| {}).unwrap();
+
+    // Two training materials: 2 steps per epoch; stop mid-epoch 2, then at the end of epoch 2.
+    let parts = dir.path().join("parts");
+    let o = train(&request(&parts, Some(small_config(3)), false, Some(3)), &stop, &mut |_| {}).unwrap();
+    assert_eq!(o, Outcome::Interrupted { step: 3 });
+    let o = train(&request(&parts, None, true, Some(4)), &stop, &mut |_| {}).unwrap();
+    assert_eq!(o, Outcome::Interrupted { step: 4 });
+    let o = train(&request(&parts, None, true, None), &stop, &mut |_| {}).unwrap();
+    assert_eq!(o, Outcome::Completed);
+
+    let a = Checkpoint::read(&RunDir(whole).checkpoint()).unwrap();
+    let b = Checkpoint::read(&RunDir(parts).checkpoint()).unwrap();
+    assert_eq!(a.state.step, b.state.step);
+    assert_eq!(a.state.rng, b.state.rng);
+    assert!(a.model == b.model, "model weights differ after resuming");
+    assert!(a.optimizer == b.optimizer, "optimiser state differs after resuming");
+    let losses = |c: &Checkpoint| c.state.history.iter().map(|r| (r.train_loss, r.validation)).collect::<Vec<_>>();
+    assert_eq!(losses(&a), losses(&b));
+}
+
+#[test]
+fn bad_input_gives_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+
+    // Empty data directory.
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let run = dir.path().join("run");
+    let e = error_line(&material_nn(&["train", "--data", s(&empty), "--out", s(&run)]));
+    assert!(e.contains("empty") && e.contains("no MERL tables"), "{e}");
+
+    // A NaN in a table: the error names the material's file and the bin.
+    let nan_dir = dir.path().join("nan");
+    std::fs::create_dir(&nan_dir).unwrap();
+    let good = std::fs::read(data_dir().join("grey-clay.binary")).unwrap();
+    assert_eq!(good.len() as u64, FILE_BYTES);
+    std::fs::write(nan_dir.join("grey-clay.binary"), &good).unwrap();
+    let mut bad = good;
+    let at = HEADER_BYTES as usize + 8 * 1234;
+    bad[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+    std::fs::write(nan_dir.join("broken-paint.binary"), bad).unwrap();
+    let e = error_line(&material_nn(&["train", "--data", s(&nan_dir), "--out", s(&run)]));
+    assert!(e.contains("broken-paint.binary") && e.contains("NaN") && e.contains("phi_d 154"), "{e}");
+
+    // Resuming without a checkpoint; a corrupt and a foreign checkpoint.
+    let cfg = dir.path().join("config.json");
+    std::fs::write(&cfg, serde_json::to_string(&small_config(1)).unwrap()).unwrap();
+    let e = error_line(&material_nn(&["train", "--data", s(data_dir()), "--out", s(&run), "--resume"]));
+    assert!(e.contains("checkpoint.bin"), "{e}");
+    let out = material_nn(&["train", "--data", s(data_dir()), "--out", s(&run), "--config", s(&cfg)]);
+    assert!(out.status.success(), "{out:?}");
+    let ckpt = RunDir(run.clone()).checkpoint();
+    let mut bytes = std::fs::read(&ckpt).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 0x55;
+    std::fs::write(&ckpt, &bytes).unwrap();
+    let e = error_line(&material_nn(&["train", "--data", s(data_dir()), "--out", s(&run), "--resume"]));
+    assert!(e.contains("checkpoint.bin") && e.contains("checksum"), "{e}");
+    std::fs::write(&ckpt, b"PK\x03\x04 a zip file").unwrap();
+    let e = error_line(&material_nn(&["train", "--data", s(data_dir()), "--out", s(&run), "--resume"]));
+    assert!(e.contains("not a material-nn checkpoint"), "{e}");
+
+    // A configuration with an unknown field.
+    std::fs::write(&cfg, "{\"learning_rat\": 0.1}").unwrap();
+    let e = error_line(&material_nn(&["train", "--data", s(data_dir()), "--out", s(&dir.path().join("r2")), "--config", s(&cfg)]));
+    assert!(e.contains("config.json") && e.contains("learning_rat"), "{e}");
+}

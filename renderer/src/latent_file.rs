@@ -1,0 +1,628 @@
+//! `latent.bin`: a trained FreNBRDF/HyperBRDF decoder with its named latent codes — the one
+//! reader and writer of the format (material-nn writes it, the renderer reads it). The byte
+//! layout is documented in `docs/latent-format.md`; in short (all little-endian):
+//!
+//! ```text
+//! magic "FRENBRDF" | version u32 = 1 | latent_dim u32
+//! target layer count u32 = K | target widths u32 × (K+1)            (6 60 60 60 60 3)
+//! hypernetwork hidden layer count u32 = H | hidden widths u32 × H    (128 128)
+//! mapping u8 (0 talk, 1 code) | weight dtype u8 (0 f32, 1 f16) | 2 zero bytes | epsilon f32
+//! hypernetwork: per target tensor (W0 b0 W1 b1 ...), per layer: weight [d_in, d_out]
+//!               row-major, then bias [d_out], in the weight dtype
+//! f_ref: dims u32 × 3 (90 90 180) | f16 × bins × 3, bin-major RGB, f_r in 1/sr, < 0 unmeasured
+//! latent codes: count u32 | per code: name length u32, UTF-8 name, f32 × latent_dim
+//! training materials: count u32 | per name: length u32, UTF-8 name
+//! checksum u64: FNV-1a 64 of every preceding byte
+//! ```
+//!
+//! Conventions: dense layers compute y = x · W + b with W stored [d_in, d_out] row-major (as
+//! NBRDF's `.npy` tensors and burn's `Linear`); ReLU after every hidden layer of both the
+//! hypernetwork and the target net, the last layers are linear. The target net maps the 6D
+//! input of [`crate::brdf_coords::network_input`] to the mapped value y per RGB channel; f_r
+//! comes back through [`MappingForm::inverse`] with f_ref looked up in the table.
+
+use crate::merl::{BIN_COUNT, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
+use crate::{Error, Result};
+use half::f16;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The 8 bytes every latent file starts with.
+pub const MAGIC: [u8; 8] = *b"FRENBRDF";
+/// The format version this module reads and writes.
+pub const VERSION: u32 = 1;
+/// Upper bound on any one width, latent size or name length (sanity limit of the reader).
+const MAX_DIM: usize = 1 << 20;
+
+/// The log-relative mapping between f_r and the network's output y (per channel, ε > 0,
+/// f_ref the reference BRDF at the same coordinates).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MappingForm {
+    /// The talk's form: y = ln((f + ε) / (f_ref + ε)); f = e^y (f_ref + ε) − ε.
+    Talk,
+    /// The authors' code: y = ln(1 + (f + ε) / (f_ref + ε)); f = (e^y − 1)(f_ref + ε) − ε.
+    Code,
+}
+
+impl MappingForm {
+    /// y of a BRDF value `f` (1/sr, ≥ 0) given `f_ref` (1/sr, ≥ 0).
+    #[inline]
+    pub fn forward(self, f: f32, f_ref: f32, epsilon: f32) -> f32 {
+        let r = (f + epsilon) / (f_ref + epsilon);
+        match self {
+            MappingForm::Talk => r.ln(),
+            MappingForm::Code => r.ln_1p(),
+        }
+    }
+
+    /// f_r (1/sr) of a mapped value `y`; not clamped (callers clamp to ≥ 0).
+    #[inline]
+    pub fn inverse(self, y: f32, f_ref: f32, epsilon: f32) -> f32 {
+        let e = match self {
+            MappingForm::Talk => y.exp(),
+            MappingForm::Code => y.exp_m1(),
+        };
+        e * (f_ref + epsilon) - epsilon
+    }
+
+    fn code(self) -> u8 {
+        match self {
+            MappingForm::Talk => 0,
+            MappingForm::Code => 1,
+        }
+    }
+}
+
+/// Element type of the hypernetwork weights in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WeightType {
+    /// 4 bytes per weight, exact.
+    F32,
+    /// 2 bytes per weight (halves the decoder's size; relative rounding ≈ 5e-4).
+    F16,
+}
+
+/// One dense layer y = x · W + b.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DenseLayer {
+    /// Input width.
+    pub d_in: usize,
+    /// Output width.
+    pub d_out: usize,
+    /// W, [d_in, d_out] row-major.
+    pub weight: Vec<f32>,
+    /// b, [d_out].
+    pub bias: Vec<f32>,
+}
+
+impl DenseLayer {
+    /// y = x · W + b, optionally followed by ReLU. `x.len()` = d_in, `y.len()` = d_out.
+    pub fn forward(&self, x: &[f32], y: &mut [f32], relu: bool) {
+        debug_assert!(x.len() == self.d_in && y.len() == self.d_out);
+        y.copy_from_slice(&self.bias);
+        for (xi, row) in x.iter().zip(self.weight.chunks_exact(self.d_out)) {
+            if *xi != 0.0 {
+                for (yo, w) in y.iter_mut().zip(row) {
+                    *yo += xi * w;
+                }
+            }
+        }
+        if relu {
+            y.iter_mut().for_each(|v| *v = v.max(0.0));
+        }
+    }
+}
+
+/// A multilayer perceptron: ReLU after every layer but the last.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mlp {
+    /// Layers, input first.
+    pub layers: Vec<DenseLayer>,
+}
+
+impl Mlp {
+    /// The output for one input (`x.len()` = first layer's d_in).
+    pub fn forward(&self, x: &[f32]) -> Vec<f32> {
+        let mut h = x.to_vec();
+        for (i, layer) in self.layers.iter().enumerate() {
+            let mut y = vec![0.0; layer.d_out];
+            layer.forward(&h, &mut y, i + 1 < self.layers.len());
+            h = y;
+        }
+        h
+    }
+}
+
+/// A named latent code.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NamedLatent {
+    /// Material name (unique in the file).
+    pub name: String,
+    /// z, `latent_dim` values.
+    pub z: Vec<f32>,
+}
+
+/// The contents of a latent file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LatentFile {
+    /// Size of a latent code z.
+    pub latent_dim: usize,
+    /// Target-net widths, input first (6, 60, 60, 60, 60, 3).
+    pub target_widths: Vec<usize>,
+    /// Hidden widths of each hypernetwork head (128, 128).
+    pub hyper_hidden: Vec<usize>,
+    /// Form of the log-relative mapping.
+    pub mapping: MappingForm,
+    /// ε of the mapping.
+    pub epsilon: f32,
+    /// How the hypernetwork weights are stored on disk.
+    pub weight_type: WeightType,
+    /// One head per target-net tensor, in the order W0, b0, W1, b1, ...: latent_dim →
+    /// hidden... → numel of that tensor.
+    pub hypernetwork: Vec<Mlp>,
+    /// f_ref per MERL bin (within-channel index), RGB, 1/sr, as f16; negative = unmeasured.
+    pub f_ref: Vec<[f16; 3]>,
+    /// The latent codes.
+    pub latents: Vec<NamedLatent>,
+    /// Names of the materials the decoder was trained on.
+    pub training_materials: Vec<String>,
+}
+
+impl LatentFile {
+    /// The shapes (d_in, d_out) of the target-net layers.
+    pub fn target_layers(&self) -> Vec<(usize, usize)> {
+        self.target_widths.windows(2).map(|w| (w[0], w[1])).collect()
+    }
+
+    /// The latent code called `name`.
+    pub fn latent(&self, name: &str) -> Option<&[f32]> {
+        self.latents.iter().find(|l| l.name == name).map(|l| l.z.as_slice())
+    }
+
+    /// The names of the latent codes, in file order.
+    pub fn latent_names(&self) -> Vec<String> {
+        self.latents.iter().map(|l| l.name.clone()).collect()
+    }
+
+    /// f_ref of a bin (within-channel index) as f32, 1/sr; negative channels unmeasured.
+    #[inline]
+    pub fn f_ref(&self, bin: usize) -> [f32; 3] {
+        self.f_ref[bin].map(f16::to_f32)
+    }
+
+    /// Decodes a latent code into the target net (hypernetwork forward pass in f32): one MLP
+    /// with ReLU after every hidden layer and a linear output y.
+    ///
+    /// # Panics
+    /// If `z.len()` differs from `latent_dim` (a file read by [`LatentFile::read`] is
+    /// consistent; check user-made codes first).
+    pub fn decode(&self, z: &[f32]) -> Mlp {
+        assert_eq!(z.len(), self.latent_dim, "latent code size");
+        let outputs: Vec<Vec<f32>> = self.hypernetwork.iter().map(|head| head.forward(z)).collect();
+        let layers = self
+            .target_layers()
+            .into_iter()
+            .enumerate()
+            .map(|(k, (d_in, d_out))| DenseLayer {
+                d_in,
+                d_out,
+                weight: outputs[2 * k].clone(),
+                bias: outputs[2 * k + 1].clone(),
+            })
+            .collect();
+        Mlp { layers }
+    }
+
+    /// Checks every invariant the renderer relies on; `path` names the file in errors.
+    pub fn validate(&self, path: &Path) -> Result<()> {
+        let bad = |reason: String| Err(Error::invalid_file(path, reason));
+        if self.latent_dim == 0 || self.target_widths.len() < 2 || self.target_widths.contains(&0) {
+            return bad(format!(
+                "bad shape: latent_dim {}, target widths {:?}",
+                self.latent_dim, self.target_widths
+            ));
+        }
+        if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
+            return bad(format!("mapping epsilon {} is not a positive number", self.epsilon));
+        }
+        let layers = self.target_layers();
+        if self.hypernetwork.len() != 2 * layers.len() {
+            return bad(format!(
+                "{} hypernetwork heads, the target net has {} tensors",
+                self.hypernetwork.len(),
+                2 * layers.len()
+            ));
+        }
+        for (t, head) in self.hypernetwork.iter().enumerate() {
+            let (d_in, d_out) = layers[t / 2];
+            let numel = if t % 2 == 0 { d_in * d_out } else { d_out };
+            let mut widths = vec![self.latent_dim];
+            widths.extend(&self.hyper_hidden);
+            widths.push(numel);
+            if head.layers.len() + 1 != widths.len() {
+                return bad(format!("hypernetwork head {t} has {} layers", head.layers.len()));
+            }
+            for (l, layer) in head.layers.iter().enumerate() {
+                if layer.d_in != widths[l]
+                    || layer.d_out != widths[l + 1]
+                    || layer.weight.len() != layer.d_in * layer.d_out
+                    || layer.bias.len() != layer.d_out
+                {
+                    return bad(format!("hypernetwork head {t} layer {l} has the wrong shape"));
+                }
+                if let Some(i) = layer.weight.iter().chain(&layer.bias).position(|v| !v.is_finite()) {
+                    return bad(format!("non-finite hypernetwork weight in head {t} layer {l} (value {i})"));
+                }
+            }
+        }
+        if self.f_ref.len() != BIN_COUNT {
+            return bad(format!("f_ref has {} bins, expected {BIN_COUNT}", self.f_ref.len()));
+        }
+        if let Some(i) = self.f_ref.iter().position(|v| v.iter().any(|c| !c.is_finite())) {
+            return bad(format!("non-finite f_ref value at bin {i}"));
+        }
+        let mut names = std::collections::HashSet::new();
+        for l in &self.latents {
+            if l.z.len() != self.latent_dim {
+                return bad(format!("latent '{}' has {} values, expected {}", l.name, l.z.len(), self.latent_dim));
+            }
+            if l.z.iter().any(|v| !v.is_finite()) {
+                return bad(format!("latent '{}' has a non-finite value", l.name));
+            }
+            if !names.insert(l.name.as_str()) {
+                return bad(format!("latent name '{}' appears twice", l.name));
+            }
+        }
+        Ok(())
+    }
+
+    /// Serialises the file (see the module documentation), checksum included.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut w = Vec::new();
+        w.extend_from_slice(&MAGIC);
+        put_u32(&mut w, VERSION);
+        put_u32(&mut w, self.latent_dim as u32);
+        put_u32(&mut w, (self.target_widths.len() - 1) as u32);
+        self.target_widths.iter().for_each(|&v| put_u32(&mut w, v as u32));
+        put_u32(&mut w, self.hyper_hidden.len() as u32);
+        self.hyper_hidden.iter().for_each(|&v| put_u32(&mut w, v as u32));
+        w.push(self.mapping.code());
+        w.push(match self.weight_type {
+            WeightType::F32 => 0,
+            WeightType::F16 => 1,
+        });
+        w.extend_from_slice(&[0, 0]);
+        w.extend_from_slice(&self.epsilon.to_le_bytes());
+        for head in &self.hypernetwork {
+            for layer in &head.layers {
+                for v in layer.weight.iter().chain(&layer.bias) {
+                    match self.weight_type {
+                        WeightType::F32 => w.extend_from_slice(&v.to_le_bytes()),
+                        WeightType::F16 => w.extend_from_slice(&f16::from_f32(*v).to_le_bytes()),
+                    }
+                }
+            }
+        }
+        for dim in [THETA_H_BINS, THETA_D_BINS, PHI_D_BINS] {
+            put_u32(&mut w, dim as u32);
+        }
+        for v in self.f_ref.iter().flatten() {
+            w.extend_from_slice(&v.to_le_bytes());
+        }
+        put_u32(&mut w, self.latents.len() as u32);
+        for l in &self.latents {
+            put_str(&mut w, &l.name);
+            l.z.iter().for_each(|v| w.extend_from_slice(&v.to_le_bytes()));
+        }
+        put_u32(&mut w, self.training_materials.len() as u32);
+        self.training_materials.iter().for_each(|n| put_str(&mut w, n));
+        let sum = fnv1a64(&w);
+        w.extend_from_slice(&sum.to_le_bytes());
+        w
+    }
+
+    /// Parses and validates a file's bytes; `path` names it in errors.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self> {
+        let bad = |reason: String| Error::invalid_file(path, reason);
+        if bytes.len() < 12 || bytes[..8] != MAGIC {
+            return Err(bad("not a latent file (bad magic; expected \"FRENBRDF\")".to_string()));
+        }
+        let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+        if version != VERSION {
+            return Err(bad(format!(
+                "latent file version {version}, this build reads version {VERSION}"
+            )));
+        }
+        if bytes.len() < 20 {
+            return Err(bad(format!("truncated latent file: {} bytes", bytes.len())));
+        }
+        let (body, tail) = bytes.split_at(bytes.len() - 8);
+        let stored = u64::from_le_bytes(tail.try_into().map_err(|_| bad("truncated".into()))?);
+        if fnv1a64(body) != stored {
+            return Err(bad("checksum mismatch: the file is corrupt or truncated".to_string()));
+        }
+        let mut r = Cursor { bytes: body, at: 12, path };
+        let latent_dim = r.dim("latent_dim")?;
+        let layer_count = r.dim("target layer count")?;
+        let target_widths = (0..=layer_count).map(|_| r.dim("target width")).collect::<Result<Vec<_>>>()?;
+        let hidden_count = r.dim("hypernetwork layer count")?;
+        let hyper_hidden = (0..hidden_count).map(|_| r.dim("hypernetwork width")).collect::<Result<Vec<_>>>()?;
+        let flags = r.take(4)?;
+        let mapping = match flags[0] {
+            0 => MappingForm::Talk,
+            1 => MappingForm::Code,
+            m => return Err(bad(format!("unknown mapping form {m}"))),
+        };
+        let weight_type = match flags[1] {
+            0 => WeightType::F32,
+            1 => WeightType::F16,
+            t => return Err(bad(format!("unknown weight type {t}"))),
+        };
+        let epsilon = r.f32()?;
+        if target_widths.len() < 2 {
+            return Err(bad("the target net needs at least one layer".to_string()));
+        }
+        let mut hypernetwork = Vec::new();
+        for (d_in, d_out) in target_widths.windows(2).map(|w| (w[0], w[1])) {
+            for numel in [d_in * d_out, d_out] {
+                let mut widths = vec![latent_dim];
+                widths.extend(&hyper_hidden);
+                widths.push(numel);
+                let mut layers = Vec::new();
+                for w in widths.windows(2) {
+                    let weight = r.weights(w[0] * w[1], weight_type)?;
+                    let bias = r.weights(w[1], weight_type)?;
+                    layers.push(DenseLayer { d_in: w[0], d_out: w[1], weight, bias });
+                }
+                hypernetwork.push(Mlp { layers });
+            }
+        }
+        let dims = [r.u32()?, r.u32()?, r.u32()?];
+        if dims != [THETA_H_BINS as u32, THETA_D_BINS as u32, PHI_D_BINS as u32] {
+            return Err(bad(format!("f_ref dims {dims:?}, expected [90, 90, 180]")));
+        }
+        let raw = r.take(BIN_COUNT * 6)?;
+        let f_ref = raw
+            .chunks_exact(6)
+            .map(|c| [0, 2, 4].map(|k| f16::from_le_bytes([c[k], c[k + 1]])))
+            .collect();
+        let count = r.dim("latent count")?;
+        let mut latents = Vec::new();
+        for _ in 0..count {
+            let name = r.string()?;
+            let z = (0..latent_dim).map(|_| r.f32()).collect::<Result<Vec<_>>>()?;
+            latents.push(NamedLatent { name, z });
+        }
+        let count = r.dim("training material count")?;
+        let training_materials = (0..count).map(|_| r.string()).collect::<Result<Vec<_>>>()?;
+        if r.at != body.len() {
+            return Err(bad(format!("{} unexpected bytes after the last section", body.len() - r.at)));
+        }
+        let file = LatentFile {
+            latent_dim,
+            target_widths,
+            hyper_hidden,
+            mapping,
+            epsilon,
+            weight_type,
+            hypernetwork,
+            f_ref,
+            latents,
+            training_materials,
+        };
+        file.validate(path)?;
+        Ok(file)
+    }
+
+    /// Reads and validates a latent file.
+    pub fn read(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Validates and writes the file atomically (a temporary `PATH.partial` in the same
+    /// directory, synced, then renamed over `path`).
+    pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
+        let path = path.as_ref();
+        self.validate(path)?;
+        let mut partial = path.as_os_str().to_owned();
+        partial.push(".partial");
+        let partial = PathBuf::from(partial);
+        let mut file = std::fs::File::create(&partial).map_err(|e| Error::io(&partial, e))?;
+        file.write_all(&self.to_bytes())
+            .and_then(|_| file.sync_all())
+            .map_err(|e| Error::io(&partial, e))?;
+        std::fs::rename(&partial, path).map_err(|e| Error::io(path, e))
+    }
+}
+
+fn put_u32(w: &mut Vec<u8>, v: u32) {
+    w.extend_from_slice(&v.to_le_bytes());
+}
+
+fn put_str(w: &mut Vec<u8>, s: &str) {
+    put_u32(w, s.len() as u32);
+    w.extend_from_slice(s.as_bytes());
+}
+
+/// FNV-1a, 64 bit.
+fn fnv1a64(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// A bounds-checked reader over the file's bytes.
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    path: &'a Path,
+}
+
+impl Cursor<'_> {
+    fn take(&mut self, n: usize) -> Result<&[u8]> {
+        if self.bytes.len() - self.at < n {
+            return Err(Error::invalid_file(
+                self.path,
+                format!("truncated latent file: {n} more bytes needed at offset {}", self.at),
+            ));
+        }
+        self.at += n;
+        Ok(&self.bytes[self.at - n..self.at])
+    }
+
+    fn u32(&mut self) -> Result<u32> {
+        let b = self.take(4)?;
+        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+
+    fn f32(&mut self) -> Result<f32> {
+        Ok(f32::from_bits(self.u32()?))
+    }
+
+    fn dim(&mut self, what: &str) -> Result<usize> {
+        let v = self.u32()? as usize;
+        if v > MAX_DIM {
+            return Err(Error::invalid_file(self.path, format!("{what} {v} is implausibly large")));
+        }
+        Ok(v)
+    }
+
+    fn weights(&mut self, n: usize, ty: WeightType) -> Result<Vec<f32>> {
+        Ok(match ty {
+            WeightType::F32 => self
+                .take(4 * n)?
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect(),
+            WeightType::F16 => self
+                .take(2 * n)?
+                .chunks_exact(2)
+                .map(|b| f16::from_le_bytes([b[0], b[1]]).to_f32())
+                .collect(),
+        })
+    }
+
+    fn string(&mut self) -> Result<String> {
+        let n = self.dim("name length")?;
+        let path = self.path;
+        String::from_utf8(self.take(n)?.to_vec())
+            .map_err(|_| Error::invalid_file(path, "a name is not valid UTF-8"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small_file(weight_type: WeightType) -> LatentFile {
+        let widths = vec![6, 4, 3];
+        let hidden = vec![5];
+        let latent_dim = 2;
+        let mut hypernetwork = Vec::new();
+        let mut seed = 1u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
+        };
+        for w in widths.windows(2) {
+            for numel in [w[0] * w[1], w[1]] {
+                let dims = [latent_dim, hidden[0], numel];
+                let layers = dims
+                    .windows(2)
+                    .map(|d| DenseLayer {
+                        d_in: d[0],
+                        d_out: d[1],
+                        weight: (0..d[0] * d[1]).map(|_| next()).collect(),
+                        bias: (0..d[1]).map(|_| next()).collect(),
+                    })
+                    .collect();
+                hypernetwork.push(Mlp { layers });
+            }
+        }
+        LatentFile {
+            latent_dim,
+            target_widths: widths,
+            hyper_hidden: hidden,
+            mapping: MappingForm::Talk,
+            epsilon: 0.002,
+            weight_type,
+            hypernetwork,
+            f_ref: vec![[f16::from_f32(0.25); 3]; BIN_COUNT],
+            latents: vec![
+                NamedLatent { name: "gold".into(), z: vec![0.5, 1.0] },
+                NamedLatent { name: "blue-acrylic".into(), z: vec![0.0, 2.0] },
+            ],
+            training_materials: vec!["gold".into(), "silver".into()],
+        }
+    }
+
+    #[test]
+    fn round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("latent.bin");
+        let file = small_file(WeightType::F32);
+        file.write(&path).unwrap();
+        let back = LatentFile::read(&path).unwrap();
+        assert_eq!(back, file);
+        let net = back.decode(back.latent("gold").unwrap());
+        assert_eq!(net.layers.len(), 2);
+        assert_eq!(net.forward(&[0.1; 6]).len(), 3);
+        assert_eq!(back.latent_names(), vec!["gold", "blue-acrylic"]);
+
+        let half = small_file(WeightType::F16);
+        let bytes = half.to_bytes();
+        assert!(bytes.len() < file.to_bytes().len());
+        let back = LatentFile::from_bytes(&bytes, &path).unwrap();
+        let a = back.hypernetwork[0].layers[0].weight[3];
+        assert!((a - half.hypernetwork[0].layers[0].weight[3]).abs() < 1e-3);
+    }
+
+    #[test]
+    fn bad_files_are_rejected_with_the_reason() {
+        let path = Path::new("dir/latent.bin");
+        let good = small_file(WeightType::F32).to_bytes();
+        let err = |b: &[u8]| LatentFile::from_bytes(b, path).unwrap_err().to_string();
+
+        let e = err(b"PK\x03\x04 not a latent file");
+        assert!(e.contains("latent.bin") && e.contains("bad magic"), "{e}");
+
+        let mut v2 = good.clone();
+        v2[8..12].copy_from_slice(&2u32.to_le_bytes());
+        let e = err(&v2);
+        assert!(e.contains("version 2") && e.contains("reads version 1"), "{e}");
+
+        let e = err(&good[..good.len() - 100]);
+        assert!(e.contains("checksum"), "{e}");
+
+        let mut flipped = good.clone();
+        flipped[40] ^= 0xff;
+        assert!(err(&flipped).contains("checksum"));
+
+        let mut nan = small_file(WeightType::F32);
+        nan.latents[1].z[0] = f32::NAN;
+        let e = err(&nan.to_bytes());
+        assert!(e.contains("latent 'blue-acrylic' has a non-finite value"), "{e}");
+        assert!(nan.write(std::env::temp_dir().join("never-written.bin")).is_err());
+
+        let mut dup = small_file(WeightType::F32);
+        dup.latents[1].name = "gold".into();
+        assert!(err(&dup.to_bytes()).contains("appears twice"));
+    }
+
+    #[test]
+    fn mapping_inverts() {
+        for form in [MappingForm::Talk, MappingForm::Code] {
+            for (f, r) in [(0.0f32, 0.1f32), (3.0, 0.2), (500.0, 20.0)] {
+                let y = form.forward(f, r, 0.002);
+                let back = form.inverse(y, r, 0.002);
+                assert!((back - f).abs() <= 1e-4 * f.max(1.0), "{form:?} {f} {r} -> {back}");
+            }
+        }
+    }
+}
