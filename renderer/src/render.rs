@@ -169,8 +169,9 @@ impl Renderer<'_> {
         let mut done = 0u32;
         loop {
             let count = match budget {
-                // About 16 passes: smooth progress and a cheap cancellation point.
-                Budget::Spp(spp) => (spp - done).min(spp.div_ceil(16).max(1)),
+                // At least 16 passes of at most 8 samples: smooth progress, and Ctrl-C is
+                // answered within one tile of 8 samples per pixel.
+                Budget::Spp(spp) => (spp - done).min(spp.div_ceil(16).clamp(1, 8)),
                 Budget::Time(_) => 1,
             };
             if count == 0 {

@@ -25,10 +25,10 @@ struct Args {
     /// Scene file (.gltf, .glb or .obj).
     scene: PathBuf,
     /// Samples per pixel.
-    #[arg(long, conflicts_with = "time", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, conflicts_with = "time", allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
     /// Render for this many seconds (passes of one sample per pixel, at least one).
-    #[arg(long, value_parser = parse_seconds)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_seconds)]
     time: Option<f64>,
     /// Image size as WIDTHxHEIGHT (default: 512 wide, height from the camera's aspect ratio).
     #[arg(long, value_parser = parse_resolution)]
@@ -38,10 +38,10 @@ struct Args {
     #[arg(long, default_value_t = 8, allow_negative_numbers = true, value_parser = clap::value_parser!(i32).range(-1..))]
     max_depth: i32,
     /// Seed of the random streams; the same seed gives the same image for any thread count.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     seed: u64,
     /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     threads: usize,
     /// Camera name (default: the scene's first camera).
     #[arg(long)]
@@ -229,8 +229,31 @@ fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
+/// Parses the command line; a usage error becomes one line (clap's message up to its usage
+/// section) and exit code 2.
+fn parse_args() -> Result<Args, ExitCode> {
+    Args::try_parse().map_err(|e| {
+        use clap::error::ErrorKind;
+        if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+            let _ = e.print();
+            return ExitCode::SUCCESS;
+        }
+        let text = e.render().to_string();
+        let message: Vec<&str> = text
+            .lines()
+            .map(str::trim)
+            .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
+            .collect();
+        eprintln!("{}", message.join(" "));
+        ExitCode::from(2)
+    })
+}
+
 fn main() -> ExitCode {
-    let args = Args::parse();
+    let args = match parse_args() {
+        Ok(args) => args,
+        Err(code) => return code,
+    };
     match run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -1,0 +1,160 @@
+//! The `render` binary end to end: a good render writes its image and statistics; every kind
+//! of bad input gives a one-line error naming the file or flag, exit code 2, no panic, and
+//! no output file.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn render(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_render"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run render")
+}
+
+fn cornell_box() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box/scene.gltf")
+}
+
+/// Asserts a failed run: exit code 2, one `error:` line on stderr containing every needle,
+/// no panic, and no file named `out` in `dir`.
+fn assert_clean_failure(out: &Output, needles: &[&str], dir: &Path) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert!(lines.len() == 1 && lines[0].starts_with("error:"), "one line expected: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "'{n}' not in: {stderr}");
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(dir)
+        .expect("ls")
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with("out"))
+        .collect();
+    assert!(leftovers.is_empty(), "output written: {leftovers:?}");
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("write");
+    path.to_string_lossy().into_owned()
+}
+
+/// A minimal glTF with one triangle whose JSON can be altered per test.
+fn gltf_with(positions: [f32; 9], mode: u32) -> String {
+    let bytes: Vec<u8> = positions.iter().flat_map(|f| f.to_le_bytes()).collect();
+    let b64 = base64_encode(&bytes);
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"mode":{mode}}}]}}],
+"buffers":[{{"byteLength":36,"uri":"data:application/octet-stream;base64,{b64}"}}],
+"bufferViews":[{{"buffer":0,"byteLength":36}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[-1,-1,-1],"max":[1,1,1]}}]}}"#
+    )
+}
+
+fn base64_encode(bytes: &[u8]) -> String {
+    const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in bytes.chunks(3) {
+        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        for i in 0..4 {
+            if i <= c.len() {
+                s.push(T[(n >> (18 - 6 * i) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
+
+#[test]
+fn renders_png_and_stats() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = cornell_box();
+    let out = render(
+        &[scene.to_str().expect("utf-8"), "--spp", "2", "--resolution", "24x16", "--output", "img.png", "--stats", "s.json", "--threads", "2"],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let img = std::fs::read(dir.path().join("img.png")).expect("png written");
+    assert_eq!(&img[1..4], b"PNG");
+    let stats: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("s.json")).expect("stats")).expect("json");
+    assert_eq!(stats["spp"], 2.0);
+    assert_eq!(stats["width"], 24);
+    assert!(stats["samples_per_second"].as_f64().expect("number") > 0.0);
+    assert_eq!(stats["discarded_samples"], 0);
+}
+
+#[test]
+fn bad_flags_and_files_fail_cleanly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let scene = cornell_box();
+    let scene = scene.to_str().expect("utf-8");
+    let cases: Vec<(Vec<String>, Vec<&str>)> = vec![
+        (vec!["missing.gltf".into()], vec!["missing.gltf"]),
+        (vec![write(d, "malformed.gltf", "{ not json")], vec!["malformed.gltf"]),
+        (vec![write(d, "lines.gltf", &gltf_with([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], 1))], vec!["lines.gltf", "primitive mode"]),
+        (vec![write(d, "points.gltf", &gltf_with([0.0; 9], 0))], vec!["points.gltf"]),
+        (vec![write(d, "nan.gltf", &gltf_with([f32::NAN, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], 4))], vec!["nan.gltf"]),
+        (vec![scene.into(), "--camera".into(), "nope".into()], vec!["nope", "camera"]),
+        (vec![scene.into(), "--spp".into(), "0".into()], vec!["--spp"]),
+        (vec![scene.into(), "--spp".into(), "-3".into()], vec!["--spp"]),
+        (vec![scene.into(), "--resolution".into(), "12".into()], vec!["--resolution"]),
+        (vec![scene.into(), "--resolution".into(), "0x5".into()], vec!["--resolution"]),
+        (vec![scene.into(), "--time".into(), "nan".into()], vec!["--time"]),
+        (vec![scene.into(), "--max-depth".into(), "-2".into()], vec!["--max-depth"]),
+        (vec![scene.into(), "--spp".into(), "4".into(), "--time".into(), "1".into()], vec!["--time"]),
+        (vec![scene.into(), "--bind".into(), "nomaterial".into()], vec!["--bind"]),
+        (vec![scene.into(), "--threads".into(), "-1".into()], vec!["--threads"]),
+        (vec![], vec!["SCENE"]),
+        (vec![scene.into(), "--bind".into(), "nosuch=merl:x.binary".into()], vec!["nosuch", "white"]),
+        (vec![scene.into(), "--output".into(), "out.bmp".into()], vec!["out.bmp", "--output"]),
+    ];
+    for (args, needles) in cases {
+        let mut args: Vec<&str> = args.iter().map(String::as_str).collect();
+        if !args.contains(&"--output") {
+            args.extend(["--output", "out.exr"]);
+        }
+        let out = render(&args, d);
+        assert_clean_failure(&out, &needles, d);
+    }
+}
+
+#[test]
+fn zero_triangle_scene_fails_cleanly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{}]}"#;
+    let path = write(dir.path(), "empty.gltf", text);
+    let out = render(&[&path, "--output", "out.exr"], dir.path());
+    assert_clean_failure(&out, &["empty.gltf", "no triangles"], dir.path());
+}
+
+/// Ctrl-C (SIGINT) stops the render and writes the image rendered so far, with the
+/// statistics saying it was interrupted.
+#[cfg(unix)]
+#[test]
+fn interrupt_writes_the_image_so_far() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = cornell_box();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_render"))
+        .args([scene.to_str().expect("utf-8"), "--spp", "100000", "--resolution", "64x64", "--output", "partial.exr", "--stats", "s.json"])
+        .current_dir(dir.path())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start render");
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill");
+    assert!(status.success());
+    let exit = child.wait().expect("wait");
+    assert!(exit.success(), "{exit:?}");
+    assert!(dir.path().join("partial.exr").exists());
+    let stats: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("s.json")).expect("stats")).expect("json");
+    assert_eq!(stats["interrupted"], true);
+    let spp = stats["spp"].as_f64().expect("spp");
+    assert!(spp > 0.0 && spp < 100000.0, "{spp}");
+}
