@@ -79,6 +79,11 @@ fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Res
     }
 }
 
+/// Writes a text file (statistics, logs) atomically.
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    write_atomically(path, |tmp| std::fs::write(tmp, text).map_err(|e| Error::io(path, e)))
+}
+
 /// Writes a linear f32 RGB OpenEXR file.
 pub fn write_exr(path: &Path, width: u32, height: u32, pixels: &[Rgb]) -> Result<()> {
     assert_eq!(pixels.len(), width as usize * height as usize);

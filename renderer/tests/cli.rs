@@ -158,3 +158,30 @@ fn interrupt_writes_the_image_so_far() {
     let spp = stats["spp"].as_f64().expect("spp");
     assert!(spp > 0.0 && spp < 100000.0, "{spp}");
 }
+
+/// `--reference` + `--error-log` write one CSV row per pass; the error falls as samples
+/// accumulate; a reference of another size is a clean error.
+#[test]
+fn error_log_against_a_reference() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = cornell_box();
+    let scene = scene.to_str().expect("utf-8");
+    let ok = |args: &[&str]| {
+        let out = render(args, dir.path());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    ok(&[scene, "--spp", "256", "--resolution", "32x32", "--output", "ref.exr", "--seed", "1"]);
+    ok(&[scene, "--spp", "64", "--resolution", "32x32", "--output", "img.exr", "--reference", "ref.exr", "--error-log", "log.csv"]);
+    let log = std::fs::read_to_string(dir.path().join("log.csv")).expect("log");
+    let rows: Vec<Vec<f64>> = log
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().expect("number")).collect())
+        .collect();
+    assert!(rows.len() >= 8, "{log}");
+    assert_eq!(rows.last().expect("rows")[1], 64.0);
+    assert!(rows.windows(2).all(|w| w[1][0] >= w[0][0] && w[1][1] > w[0][1]), "time and spp grow: {log}");
+    assert!(rows.last().expect("rows")[2] < rows[0][2], "RMSE falls: {log}");
+    let out = render(&[scene, "--resolution", "16x16", "--output", "out.exr", "--reference", "ref.exr", "--error-log", "out.csv"], dir.path());
+    assert_clean_failure(&out, &["ref.exr", "32x32"], dir.path());
+}

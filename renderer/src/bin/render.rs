@@ -9,6 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use renderer::camera::PinholeCamera;
 use renderer::image_io::{write_image, ImageFormat, ToneMap};
 use renderer::integrator::PathTracer;
+use renderer::metrics::{display_values, ImageError};
 use renderer::render::{Budget, RenderStats, Renderer};
 use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
@@ -59,6 +60,13 @@ struct Args {
     /// Tone mapping for PNG output.
     #[arg(long, value_enum, default_value_t = ToneMapArg::Clamp)]
     tonemap: ToneMapArg,
+    /// Reference image (.exr) to measure error against after every pass (needs --error-log).
+    #[arg(long, requires = "error_log")]
+    reference: Option<PathBuf>,
+    /// CSV file receiving, after every pass: wall seconds (without the time spent measuring),
+    /// spp, RMSE (linear), PSNR and SSIM (8-bit display images) against --reference.
+    #[arg(long, requires = "reference")]
+    error_log: Option<PathBuf>,
     /// Exposure in stops applied before tone mapping (PNG output only).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_finite)]
     exposure: f32,
@@ -139,6 +147,16 @@ fn run(args: Args) -> Result<()> {
         let aspect = camera.aspect_ratio.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
         (512, ((512.0 / aspect).round() as u32).clamp(1, 16384))
     });
+    let reference = match &args.reference {
+        Some(path) => {
+            let (w, h, pixels) = renderer::image_io::read_image(path)?;
+            if (w, h) != (width, height) {
+                bail!("{}: reference is {w}x{h} but the render is {width}x{height}", path.display());
+            }
+            Some(pixels)
+        }
+        None => None,
+    };
     let scene = RenderScene::new(description)?;
     let load_seconds = load_start.elapsed().as_secs_f64();
 
@@ -183,7 +201,23 @@ fn run(args: Args) -> Result<()> {
             bar.inc(n)
         }
     };
+    let tone_map = match args.tonemap {
+        ToneMapArg::Clamp => ToneMap::Clamp,
+        ToneMapArg::Aces => ToneMap::Aces,
+    };
+    let mut error_rows = String::from("seconds,spp,rmse,psnr,ssim\n");
+    let mut measuring = Duration::ZERO;
     let mut after_pass = |film: &renderer::film::Film, elapsed: Duration| {
+        if let Some(reference) = &reference {
+            let start = Instant::now();
+            let e = ImageError::between(&film.mean(), reference, width as usize, height as usize, |img| {
+                display_values(img, tone_map, args.exposure)
+            });
+            let spp = film.total_samples() as f64 / (width as f64 * height as f64);
+            let seconds = (elapsed - measuring).as_secs_f64();
+            error_rows += &format!("{seconds:.6},{spp},{:.8e},{:.4},{:.6}\n", e.rmse, e.psnr, e.ssim);
+            measuring += start.elapsed();
+        }
         if matches!(budget, Budget::Time(_)) {
             bar.set_position(elapsed.as_millis() as u64);
             bar.set_message(format!("{:.1} spp", film.total_samples() as f64 / (width as f64 * height as f64)));
@@ -192,10 +226,9 @@ fn run(args: Args) -> Result<()> {
     let (film, stats) = pool.install(|| renderer.render(width, height, budget, &cancel, &progress, &mut after_pass));
     bar.finish_and_clear();
 
-    let tone_map = match args.tonemap {
-        ToneMapArg::Clamp => ToneMap::Clamp,
-        ToneMapArg::Aces => ToneMap::Aces,
-    };
+    if let Some(path) = &args.error_log {
+        renderer::image_io::write_text(path, &error_rows)?;
+    }
     write_image(&args.output, width, height, &film.mean(), tone_map, args.exposure)?;
     if let Some(path) = &args.stats {
         let json = serde_json::to_string_pretty(&StatsFile {
@@ -203,7 +236,7 @@ fn run(args: Args) -> Result<()> {
             load_seconds,
             render: &stats,
         })?;
-        std::fs::write(path, json + "\n").with_context(|| format!("{}: cannot write statistics", path.display()))?;
+        renderer::image_io::write_text(path, &(json + "\n"))?;
     }
     if stats.interrupted {
         eprintln!(
