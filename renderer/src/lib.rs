@@ -24,6 +24,7 @@ pub mod integrator;
 pub mod latent_file;
 pub mod lights;
 pub mod merl;
+pub mod metrics;
 pub mod nbrdf;
 pub mod render;
 pub mod render_scene;

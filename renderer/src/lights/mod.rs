@@ -1,6 +1,11 @@
 //! Every emitter of a scene behind one interface for next-event estimation: emissive
-//! triangles, punctual lights and the environment, one of which is chosen per shading point
-//! with probability proportional to its estimated power.
+//! triangles, punctual lights and the environment, one of which is chosen per shading point.
+//!
+//! Selection: the emitters form groups (all emissive triangles; each punctual light; the
+//! environment). A group is chosen with probability ½ · its share of the estimated power +
+//! ½ · uniform over the groups, then a triangle within its group by power. Power alone
+//! starves small lights where a distant emitter's power estimate is large (an environment
+//! over a vast ground plane), giving fireflies; the uniform half bounds that.
 
 pub mod area;
 pub mod environment;
@@ -61,7 +66,9 @@ impl LightSet {
         scene_radius: f32,
     ) -> Self {
         let mut lights = Vec::new();
+        // Estimated power of each light, and the group each belongs to.
         let mut weights = Vec::new();
+        let mut groups = Vec::new();
         let mut triangle_to_light = Vec::new();
         for (tri, corners, radiance) in emissive {
             if let Some(light) = TriangleLight::new(corners, radiance) {
@@ -70,25 +77,22 @@ impl LightSet {
                 }
                 triangle_to_light[tri as usize] = lights.len() as u32;
                 weights.push(light.area * std::f32::consts::PI * luminance(radiance));
+                groups.push(0usize);
                 lights.push(Light::Triangle(light));
             }
         }
-        for p in punctual {
+        for (i, p) in punctual.iter().enumerate() {
             weights.push(punctual::power_hint(p, scene_radius));
+            groups.push(1 + i);
             lights.push(Light::Punctual(p.clone()));
         }
         let environment_light = lights.len();
         if let Some(env) = &environment {
             weights.push(env.power_hint() * std::f32::consts::PI * scene_radius * scene_radius);
+            groups.push(1 + punctual.len());
             lights.push(Light::Environment);
         }
-        let selection = (!weights.is_empty()).then(|| {
-            if weights.iter().any(|&w| w > 0.0 && w.is_finite()) {
-                Distribution1D::new(&weights)
-            } else {
-                Distribution1D::new(&vec![1.0; weights.len()])
-            }
-        });
+        let selection = (!weights.is_empty()).then(|| Distribution1D::new(&selection_weights(&weights, &groups)));
         LightSet {
             lights,
             selection,
@@ -96,6 +100,11 @@ impl LightSet {
             environment,
             environment_light,
         }
+    }
+
+    /// Probability of choosing light `i` (for tests and diagnostics).
+    pub fn selection_probability(&self, i: usize) -> f32 {
+        self.selection.as_ref().map_or(0.0, |s| s.pdf_cell(i))
     }
 
     /// Number of lights (each emissive triangle counts as one).
@@ -177,5 +186,62 @@ impl LightSet {
             (Some(env), Some(selection)) => env.pdf(d) * selection.pdf_cell(self.environment_light),
             _ => 0.0,
         }
+    }
+}
+
+/// Selection weights from per-light power estimates and group indices (see the module doc).
+fn selection_weights(power: &[f32], groups: &[usize]) -> Vec<f32> {
+    let clean = |w: f32| if w.is_finite() && w > 0.0 { w } else { 0.0 };
+    let group_count = groups.iter().max().map_or(0, |g| g + 1);
+    let mut group_power = vec![0.0f64; group_count];
+    let mut group_size = vec![0usize; group_count];
+    for (&w, &g) in power.iter().zip(groups) {
+        group_power[g] += clean(w) as f64;
+        group_size[g] += 1;
+    }
+    let present = group_size.iter().filter(|&&n| n > 0).count() as f64;
+    let total: f64 = group_power.iter().sum();
+    power
+        .iter()
+        .zip(groups)
+        .map(|(&w, &g)| {
+            let share = if total > 0.0 { group_power[g] / total } else { 0.0 };
+            let p_group = if total > 0.0 { 0.5 * share + 0.5 / present } else { 1.0 / present };
+            let within = if group_power[g] > 0.0 {
+                clean(w) as f64 / group_power[g]
+            } else {
+                1.0 / group_size[g] as f64
+            };
+            (p_group * within) as f32
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn selection_gives_every_group_half_a_uniform_share() {
+        let point = PunctualLight::Point {
+            position: Vec3::Y,
+            intensity: Rgb::splat(1.0),
+        };
+        let env = Environment::constant(Rgb::splat(1.0));
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Z];
+        let set = LightSet::new(
+            [(0, tri, Rgb::splat(5.0)), (1, tri.map(|v| v * 2.0), Rgb::splat(5.0))],
+            2,
+            std::slice::from_ref(&point),
+            Some(env),
+            1000.0,
+        );
+        assert_eq!(set.len(), 4);
+        let p: Vec<f32> = (0..4).map(|i| set.selection_probability(i)).collect();
+        assert!((p.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+        // Three groups: each gets at least half of a uniform share.
+        assert!(p[0] + p[1] >= 1.0 / 6.0 - 1e-6 && p[2] >= 1.0 / 6.0 - 1e-6 && p[3] >= 1.0 / 6.0 - 1e-6, "{p:?}");
+        // Within the triangles, by power: the second has four times the area.
+        assert!((p[1] / p[0] - 4.0).abs() < 1e-3, "{p:?}");
     }
 }
