@@ -31,6 +31,9 @@ pub struct RenderScene {
     pub textures: Vec<Texture>,
     measured: Vec<MeasuredBsdf>,
     pub bvh: Bvh,
+    /// Corners and unit geometric normal (zero for degenerate triangles) per triangle,
+    /// gathered once so a hit reads one record.
+    hit_records: Vec<([Vec3; 3], Vec3)>,
     pub lights: LightSet,
     /// Centre and radius of a sphere bounding the geometry.
     pub bounds_centre: Vec3,
@@ -93,6 +96,12 @@ impl RenderScene {
             });
         }
         let bvh = Bvh::build((0..geometry.triangle_count()).map(|i| geometry.triangle_positions(i)));
+        let hit_records = (0..geometry.triangle_count())
+            .map(|i| {
+                let c = geometry.triangle_positions(i);
+                (c, (c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero())
+            })
+            .collect();
         let (bounds_centre, bounds_radius) = bounding_sphere(&geometry);
         let environment = environment.as_ref().map(Environment::load).transpose()?;
         let emissive = (0..geometry.triangle_count()).filter_map(|i| {
@@ -113,6 +122,7 @@ impl RenderScene {
             textures,
             measured,
             bvh,
+            hit_records,
             lights,
             bounds_centre,
             bounds_radius,
@@ -131,9 +141,11 @@ impl RenderScene {
         let g = &self.geometry;
         let tri = hit.triangle as usize;
         let [i0, i1, i2] = g.triangles[tri];
-        let corners = g.triangle_positions(tri);
+        let (corners, ng) = self.hit_records[tri];
+        if ng == Vec3::ZERO {
+            return None;
+        }
         let (p, p_error) = interpolate_point(corners, hit.barycentric);
-        let ng = (corners[1] - corners[0]).cross(corners[2] - corners[0]).try_normalize()?;
         let front_face = direction.dot(ng) < 0.0;
         let ng_facing = if front_face { ng } else { -ng };
         let b = hit.barycentric;
