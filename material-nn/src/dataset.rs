@@ -3,7 +3,7 @@
 //!
 //! - A data directory holds `NAME.binary` tables (MERL layout, read by [`renderer::merl`]);
 //!   the material's name is the file stem. Tables are kept in memory as f32 f_r (1/sr),
-//!   bin-major RGB (52 MB each); negative entries are unmeasured.
+//!   bin-major RGB (17.5 MB each); negative entries are unmeasured.
 //! - Split: the names, sorted, are shuffled with the run's seed and cut by the configured
 //!   fractions (at least one training material); recorded in the run as `split.json`.
 //! - f_ref: the per-bin, per-channel median of the training split's tables, unmeasured
@@ -203,9 +203,13 @@ impl MaterialDataset {
     }
 }
 
-impl Dataset<Arc<MaterialTable>> for MaterialDataset {
-    fn get(&self, index: usize) -> Option<Arc<MaterialTable>> {
-        self.items.get(index).cloned()
+impl Dataset<Arc<MaterialTable>, Error> for MaterialDataset {
+    /// The table at `index` (tables are loaded up front, so this never fails).
+    ///
+    /// # Panics
+    /// If `index >= len()`, as burn's `Dataset` contract specifies.
+    fn get(&self, index: usize) -> Result<Arc<MaterialTable>> {
+        Ok(self.items[index].clone())
     }
 
     fn len(&self) -> usize {

@@ -33,7 +33,7 @@ pub fn latent_file(run: &TrainedRun, weight_type: WeightType) -> LatentFile {
         hypernetwork,
         f_ref,
         latents: Vec::new(),
-        training_materials: run.train.clone(),
+        training_materials: run.split.train.clone(),
     }
 }
 

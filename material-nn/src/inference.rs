@@ -23,8 +23,8 @@ pub struct TrainedRun {
     pub sampler: Sampler,
     /// What the run was trained on.
     pub info: RunInfo,
-    /// Training materials.
-    pub train: Vec<String>,
+    /// The run's split of the materials.
+    pub split: crate::dataset::Split,
     /// Device of the model.
     pub device: Device,
 }
@@ -52,7 +52,7 @@ impl TrainedRun {
             config: ckpt.config,
             model,
             info,
-            train: split.train,
+            split,
             device,
         })
     }

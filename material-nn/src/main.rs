@@ -10,16 +10,20 @@ use material_nn::dataset::MaterialTable;
 use material_nn::inference::TrainedRun;
 use material_nn::tabulate::{self, TableOutcome};
 use material_nn::training::{self, Event, Outcome, TrainRequest};
-use renderer::latent_file::{LatentFile, NamedLatent, WeightType};
-use std::sync::atomic::{AtomicBool, Ordering};
 use renderer::analytic::AnalyticBrdf;
+use renderer::latent_file::{LatentFile, NamedLatent, WeightType};
 use renderer::Rgb;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "material-nn", version, about = "Neural materials from measured BRDFs")]
+#[command(
+    name = "material-nn",
+    version,
+    about = "Neural materials from measured BRDFs"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -54,6 +58,68 @@ enum Command {
     ///   material-nn encode --run runs/frenbrdf --samples measured.csv --name mine --add-to latent.bin
     #[command(verbatim_doc_comment)]
     Encode(EncodeArgs),
+    /// BRDF-space evaluation of a run on its test split: reconstruction and editing
+    /// (RMSE of cos-weighted f_r, L_rec data term, L_fre); writes RUN/eval/*.csv and summary.md.
+    ///
+    ///   material-nn eval --run runs/frenbrdf [--pairs 200]
+    #[command(verbatim_doc_comment)]
+    Eval(EvalArgs),
+    /// Learning-rate search as in the talk: grid 1e-1, 1e-3, 1e-5, then random trials within a
+    /// decade of the best; short runs under --out, results in --out/search.csv and
+    /// --out/best-config.json.
+    ///
+    ///   material-nn search --data data/merl-fitted --out runs/search --epochs 3 --trials 4
+    #[command(verbatim_doc_comment)]
+    Search(SearchArgs),
+}
+
+#[derive(Args)]
+struct SearchArgs {
+    /// Directory of MERL-layout tables.
+    #[arg(long, value_name = "DIR")]
+    data: PathBuf,
+    /// Search directory (one run directory per trial).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Base configuration (its learning rate is replaced by each trial's).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Epochs per trial.
+    #[arg(long, default_value_t = 3)]
+    epochs: usize,
+    /// Random trials after the grid.
+    #[arg(long, default_value_t = 4)]
+    trials: usize,
+}
+
+/// Which split `eval` uses.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SplitName {
+    Train,
+    Validation,
+    Test,
+}
+
+#[derive(Args)]
+struct EvalArgs {
+    /// Run directory of `train`.
+    #[arg(long, value_name = "RUN")]
+    run: PathBuf,
+    /// Directory of the tables (default: the run's data directory).
+    #[arg(long, value_name = "DIR")]
+    data: Option<PathBuf>,
+    /// The materials evaluated.
+    #[arg(long, value_enum, default_value = "test")]
+    split: SplitName,
+    /// Comparison points per material.
+    #[arg(long, default_value_t = 65_536)]
+    samples: usize,
+    /// Random editing pairs (the talk used 2,000).
+    #[arg(long, default_value_t = 50)]
+    pairs: usize,
+    /// Seed of points, pairs and t.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
 }
 
 #[derive(Args)]
@@ -141,7 +207,12 @@ struct TabulateArgs {
     #[arg(long, value_name = "DIR")]
     nbrdf: Option<PathBuf>,
     /// With --nbrdf: only these networks (comma-separated names), default all.
-    #[arg(long, value_name = "A,B,...", value_delimiter = ',', requires = "nbrdf")]
+    #[arg(
+        long,
+        value_name = "A,B,...",
+        value_delimiter = ',',
+        requires = "nbrdf"
+    )]
     materials: Option<Vec<String>>,
     /// Write the per-bin median of the TABLE files to --out (unmeasured entries left out).
     #[arg(long, requires = "tables")]
@@ -205,7 +276,9 @@ fn parse_non_negative(s: &str) -> Result<f32, String> {
 
 fn progress_bar(len: usize, what: &str) -> ProgressBar {
     let bar = ProgressBar::new(len as u64);
-    if let Ok(style) = ProgressStyle::with_template("{prefix} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta} {msg}") {
+    if let Ok(style) = ProgressStyle::with_template(
+        "{prefix} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta} {msg}",
+    ) {
         bar.set_style(style.progress_chars("=> "));
     }
     bar.set_prefix(what.to_string());
@@ -219,12 +292,19 @@ fn tabulate(args: TabulateArgs) -> anyhow::Result<()> {
         let bar = progress_bar(names.len(), "tabulate");
         let outcomes = tabulate::tabulate_networks(dir, &names, &args.out, |outcome| {
             let (TableOutcome::Written(p) | TableOutcome::Skipped(p)) = outcome;
-            bar.set_message(p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default());
+            bar.set_message(
+                p.file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+            );
             bar.inc(1);
         });
         bar.finish_and_clear();
         let outcomes = outcomes?;
-        let written = outcomes.iter().filter(|o| matches!(o, TableOutcome::Written(_))).count();
+        let written = outcomes
+            .iter()
+            .filter(|o| matches!(o, TableOutcome::Written(_)))
+            .count();
         println!(
             "{}: wrote {written} tables, {} already present, in {:.1} s",
             args.out.display(),
@@ -276,7 +356,11 @@ fn tabulate(args: TabulateArgs) -> anyhow::Result<()> {
         std::fs::create_dir_all(parent).with_context(|| parent.display().to_string())?;
     }
     tabulate::write_table_atomic(&table, &args.out)?;
-    println!("{}: written in {:.1} s", args.out.display(), start.elapsed().as_secs_f64());
+    println!(
+        "{}: written in {:.1} s",
+        args.out.display(),
+        start.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
@@ -285,7 +369,8 @@ static STOP: AtomicBool = AtomicBool::new(false);
 
 fn train(args: TrainArgs) -> anyhow::Result<()> {
     let config = args.config.as_deref().map(TrainConfig::read).transpose()?;
-    ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst)).context("cannot install the Ctrl-C handler")?;
+    ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst))
+        .context("cannot install the Ctrl-C handler")?;
     let request = TrainRequest {
         data_dir: args.data,
         run_dir: args.out.clone(),
@@ -297,22 +382,31 @@ fn train(args: TrainArgs) -> anyhow::Result<()> {
     let mut last_epoch = String::new();
     let start = Instant::now();
     let outcome = training::train(&request, &STOP, &mut |event| match event {
-        Event::Start { total_steps, done, parameters } => {
+        Event::Start {
+            total_steps,
+            done,
+            parameters,
+        } => {
             bar.set_length(total_steps);
             bar.set_position(done);
-            bar.println(format!("{parameters} parameters, {total_steps} steps"));
+            bar.suspend(|| println!("{parameters} parameters, {total_steps} steps, {done} done"));
         }
         Event::Step { step, losses } => {
             bar.set_position(step);
-            bar.set_message(format!("loss {:.4} rec {:.4} fre {:.2e}{last_epoch}", losses[0], losses[1], losses[2]));
+            bar.set_message(format!(
+                "loss {:.4} rec {:.4} fre {:.2e}{last_epoch}",
+                losses[0], losses[1], losses[2]
+            ));
         }
         Event::Epoch(r) => {
             let val = r.validation.map_or("-".to_string(), |v| format!("{v:.4}"));
             last_epoch = format!(" | epoch {} val {val}", r.epoch);
-            bar.println(format!(
-                "epoch {:>3}: train {:.5} (rec {:.5}, fre {:.3e}), validation {val}, {:.1} s",
-                r.epoch, r.train_loss, r.train_rec, r.train_fre, r.seconds
-            ));
+            bar.suspend(|| {
+                println!(
+                    "epoch {:>3}: train {:.5} (rec {:.5}, fre {:.3e}), validation {val}, {:.1} s",
+                    r.epoch, r.train_loss, r.train_rec, r.train_fre, r.seconds
+                )
+            });
         }
     });
     bar.finish_and_clear();
@@ -320,18 +414,34 @@ fn train(args: TrainArgs) -> anyhow::Result<()> {
     let what = match outcome {
         Outcome::Completed => "completed".to_string(),
         Outcome::EarlyStopped { best_epoch } => format!("stopped early (best epoch {best_epoch})"),
-        Outcome::Interrupted { step } => format!("stopped after step {step}; continue with --resume"),
+        Outcome::Interrupted { step } => {
+            format!("stopped after step {step}; continue with --resume")
+        }
     };
-    println!("{}: {what} in {:.1} s", args.out.display(), start.elapsed().as_secs_f64());
+    println!(
+        "{}: {what} in {:.1} s",
+        args.out.display(),
+        start.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
 fn export(args: ExportArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let run = TrainedRun::load(&args.run)?;
-    let data = args.data.clone().unwrap_or_else(|| run.info.data_dir.clone());
-    let names = args.materials.clone().unwrap_or_else(|| run.info.materials.clone());
-    let weight_type = if args.half_weights { WeightType::F16 } else { WeightType::F32 };
+    let data = args
+        .data
+        .clone()
+        .unwrap_or_else(|| run.info.data_dir.clone());
+    let names = args
+        .materials
+        .clone()
+        .unwrap_or_else(|| run.info.materials.clone());
+    let weight_type = if args.half_weights {
+        WeightType::F16
+    } else {
+        WeightType::F32
+    };
     let file = material_nn::export::export(&run, &data, &names, weight_type, &args.out)?;
     let size = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
     println!(
@@ -362,13 +472,88 @@ fn encode(args: EncodeArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.add_to {
         let mut file = LatentFile::read(path)?;
         if file.latent_dim != z.len() {
-            bail!("{}: latent size {} differs from the run's {}", path.display(), file.latent_dim, z.len());
+            bail!(
+                "{}: latent size {} differs from the run's {}",
+                path.display(),
+                file.latent_dim,
+                z.len()
+            );
         }
         file.latents.retain(|l| l.name != name);
-        file.latents.push(NamedLatent { name: name.clone(), z: z.clone() });
+        file.latents.push(NamedLatent {
+            name: name.clone(),
+            z: z.clone(),
+        });
         file.write(path)?;
     }
     println!("{}", serde_json::json!({ "name": name, "z": z }));
+    Ok(())
+}
+
+fn eval(args: EvalArgs) -> anyhow::Result<()> {
+    use material_nn::eval;
+    let start = Instant::now();
+    let run = TrainedRun::load(&args.run)?;
+    let data = args
+        .data
+        .clone()
+        .unwrap_or_else(|| run.info.data_dir.clone());
+    let names = match args.split {
+        SplitName::Train => run.split.train.clone(),
+        SplitName::Validation => run.split.validation.clone(),
+        SplitName::Test => run.split.test.clone(),
+    };
+    let settings = eval::EvalSettings {
+        samples: args.samples,
+        pairs: args.pairs,
+        seed: args.seed,
+    };
+    let (reconstruction, editing) = eval::evaluate(&run, &data, &names, &settings)?;
+    let out = args.run.join("eval");
+    std::fs::create_dir_all(&out).with_context(|| out.display().to_string())?;
+    let model = format!("{:?}", run.config.model).to_lowercase();
+    let summary = eval::to_markdown(&model, &reconstruction, &editing);
+    for (file, text) in [
+        ("reconstruction.csv", eval::to_csv(&reconstruction)),
+        ("editing.csv", eval::to_csv(&editing)),
+        ("summary.md", summary.clone()),
+    ] {
+        let path = out.join(file);
+        std::fs::write(&path, text).with_context(|| path.display().to_string())?;
+    }
+    print!("{summary}");
+    println!(
+        "{}: written in {:.1} s",
+        out.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn search(args: SearchArgs) -> anyhow::Result<()> {
+    let mut base = match &args.config {
+        Some(path) => TrainConfig::read(path)?,
+        None => TrainConfig::default(),
+    };
+    base.epochs = args.epochs.max(1);
+    ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst))
+        .context("cannot install the Ctrl-C handler")?;
+    let trials =
+        material_nn::search::search(&args.data, &args.out, &base, args.trials, &STOP, &mut |t| {
+            let how = t
+                .failure
+                .as_deref()
+                .map_or(String::new(), |f| format!(" ({f})"));
+            println!("lr {:.3e}: score {:.5}{how}", t.learning_rate, t.score);
+        })?;
+    if let Some(best) = trials.first() {
+        println!(
+            "best: lr {:.3e}, score {:.5} ({})",
+            best.learning_rate,
+            best.score,
+            best.run.display()
+        );
+    }
     Ok(())
 }
 
@@ -379,6 +564,8 @@ fn main() -> ExitCode {
         Command::Train(args) => train(args),
         Command::Export(args) => export(args),
         Command::Encode(args) => encode(args),
+        Command::Eval(args) => eval(args),
+        Command::Search(args) => search(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

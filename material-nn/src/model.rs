@@ -90,7 +90,7 @@ impl Mlp {
 
 /// A tensor's values as f32 (row-major).
 pub fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
-    t.into_data().convert::<f32>().into_vec::<f32>().unwrap_or_default()
+    t.into_data().convert::<f32>().try_into_vec::<f32>().unwrap_or_default()
 }
 
 /// The HyperBRDF autoencoder.
@@ -205,6 +205,10 @@ mod tests {
         assert_eq!(target, 11_583);
         let hyper: usize = model.heads.iter().map(|h| h.num_params()).sum();
         assert!((1_700_000..1_720_000).contains(&hyper), "{hyper}");
+        let nbrdf = Nbrdf::init(&mut rng, &device);
+        assert_eq!(nbrdf.num_params(), 675);
+        let y = nbrdf.forward(Tensor::from_data(TensorData::new(vec![0.5f32; 12], [2, 6]), &device));
+        assert_eq!(y.dims(), [2, 3]);
     }
 
     #[test]

@@ -52,7 +52,7 @@ pub fn degree_of(index: usize) -> usize {
 /// b_lm = √(((l−1)²−m²)/(4(l−1)²−1)).
 pub fn legendre_normalised(lmax: usize, x: f64, out: &mut [f64]) {
     let tri = |l: usize, m: usize| l * (l + 1) / 2 + m;
-    debug_assert!(out.len() >= tri(lmax, lmax) + 1);
+    debug_assert!(out.len() > tri(lmax, lmax));
     let s = (1.0 - x * x).max(0.0).sqrt();
     let mut pmm = 1.0 / (4.0 * PI).sqrt();
     for m in 0..=lmax {
@@ -320,28 +320,39 @@ mod tests {
         }
     }
 
-    #[test]
-    fn orthonormal_on_the_grid_at_degree_49() {
-        let grid = ShGrid::new(49);
+    /// Largest |⟨Y_a, Y_b⟩ − δ_ab| on the grid of degree `lmax` over the index pairs `pairs`.
+    fn gram_deviation(lmax: usize, pairs: impl Iterator<Item = (usize, usize)>) -> f64 {
+        let grid = ShGrid::new(lmax);
         let all: Vec<usize> = (0..grid.len()).collect();
-        let c = coefficient_count(49);
+        let c = coefficient_count(lmax);
         let basis = grid.basis_at(&all);
         assert!(basis.iter().all(|v| v.is_finite()));
-        // Gram matrix G = Bᵀ W B, checked entry by entry.
-        let mut worst = 0f64;
         let weights: Vec<f64> = all.iter().map(|&i| grid.weight(i)).collect();
-        let mut col_a = vec![0.0; all.len()];
-        for a in 0..c {
-            for (p, v) in col_a.iter_mut().enumerate() {
-                *v = basis[p * c + a] * weights[p];
-            }
-            for b in a..c {
-                let g: f64 = col_a.iter().enumerate().map(|(p, v)| v * basis[p * c + b]).sum();
-                let expect = if a == b { 1.0 } else { 0.0 };
-                worst = worst.max((g - expect).abs());
-            }
-        }
-        assert!(worst < 1e-5, "worst Gram deviation {worst}");
+        pairs
+            .map(|(a, b)| {
+                let g: f64 = (0..all.len()).map(|p| weights[p] * basis[p * c + a] * basis[p * c + b]).sum();
+                (g - if a == b { 1.0 } else { 0.0 }).abs()
+            })
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn orthonormal_on_the_grid() {
+        // Every pair at degree 16; at degree 49 every diagonal entry, every pair of equal order
+        // m (the ones the azimuthal sum does not cancel) among degrees 40..49, and the pairs of a
+        // fixed stride through the whole matrix.
+        let c16 = coefficient_count(16);
+        let worst = gram_deviation(16, (0..c16).flat_map(|a| (a..c16).map(move |b| (a, b))));
+        assert!(worst < 1e-10, "degree 16: {worst}");
+        let c = coefficient_count(49);
+        let same_m = (40..50usize).flat_map(|l| {
+            (40..50usize).flat_map(move |l2| {
+                (-(l.min(l2) as i64)..=l.min(l2) as i64).map(move |m| (sh_index(l, m), sh_index(l2, m)))
+            })
+        });
+        let pairs = (0..c).map(|a| (a, a)).chain(same_m).chain((0..c).step_by(7).map(|a| (a, (a * 31 + 5) % c)));
+        let worst = gram_deviation(49, pairs);
+        assert!(worst < 1e-5, "degree 49: {worst}");
     }
 
     #[test]

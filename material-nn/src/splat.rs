@@ -88,7 +88,7 @@ impl CellIndex {
         best.clear();
         let centre = q.map(|v| Self::axis(self.n, self.cell, v) as i64);
         let n = self.n as i64;
-        let mut consider = |c: usize, best: &mut Vec<(f64, u32)>| {
+        let consider = |c: usize, best: &mut Vec<(f64, u32)>| {
             for &i in &self.order[self.start[c] as usize..self.start[c + 1] as usize] {
                 let p = points[i as usize];
                 let d2: f64 = (0..3).map(|a| (q[a] - p[a] as f64).powi(2)).sum();

@@ -4,11 +4,11 @@
 //! `NAME.partial` in the same directory, synced, then renamed), so an interrupted run never
 //! leaves a partial table under a final name.
 
+use crate::{Error, Result};
 use rayon::prelude::*;
 use renderer::analytic::AnalyticBrdf;
 use renderer::merl::{MerlReader, MerlTable, BIN_COUNT, FILE_BYTES};
 use renderer::nbrdf::{list_networks, NbrdfNetwork};
-use renderer::{Error, Result};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -27,38 +27,59 @@ pub fn write_table_atomic(table: &MerlTable, path: &Path) -> Result<()> {
         .write_to(&mut w)
         .and_then(|_| w.flush())
         .map_err(|e| Error::io(&partial, e))?;
-    let file = w.into_inner().map_err(|e| Error::io(&partial, e.into_error()))?;
+    let file = w
+        .into_inner()
+        .map_err(|e| Error::io(&partial, e.into_error()))?;
     file.sync_all().map_err(|e| Error::io(&partial, e))?;
     std::fs::rename(&partial, path).map_err(|e| Error::io(path, e))
 }
 
 /// The table of an NBRDF network: f_r at every bin centre (φd ∈ (0, π), as the networks were
-/// trained).
+/// trained), including the configurations below the horizon, where the network extrapolates.
 pub fn table_from_network(network: &NbrdfNetwork) -> MerlTable {
     MerlTable::from_fn(|th, td, pd| network.eval_angles(th, td, pd))
 }
 
-/// The table of an analytic model at every bin centre.
+/// The table of an analytic model at every bin centre. Bins whose configuration puts wi or
+/// wo below the horizon (θh + θd beyond π/2 for some φd), where the model is undefined, are
+/// marked unmeasured (−1), as a measurement would leave them.
 pub fn table_from_analytic(brdf: &AnalyticBrdf) -> MerlTable {
-    MerlTable::from_fn(|th, td, pd| brdf.eval_angles(th, td, pd))
+    MerlTable::from_fn(|theta_h, theta_d, phi_d| {
+        let angles = renderer::brdf_coords::HalfDiffAngles {
+            theta_h,
+            phi_h: 0.0,
+            theta_d,
+            phi_d,
+        };
+        let (wi, wo) = renderer::brdf_coords::directions_from_angles(&angles);
+        if wi.z > 0.0 && wo.z > 0.0 {
+            brdf.eval(wo, wi)
+        } else {
+            renderer::Rgb::splat(-1.0)
+        }
+    })
 }
 
 /// The networks to tabulate: all of `dir`, or the `selected` names (each must exist).
 pub fn select_networks(dir: &Path, selected: Option<&[String]>) -> Result<Vec<String>> {
     let available = list_networks(dir)?;
     if available.is_empty() {
-        return Err(Error::invalid_file(dir, "no NBRDF networks (*_fc1.npy) in this directory"));
+        return Err(Error::invalid_file(
+            dir,
+            "no NBRDF networks (*_fc1.npy) in this directory",
+        ));
     }
     let Some(selected) = selected else {
         return Ok(available);
     };
     for name in selected {
         if !available.contains(name) {
-            return Err(Error::UnknownName {
+            return Err(renderer::Error::UnknownName {
                 what: "NBRDF network",
                 name: dir.join(name).display().to_string(),
                 available,
-            });
+            }
+            .into());
         }
     }
     Ok(selected.to_vec())
@@ -121,7 +142,10 @@ pub fn tables_in(dir: &Path, exclude: Option<&Path>) -> Result<Vec<PathBuf>> {
     }
     paths.sort();
     if paths.is_empty() {
-        return Err(Error::invalid_file(dir, "no .binary tables in this directory"));
+        return Err(Error::invalid_file(
+            dir,
+            "no .binary tables in this directory",
+        ));
     }
     Ok(paths)
 }
@@ -153,12 +177,14 @@ const MEDIAN_CHUNK: usize = 1 << 16;
 /// `progress(done, total)` reports chunks.
 pub fn median_table(paths: &[PathBuf], progress: impl Fn(usize, usize)) -> Result<MerlTable> {
     if paths.is_empty() {
-        return Err(Error::InvalidArgument {
-            flag: "--median".to_string(),
-            reason: "no input tables".to_string(),
-        });
+        return Err(Error::Invalid(
+            "median of no tables: give at least one input table".to_string(),
+        ));
     }
-    let mut readers = paths.iter().map(MerlReader::open).collect::<Result<Vec<_>>>()?;
+    let mut readers = paths
+        .iter()
+        .map(MerlReader::open)
+        .collect::<renderer::Result<Vec<_>>>()?;
     let total = 3 * BIN_COUNT;
     let chunks = total.div_ceil(MEDIAN_CHUNK);
     let mut raw = vec![0f64; total];
@@ -178,7 +204,7 @@ pub fn median_table(paths: &[PathBuf], progress: impl Fn(usize, usize)) -> Resul
         );
         progress(chunk + 1, chunks);
     }
-    MerlTable::from_raw(raw, "median table")
+    Ok(MerlTable::from_raw(raw, "median table")?)
 }
 
 #[cfg(test)]
@@ -217,11 +243,17 @@ mod tests {
         }
         let median = median_table(&paths, |_, _| {}).unwrap();
         let low = median.value(bin_index(10, 10, 10));
-        assert!((low[0] - 0.2).abs() < 1e-7 && (low[2] - 0.2).abs() < 1e-7, "{low:?}");
+        assert!(
+            (low[0] - 0.2).abs() < 1e-7 && (low[2] - 0.2).abs() < 1e-7,
+            "{low:?}"
+        );
         // Above θh = 1 only table 0 is measured.
         let high = median.value(bin_index(89, 10, 10));
         assert!((high[1] - 0.1).abs() < 1e-7, "{high:?}");
-        assert_eq!(tables_in(dir.path(), Some(&paths[0])).unwrap(), paths[1..].to_vec());
+        assert_eq!(
+            tables_in(dir.path(), Some(&paths[0])).unwrap(),
+            paths[1..].to_vec()
+        );
     }
 
     #[test]
@@ -252,8 +284,26 @@ mod tests {
     }
 
     #[test]
+    fn analytic_tables_mark_below_horizon_bins_unmeasured() {
+        let brdf = AnalyticBrdf::OrenNayar {
+            albedo: Rgb::splat(0.5),
+            sigma: 0.0,
+        };
+        let table = table_from_analytic(&brdf);
+        // θh = θd ≈ 0: both directions near the normal, Lambert 0.5/π.
+        let v = table.value(bin_index(0, 0, 0));
+        assert!((v[0] - 0.5 / std::f64::consts::PI).abs() < 1e-6, "{v:?}");
+        // θh ≈ θd ≈ 80°, φd ≈ 0: wi.z = cos(θh + θd) < 0. At φd ≈ 90° both are above.
+        assert!(!table.is_measured(bin_index(85, 80, 0)));
+        assert!(table.is_measured(bin_index(85, 80, 90)));
+        assert!(table.unmeasured_count() > 0);
+    }
+
+    #[test]
     fn unknown_network_names_the_directory() {
-        let e = select_networks(&data_dir(), Some(&["chrom".to_string()])).unwrap_err().to_string();
+        let e = select_networks(&data_dir(), Some(&["chrom".to_string()]))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("merl/chrom'") && e.contains("chrome"), "{e}");
     }
 }

@@ -22,7 +22,10 @@ fn path_str(p: &Path) -> &str {
 fn error_line(out: &Output) -> String {
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
-    assert!(stderr.starts_with("error: ") && !stderr.contains('\n'), "{stderr}");
+    assert!(
+        stderr.starts_with("error: ") && !stderr.contains('\n'),
+        "{stderr}"
+    );
     stderr
 }
 
@@ -31,15 +34,36 @@ fn analytic_and_median_tables_are_written() {
     let dir = tempfile::tempdir().unwrap();
     let (a, b) = (dir.path().join("a.binary"), dir.path().join("b.binary"));
     for (kind, path) in [("ggx", &a), ("oren-nayar", &b)] {
-        let out = material_nn(&["tabulate", "--analytic", kind, "--albedo", "0.5,0.3,0.1", "--out", path_str(path)]);
+        let out = material_nn(&[
+            "tabulate",
+            "--analytic",
+            kind,
+            "--albedo",
+            "0.5,0.3,0.1",
+            "--out",
+            path_str(path),
+        ]);
         assert!(out.status.success(), "{out:?}");
-        assert_eq!(std::fs::metadata(path).unwrap().len(), renderer::merl::FILE_BYTES);
+        assert_eq!(
+            std::fs::metadata(path).unwrap().len(),
+            renderer::merl::FILE_BYTES
+        );
     }
     let median = dir.path().join("median.binary");
-    let out = material_nn(&["tabulate", "--median", "--out", path_str(&median), path_str(&a), path_str(&b)]);
+    let out = material_nn(&[
+        "tabulate",
+        "--median",
+        "--out",
+        path_str(&median),
+        path_str(&a),
+        path_str(&b),
+    ]);
     assert!(out.status.success(), "{out:?}");
     let m = renderer::merl::MerlTable::read(&median).unwrap();
-    let (ta, tb) = (renderer::merl::MerlTable::read(&a).unwrap(), renderer::merl::MerlTable::read(&b).unwrap());
+    let (ta, tb) = (
+        renderer::merl::MerlTable::read(&a).unwrap(),
+        renderer::merl::MerlTable::read(&b).unwrap(),
+    );
     let i = renderer::merl::bin_index(30, 40, 50);
     let (va, vb, vm) = (ta.value(i), tb.value(i), m.value(i));
     assert!((vm[0] - 0.5 * (va[0] + vb[0])).abs() < 1e-12, "{vm:?}");
@@ -49,11 +73,20 @@ fn analytic_and_median_tables_are_written() {
 fn errors_are_one_line_with_exit_code_2() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("short.binary");
-    let mut bytes: Vec<u8> = [90i32, 90, 180].iter().flat_map(|d| d.to_le_bytes()).collect();
+    let mut bytes: Vec<u8> = [90i32, 90, 180]
+        .iter()
+        .flat_map(|d| d.to_le_bytes())
+        .collect();
     bytes.extend_from_slice(&[0u8; 28]);
     std::fs::write(&bad, bytes).unwrap();
     let out_file = dir.path().join("m.binary");
-    let e = error_line(&material_nn(&["tabulate", "--median", "--out", path_str(&out_file), path_str(&bad)]));
+    let e = error_line(&material_nn(&[
+        "tabulate",
+        "--median",
+        "--out",
+        path_str(&out_file),
+        path_str(&bad),
+    ]));
     assert!(e.contains("short.binary") && e.contains("truncated"), "{e}");
     assert!(!out_file.exists());
 
@@ -68,7 +101,13 @@ fn errors_are_one_line_with_exit_code_2() {
     ]));
     assert!(e.contains("no-such-material"), "{e}");
 
-    let e = error_line(&material_nn(&["tabulate", "--nbrdf", path_str(dir.path()), "--out", path_str(dir.path())]));
+    let e = error_line(&material_nn(&[
+        "tabulate",
+        "--nbrdf",
+        path_str(dir.path()),
+        "--out",
+        path_str(dir.path()),
+    ]));
     assert!(e.contains("no NBRDF networks"), "{e}");
 
     // Usage errors (clap) also exit with 2.

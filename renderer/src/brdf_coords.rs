@@ -56,7 +56,11 @@ pub fn polar_angle(v: Vec3) -> f32 {
 pub fn half_diff(wi: Vec3, wo: Vec3) -> HalfDiff {
     let s = wi + wo;
     let len2 = s.length_squared();
-    let h = if len2 > 1e-20 { s / len2.sqrt() } else { Vec3::Z };
+    let h = if len2 > 1e-20 {
+        s / len2.sqrt()
+    } else {
+        Vec3::Z
+    };
     let sin_h = (h.x * h.x + h.y * h.y).sqrt();
     let (cp, sp) = if sin_h > PHI_H_GUARD {
         (h.x / sin_h, h.y / sin_h)
@@ -166,6 +170,7 @@ pub fn network_input_from_angles(theta_h: f32, theta_d: f32, phi_d: f32) -> [f32
 mod tests {
     use super::*;
     use proptest::prelude::*;
+    use std::f32::consts::FRAC_PI_2;
 
     fn unit(theta: f32, phi: f32) -> Vec3 {
         let (st, ct) = theta.sin_cos();
@@ -226,7 +231,18 @@ mod tests {
 
     #[test]
     fn fold_phi_d_range() {
-        for phi in [-PI, -3.0, -1e-9, 0.0, 1e-9, 1.0, PI - 1e-7, PI, 3.5, 2.0 * PI] {
+        for phi in [
+            -PI,
+            -3.0,
+            -1e-9,
+            0.0,
+            1e-9,
+            1.0,
+            PI - 1e-7,
+            PI,
+            3.5,
+            2.0 * PI,
+        ] {
             let f = fold_phi_d(phi);
             assert!((0.0..PI).contains(&f), "{phi} -> {f}");
             assert!(circular_distance(f, phi, PI) < 1e-5);
@@ -236,7 +252,7 @@ mod tests {
     proptest! {
         #[test]
         fn vectors_round_trip(
-            ti in 0.0f32..3.1, pi_ in -3.14f32..3.14, to in 0.0f32..3.1, po in -3.14f32..3.14,
+            ti in 0.0f32..3.1, pi_ in -PI..PI, to in 0.0f32..3.1, po in -PI..PI,
         ) {
             let (wi, wo) = (unit(ti, pi_), unit(to, po));
             prop_assume!((wi + wo).length() > 1e-2);
@@ -247,8 +263,8 @@ mod tests {
 
         #[test]
         fn angles_round_trip(
-            theta_h in 0.01f32..1.56, phi_h in -3.1f32..3.1,
-            theta_d in 0.01f32..1.56, phi_d in -3.1f32..3.1,
+            theta_h in 0.01f32..1.56, phi_h in -3.1f32..3.1f32,
+            theta_d in 0.01f32..1.56, phi_d in -3.1f32..3.1f32,
         ) {
             let a = HalfDiffAngles { theta_h, phi_h, theta_d, phi_d };
             let (wi, wo) = directions_from_angles(&a);
@@ -262,7 +278,7 @@ mod tests {
 
         #[test]
         fn folded_coordinates_are_reciprocal(
-            ti in 0.0f32..1.57, pi_ in -3.14f32..3.14, to in 0.0f32..1.57, po in -3.14f32..3.14,
+            ti in 0.0f32..FRAC_PI_2, pi_ in -PI..PI, to in 0.0f32..FRAC_PI_2, po in -PI..PI,
         ) {
             let (wi, wo) = (unit(ti, pi_), unit(to, po));
             let a = isotropic_angles(wi, wo);

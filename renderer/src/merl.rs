@@ -35,13 +35,16 @@ pub const FILE_BYTES: u64 = HEADER_BYTES + 8 * 3 * BIN_COUNT as u64;
 /// Raw value × scale = f_r (1/sr), per channel (red, green, blue), as in MERL's reference code.
 pub const SCALE: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
 
+/// Largest f_r (1/sr) [`MerlTable::to_render_values`] keeps; measured peaks stay below 1e4.
+pub const MAX_RENDER_VALUE: f32 = 1e30;
+
 const CHANNEL_NAMES: [&str; 3] = ["red", "green", "blue"];
 
 /// θh bin of a half-vector polar angle (radians): `floor(sqrt(θh / (π/2)) · 90)`, clamped.
 /// Non-positive and NaN angles give bin 0.
 #[inline]
 pub fn theta_h_index(theta_h: f32) -> usize {
-    if !(theta_h > 0.0) {
+    if theta_h.is_nan() || theta_h <= 0.0 {
         return 0;
     }
     let u = (theta_h / std::f32::consts::FRAC_PI_2).sqrt() * THETA_H_BINS as f32;
@@ -67,7 +70,9 @@ pub fn phi_d_index(phi_d: f32) -> usize {
 /// Index of bin (θh, θd, φd) within one channel.
 #[inline]
 pub fn bin_index(theta_h_idx: usize, theta_d_idx: usize, phi_d_idx: usize) -> usize {
-    debug_assert!(theta_h_idx < THETA_H_BINS && theta_d_idx < THETA_D_BINS && phi_d_idx < PHI_D_BINS);
+    debug_assert!(
+        theta_h_idx < THETA_H_BINS && theta_d_idx < THETA_D_BINS && phi_d_idx < PHI_D_BINS
+    );
     phi_d_idx + PHI_D_BINS * (theta_d_idx + THETA_D_BINS * theta_h_idx)
 }
 
@@ -109,7 +114,11 @@ pub fn continuous_coordinates(theta_h: f32, theta_d: f32, phi_d: f32) -> [f32; 3
 pub fn trilinear_corners(theta_h: f32, theta_d: f32, phi_d: f32) -> ([usize; 8], [f32; 8]) {
     let [uh, ud, up] = continuous_coordinates(theta_h, theta_d, phi_d);
     let clamp_axis = |u: f32, n: usize| -> (usize, usize, f32) {
-        let u = if u.is_nan() { 0.0 } else { u.clamp(0.0, (n - 1) as f32) };
+        let u = if u.is_nan() {
+            0.0
+        } else {
+            u.clamp(0.0, (n - 1) as f32)
+        };
         let i0 = (u as usize).min(n - 1);
         let i1 = (i0 + 1).min(n - 1);
         (i0, i1, u - i0 as f32)
@@ -145,7 +154,9 @@ pub struct MerlTable {
 
 impl std::fmt::Debug for MerlTable {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("MerlTable").field("values", &self.raw.len()).finish()
+        f.debug_struct("MerlTable")
+            .field("values", &self.raw.len())
+            .finish()
     }
 }
 
@@ -166,7 +177,11 @@ impl MerlTable {
         if raw.len() != 3 * BIN_COUNT {
             return Err(Error::invalid_file(
                 what,
-                format!("{} raw values, a MERL table has {}", raw.len(), 3 * BIN_COUNT),
+                format!(
+                    "{} raw values, a MERL table has {}",
+                    raw.len(),
+                    3 * BIN_COUNT
+                ),
             ));
         }
         if let Some(i) = raw.iter().position(|v| !v.is_finite()) {
@@ -246,15 +261,20 @@ impl MerlTable {
     }
 
     /// The table as f_r in 1/sr per bin (within-channel index order), f32, unmeasured (negative)
-    /// entries set to 0 and values beyond f32's range clamped to `f32::MAX`: the form the
-    /// renderer evaluates (finite, ≥ 0).
+    /// entries set to 0 and values clamped to [`MAX_RENDER_VALUE`]: the form the renderer
+    /// evaluates (finite, ≥ 0, and finite after interpolation and Monte Carlo weighting).
     pub fn to_render_values(&self) -> Vec<[f32; 3]> {
         (0..BIN_COUNT)
             .into_par_iter()
             .with_min_len(4096)
             .map(|i| {
-                self.value(i)
-                    .map(|v| if v > 0.0 { v.min(f32::MAX as f64) as f32 } else { 0.0 })
+                self.value(i).map(|v| {
+                    if v > 0.0 {
+                        v.min(MAX_RENDER_VALUE as f64) as f32
+                    } else {
+                        0.0
+                    }
+                })
             })
             .collect()
     }
@@ -318,11 +338,14 @@ impl MerlReader {
         if len < HEADER_BYTES {
             return Err(Error::invalid_file(
                 &path,
-                format!("truncated MERL file: {len} bytes, shorter than its {HEADER_BYTES}-byte header"),
+                format!(
+                    "truncated MERL file: {len} bytes, shorter than its {HEADER_BYTES}-byte header"
+                ),
             ));
         }
         let mut header = [0u8; HEADER_BYTES as usize];
-        file.read_exact(&mut header).map_err(|e| Error::io(&path, e))?;
+        file.read_exact(&mut header)
+            .map_err(|e| Error::io(&path, e))?;
         let dims: Vec<i32> = header
             .chunks_exact(4)
             .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
@@ -337,7 +360,11 @@ impl MerlReader {
             ));
         }
         if len != FILE_BYTES {
-            let what = if len < FILE_BYTES { "truncated" } else { "oversized" };
+            let what = if len < FILE_BYTES {
+                "truncated"
+            } else {
+                "oversized"
+            };
             return Err(Error::invalid_file(
                 &path,
                 format!(
@@ -359,7 +386,11 @@ impl MerlReader {
         if first + out.len() > 3 * BIN_COUNT {
             return Err(Error::InvalidArgument {
                 flag: format!("MERL range of {}", self.path.display()),
-                reason: format!("values {first}..{} exceed {}", first + out.len(), 3 * BIN_COUNT),
+                reason: format!(
+                    "values {first}..{} exceed {}",
+                    first + out.len(),
+                    3 * BIN_COUNT
+                ),
             });
         }
         let io = |e| Error::io(&self.path, e);
@@ -369,12 +400,19 @@ impl MerlReader {
         let mut bytes = vec![0u8; 8 * out.len().min(1 << 16)];
         for (chunk_index, chunk) in out.chunks_mut(1 << 16).enumerate() {
             let b = &mut bytes[..8 * chunk.len()];
-            self.file.read_exact(b).map_err(|e| Error::io(&self.path, e))?;
+            self.file
+                .read_exact(b)
+                .map_err(|e| Error::io(&self.path, e))?;
             for (k, (v, src)) in chunk.iter_mut().zip(b.chunks_exact(8)).enumerate() {
-                let x = f64::from_le_bytes([src[0], src[1], src[2], src[3], src[4], src[5], src[6], src[7]]);
+                let x = f64::from_le_bytes([
+                    src[0], src[1], src[2], src[3], src[4], src[5], src[6], src[7],
+                ]);
                 if !x.is_finite() {
                     let raw_index = first + (chunk_index << 16) + k;
-                    return Err(Error::invalid_file(&self.path, non_finite_message(raw_index, x)));
+                    return Err(Error::invalid_file(
+                        &self.path,
+                        non_finite_message(raw_index, x),
+                    ));
                 }
                 *v = x;
             }
@@ -502,11 +540,15 @@ mod tests {
     fn trilinear_reproduces_bin_centres_and_interpolates() {
         let table = MerlTable::from_fn(|th, td, _| Rgb::new(th, td, 1.0));
         let [th, td, pd] = bin_centre(bin_index(40, 30, 20));
-        let v = table.lookup_trilinear(th as f32, td as f32, pd as f32).unwrap();
+        let v = table
+            .lookup_trilinear(th as f32, td as f32, pd as f32)
+            .unwrap();
         assert!((v[0] - th).abs() < 1e-6 && (v[1] - td).abs() < 1e-6);
         // Halfway between two θd centres the value is their mean (linear in θd).
         let td_mid = (30.0 + 1.0) / 90.0 * std::f64::consts::FRAC_PI_2;
-        let v = table.lookup_trilinear(th as f32, td_mid as f32, pd as f32).unwrap();
+        let v = table
+            .lookup_trilinear(th as f32, td_mid as f32, pd as f32)
+            .unwrap();
         assert!((v[1] - td_mid).abs() < 1e-6);
         // φd wraps: just below π interpolates between bins 179 and 0.
         assert!(table.lookup_trilinear(0.3, 0.3, PI - 1e-3).is_some());
@@ -527,9 +569,16 @@ mod tests {
         assert!((v[0] - 0.25).abs() < 1e-6);
         assert!(table.lookup_trilinear(1.2, 0.2, 0.2).is_none());
         let render = table.to_render_values();
-        assert!(render.iter().all(|v| v.iter().all(|&x| x >= 0.0 && x.is_finite())));
+        assert!(render
+            .iter()
+            .all(|v| v.iter().all(|&x| x >= 0.0 && x.is_finite())));
         let i = bin_index(theta_h_index(1.0), 10, 10);
         assert_eq!(render[i], [0.0; 3]);
+        let huge = MerlTable::from_raw(vec![1e300; 3 * BIN_COUNT], "huge").unwrap();
+        assert!(huge
+            .to_render_values()
+            .iter()
+            .all(|v| v == &[MAX_RENDER_VALUE; 3]));
         // Non-finite values of the closure are stored as unmeasured.
         let nan = MerlTable::from_fn(|_, _, _| Rgb::splat(f32::NAN));
         assert_eq!(nan.unmeasured_count(), BIN_COUNT);
@@ -537,7 +586,9 @@ mod tests {
 
     fn valid_bytes() -> Vec<u8> {
         let mut bytes = Vec::new();
-        MerlTable::from_fn(|_, _, _| Rgb::ONE).write_to(&mut bytes).unwrap();
+        MerlTable::from_fn(|_, _, _| Rgb::ONE)
+            .write_to(&mut bytes)
+            .unwrap();
         bytes
     }
 
@@ -575,9 +626,14 @@ mod tests {
         let at = HEADER_BYTES as usize + 8 * (BIN_COUNT + 181);
         nan[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
         let e = read_err(dir.path(), "nan.binary", &nan);
-        assert!(e.contains("NaN") && e.contains("green") && e.contains("theta_d 1, phi_d 1"), "{e}");
+        assert!(
+            e.contains("NaN") && e.contains("green") && e.contains("theta_d 1, phi_d 1"),
+            "{e}"
+        );
 
-        let e = MerlTable::read(dir.path().join("missing.binary")).unwrap_err().to_string();
+        let e = MerlTable::read(dir.path().join("missing.binary"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("missing.binary"), "{e}");
     }
 

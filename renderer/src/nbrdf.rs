@@ -66,7 +66,11 @@ pub fn list_networks(dir: &Path) -> Result<Vec<String>> {
     let mut names = Vec::new();
     for entry in entries {
         let entry = entry.map_err(|e| Error::io(dir, e))?;
-        if let Some(name) = entry.file_name().to_str().and_then(|n| n.strip_suffix("_fc1.npy")) {
+        if let Some(name) = entry
+            .file_name()
+            .to_str()
+            .and_then(|n| n.strip_suffix("_fc1.npy"))
+        {
             names.push(name.to_string());
         }
     }
@@ -104,13 +108,19 @@ fn read_tensor(path: &Path, shape: &[u64]) -> Result<Vec<f32>> {
         ));
     }
     if npy.order() != npyz::Order::C && shape.len() > 1 {
-        return Err(Error::invalid_file(path, "Fortran-ordered array, expected C order"));
+        return Err(Error::invalid_file(
+            path,
+            "Fortran-ordered array, expected C order",
+        ));
     }
     let values: Vec<f32> = npy
         .into_vec()
         .map_err(|e| Error::invalid_file(path, format!("cannot read the data: {e}")))?;
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-        return Err(Error::invalid_file(path, format!("non-finite weight {} at element {i}", values[i])));
+        return Err(Error::invalid_file(
+            path,
+            format!("non-finite weight {} at element {i}", values[i]),
+        ));
     }
     Ok(values)
 }
@@ -133,7 +143,14 @@ impl NbrdfNetwork {
     /// # Panics
     /// When a slice has the wrong length (a programming error; files are checked by
     /// [`Self::load`]).
-    pub fn from_tensors(fc1: &[f32], b1: &[f32], fc2: &[f32], b2: &[f32], fc3: &[f32], b3: &[f32]) -> Self {
+    pub fn from_tensors(
+        fc1: &[f32],
+        b1: &[f32],
+        fc2: &[f32],
+        b2: &[f32],
+        fc3: &[f32],
+        b3: &[f32],
+    ) -> Self {
         assert!(
             fc1.len() == INPUTS * HIDDEN
                 && b1.len() == HIDDEN
@@ -198,7 +215,9 @@ impl NbrdfNetwork {
     /// f_r in 1/sr at the isotropic angles (θh, θd, φd), radians, φd as given.
     #[inline]
     pub fn eval_angles(&self, theta_h: f32, theta_d: f32, phi_d: f32) -> Rgb {
-        self.eval_input(crate::brdf_coords::network_input_from_angles(theta_h, theta_d, phi_d))
+        self.eval_input(crate::brdf_coords::network_input_from_angles(
+            theta_h, theta_d, phi_d,
+        ))
     }
 
     /// Whether the AVX2 + FMA forward pass is in use.
@@ -246,8 +265,8 @@ fn forward_avx2_fma(net: &NbrdfNetwork, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
     let mut h1 = [0, 1, 2].map(|g| load(&net.b1, g));
     for (xi, row) in x.iter().zip(&net.w1) {
         let xv = _mm256_set1_ps(*xi);
-        for g in 0..GROUPS {
-            h1[g] = _mm256_fmadd_ps(xv, load(row, g), h1[g]);
+        for (g, h) in h1.iter_mut().enumerate() {
+            *h = _mm256_fmadd_ps(xv, load(row, g), *h);
         }
     }
     let a1 = store(h1.map(|v| _mm256_max_ps(v, zero)));
@@ -255,13 +274,13 @@ fn forward_avx2_fma(net: &NbrdfNetwork, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
     let mut odd = [zero; GROUPS];
     for k in (0..HIDDEN).step_by(2) {
         let av = _mm256_set1_ps(a1[k]);
-        for g in 0..GROUPS {
-            even[g] = _mm256_fmadd_ps(av, load(&net.w2[k], g), even[g]);
+        for (g, e) in even.iter_mut().enumerate() {
+            *e = _mm256_fmadd_ps(av, load(&net.w2[k], g), *e);
         }
         if k + 1 < HIDDEN {
             let av = _mm256_set1_ps(a1[k + 1]);
-            for g in 0..GROUPS {
-                odd[g] = _mm256_fmadd_ps(av, load(&net.w2[k + 1], g), odd[g]);
+            for (g, o) in odd.iter_mut().enumerate() {
+                *o = _mm256_fmadd_ps(av, load(&net.w2[k + 1], g), *o);
             }
         }
     }
@@ -269,8 +288,8 @@ fn forward_avx2_fma(net: &NbrdfNetwork, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
     let mut y = [0f32; OUTPUTS];
     for (c, yc) in y.iter_mut().enumerate() {
         let mut acc = _mm256_mul_ps(h2[0], load(&net.w3[c], 0));
-        for g in 1..GROUPS {
-            acc = _mm256_fmadd_ps(h2[g], load(&net.w3[c], g), acc);
+        for (g, h) in h2.iter().enumerate().skip(1) {
+            acc = _mm256_fmadd_ps(*h, load(&net.w3[c], g), acc);
         }
         // Horizontal sum of the 8 lanes.
         let quad = _mm_add_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps(acc, 1));
@@ -297,13 +316,11 @@ fn forward_portable(net: &NbrdfNetwork, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
             a2[j] += ai * row[j];
         }
     }
-    let mut y = [0f32; OUTPUTS];
-    for c in 0..OUTPUTS {
-        let mut acc = net.b3[c];
-        for (a, w) in a2.iter().zip(&net.w3[c]) {
-            acc += a.max(0.0) * w;
+    let mut y = net.b3;
+    for (yc, w3) in y.iter_mut().zip(&net.w3) {
+        for (a, w) in a2.iter().zip(w3) {
+            *yc += a.max(0.0) * w;
         }
-        y[c] = acc;
     }
     y
 }
@@ -334,11 +351,24 @@ pub(crate) mod tests {
         for (name, rows) in outputs {
             let net = merl_network(name);
             for (k, row) in rows.as_array().unwrap().iter().enumerate() {
-                let a: Vec<f32> = angles[k].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
-                let x6: Vec<f32> = inputs[k].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
+                let a: Vec<f32> = angles[k]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_f64().unwrap() as f32)
+                    .collect();
+                let x6: Vec<f32> = inputs[k]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_f64().unwrap() as f32)
+                    .collect();
                 let ours = crate::brdf_coords::network_input_from_angles(a[0], a[1], a[2]);
                 for i in 0..6 {
-                    assert!((ours[i] - x6[i]).abs() < 1e-6, "input {k}: {ours:?} vs {x6:?}");
+                    assert!(
+                        (ours[i] - x6[i]).abs() < 1e-6,
+                        "input {k}: {ours:?} vs {x6:?}"
+                    );
                 }
                 let got = net.eval_angles(a[0], a[1], a[2]);
                 for c in 0..3 {
@@ -357,7 +387,8 @@ pub(crate) mod tests {
         let net = merl_network("alum-bronze");
         for k in 0..50 {
             let t = k as f32 / 50.0;
-            let x = crate::brdf_coords::network_input_from_angles(1.5 * t, 1.5 * (1.0 - t), 3.0 * t);
+            let x =
+                crate::brdf_coords::network_input_from_angles(1.5 * t, 1.5 * (1.0 - t), 3.0 * t);
             let a = net.forward(x);
             let b = forward_portable(&net, x);
             for c in 0..3 {
@@ -385,7 +416,10 @@ pub(crate) mod tests {
             for name in names {
                 let net = NbrdfNetwork::load(dir.join(&name)).unwrap();
                 let f = net.eval_angles(0.2, 0.4, 1.0);
-                assert!(f.is_finite() && f.min_element() >= 0.0, "{folder}/{name}: {f:?}");
+                assert!(
+                    f.is_finite() && f.min_element() >= 0.0,
+                    "{folder}/{name}: {f:?}"
+                );
                 total += 1;
             }
         }
@@ -402,7 +436,11 @@ pub(crate) mod tests {
         prefix
     }
 
-    fn write_npy<T: npyz::AutoSerialize>(path: &Path, shape: &[u64], values: impl IntoIterator<Item = T>) {
+    fn write_npy<T: npyz::AutoSerialize>(
+        path: &Path,
+        shape: &[u64],
+        values: impl IntoIterator<Item = T>,
+    ) {
         use npyz::WriterBuilder;
         let mut bytes = Vec::new();
         let mut w = npyz::WriteOptions::<T>::new()
@@ -423,12 +461,18 @@ pub(crate) mod tests {
         let prefix = copy_network(dir.path(), "shape");
         write_npy(&tensor_paths(&prefix)[2], &[21, 20], [0f32; 420]);
         let e = NbrdfNetwork::load(&prefix).unwrap_err().to_string();
-        assert!(e.contains("shape_fc2.npy") && e.contains("shape [21, 20], expected [21, 21]"), "{e}");
+        assert!(
+            e.contains("shape_fc2.npy") && e.contains("shape [21, 20], expected [21, 21]"),
+            "{e}"
+        );
 
         let prefix = copy_network(dir.path(), "dtype");
         write_npy(&tensor_paths(&prefix)[1], &[21], [0f64; 21]);
         let e = NbrdfNetwork::load(&prefix).unwrap_err().to_string();
-        assert!(e.contains("dtype_b1.npy") && e.contains("<f8") && e.contains("float32"), "{e}");
+        assert!(
+            e.contains("dtype_b1.npy") && e.contains("<f8") && e.contains("float32"),
+            "{e}"
+        );
 
         let prefix = copy_network(dir.path(), "nan");
         write_npy(&tensor_paths(&prefix)[5], &[3], [0.0, f32::NAN, 0.0]);
@@ -438,7 +482,10 @@ pub(crate) mod tests {
         let prefix = copy_network(dir.path(), "garbage");
         std::fs::write(&tensor_paths(&prefix)[0], b"not numpy").unwrap();
         let e = NbrdfNetwork::load(&prefix).unwrap_err().to_string();
-        assert!(e.contains("garbage_fc1.npy") && e.contains("not a valid .npy"), "{e}");
+        assert!(
+            e.contains("garbage_fc1.npy") && e.contains("not a valid .npy"),
+            "{e}"
+        );
 
         let prefix = copy_network(dir.path(), "cut");
         let p = &tensor_paths(&prefix)[2];
@@ -447,7 +494,9 @@ pub(crate) mod tests {
         let e = NbrdfNetwork::load(&prefix).unwrap_err().to_string();
         assert!(e.contains("cut_fc2.npy"), "{e}");
 
-        let e = NbrdfNetwork::load(dir.path().join("absent")).unwrap_err().to_string();
+        let e = NbrdfNetwork::load(dir.path().join("absent"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("absent_fc1.npy"), "{e}");
     }
 }

@@ -185,3 +185,24 @@ fn error_log_against_a_reference() {
     let out = render(&[scene, "--resolution", "16x16", "--output", "out.exr", "--reference", "ref.exr", "--error-log", "out.csv"], dir.path());
     assert_clean_failure(&out, &["ref.exr", "32x32"], dir.path());
 }
+
+/// A measured BRDF bound from the command line renders; a bad binding is a clean error.
+#[test]
+fn bind_measured_brdfs() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/material-preview/scene.gltf");
+    let scene = scene.to_str().expect("utf-8");
+    let nbrdf = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/nbrdf/merl/alum-bronze");
+    let spec = format!("preview=nbrdf:{}", nbrdf.display());
+    let out = render(&[scene, "--bind", &spec, "--spp", "2", "--resolution", "16x16", "--output", "bound.exr"], dir.path());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(dir.path().join("bound.exr").exists());
+    for (spec, needles) in [
+        ("preview=merl:missing.binary", vec!["missing.binary"]),
+        ("preview=tabulated:x", vec!["tabulated:x"]),
+        ("preview=nbrdf:nowhere/alum-bronze", vec!["nowhere"]),
+    ] {
+        let out = render(&[scene, "--bind", spec, "--output", "out.exr"], dir.path());
+        assert_clean_failure(&out, &needles, dir.path());
+    }
+}

@@ -32,7 +32,11 @@ use std::path::{Path, PathBuf};
 pub const SPEC_FORMS: [&str; 2] = ["merl:PATH.binary", "nbrdf:PATH_PREFIX"];
 
 /// A measured BSDF shared by every shading point of the materials bound to it.
+///
+/// The NBRDF variant holds its weights inline (≈ 3.5 KB) so evaluation needs no pointer
+/// chase; scenes hold a handful of these, by reference.
 #[derive(Debug)]
+#[allow(clippy::large_enum_variant)]
 pub enum MeasuredBsdf {
     /// A MERL-layout table.
     Merl(MerlBsdf),
@@ -76,7 +80,9 @@ impl MeasuredBsdf {
         if kind == "merl" {
             Ok(MeasuredBsdf::Merl(MerlBsdf::load(resolve_merl_path(path))?))
         } else {
-            Ok(MeasuredBsdf::Nbrdf(NbrdfBsdf::load(resolve_nbrdf_prefix(path)?)?))
+            Ok(MeasuredBsdf::Nbrdf(NbrdfBsdf::load(resolve_nbrdf_prefix(
+                path,
+            )?)?))
         }
     }
 }
@@ -99,7 +105,9 @@ fn resolve_merl_path(path: PathBuf) -> PathBuf {
 /// The network prefix a `nbrdf:` path names (see the module documentation).
 fn resolve_nbrdf_prefix(path: PathBuf) -> Result<PathBuf> {
     let text = path.to_string_lossy();
-    for suffix in ["_fc1.npy", "_b1.npy", "_fc2.npy", "_b2.npy", "_fc3.npy", "_b3.npy"] {
+    for suffix in [
+        "_fc1.npy", "_b1.npy", "_fc2.npy", "_b2.npy", "_fc3.npy", "_b3.npy",
+    ] {
         if let Some(prefix) = text.strip_suffix(suffix) {
             return Ok(PathBuf::from(prefix));
         }
@@ -114,7 +122,10 @@ fn resolve_nbrdf_prefix(path: PathBuf) -> Result<PathBuf> {
         }
         return Err(Error::invalid_file(
             &path,
-            format!("a directory of {} NBRDF networks: name one as DIR/MATERIAL", names.len()),
+            format!(
+                "a directory of {} NBRDF networks: name one as DIR/MATERIAL",
+                names.len()
+            ),
         ));
     }
     if let Some(dir) = path.parent().filter(|d| d.is_dir()) {
@@ -167,16 +178,27 @@ pub(crate) mod tests {
 
     /// Materials of the chi-square tests: a mirror-like metal, a diffuse one, a rough metal,
     /// a metallic paint and a near-black glossy one.
-    pub(crate) const CHI2_MATERIALS: [&str; 5] =
-        ["chrome", "white-diffuse-bball", "alum-bronze", "gold-metallic-paint", "black-obsidian"];
+    pub(crate) const CHI2_MATERIALS: [&str; 5] = [
+        "chrome",
+        "white-diffuse-bball",
+        "alum-bronze",
+        "gold-metallic-paint",
+        "black-obsidian",
+    ];
     /// Viewing angles θo (radians) of the chi-square tests: 0°, 45°, 80°.
-    pub(crate) const CHI2_THETAS: [f32; 3] = [0.0, std::f32::consts::FRAC_PI_4, 80.0 * std::f32::consts::PI / 180.0];
+    pub(crate) const CHI2_THETAS: [f32; 3] = [
+        0.0,
+        std::f32::consts::FRAC_PI_4,
+        80.0 * std::f32::consts::PI / 180.0,
+    ];
     /// Chi-square tests in the family (both measured BSDF kinds), for the Šidák correction.
     const CHI2_TESTS: usize = 2 * CHI2_MATERIALS.len() * CHI2_THETAS.len();
 
     /// The MERL-layout table of a merl/ network, tabulated in memory once per test process.
     pub(crate) fn merl_fitted_table(name: &str) -> Arc<MerlTable> {
-        static CACHE: OnceLock<Mutex<HashMap<String, Arc<OnceLock<Arc<MerlTable>>>>>> = OnceLock::new();
+        /// One slot per material, filled by the first test that needs it.
+        type Slot = Arc<OnceLock<Arc<MerlTable>>>;
+        static CACHE: OnceLock<Mutex<HashMap<String, Slot>>> = OnceLock::new();
         let slot = {
             let mut cache = CACHE.get_or_init(Default::default).lock().unwrap();
             cache.entry(name.to_string()).or_default().clone()
@@ -206,14 +228,29 @@ pub(crate) mod tests {
     }
 
     fn unit(theta: f32, phi: f32) -> Vec3 {
-        Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+        Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
     }
 
     /// No NaN, Inf or negative value or density anywhere, including grazing angles
     /// (θ → 90°), the mirror configuration (h = n), retro-reflection and below the horizon.
     pub(crate) fn check_stability(bxdf: &(impl Bxdf + ?Sized)) {
         use std::f32::consts::FRAC_PI_2;
-        let thetas = [0.0, 1e-6, 0.3, 0.8, 1.2, 1.5, FRAC_PI_2 - 1e-3, FRAC_PI_2 - 1e-6, FRAC_PI_2, FRAC_PI_2 + 1e-3];
+        let thetas = [
+            0.0,
+            1e-6,
+            0.3,
+            0.8,
+            1.2,
+            1.5,
+            FRAC_PI_2 - 1e-3,
+            FRAC_PI_2 - 1e-6,
+            FRAC_PI_2,
+            FRAC_PI_2 + 1e-3,
+        ];
         let phis = [0.0, 0.5, 3.0, std::f32::consts::PI];
         let mut dirs: Vec<Vec3> = Vec::new();
         for &t in &thetas {
@@ -226,7 +263,10 @@ pub(crate) mod tests {
             for wi in dirs.iter().copied().chain([mirror, wo]) {
                 let f = bxdf.eval(wo, wi);
                 let p = bxdf.pdf(wo, wi);
-                assert!(f.is_finite() && f.min_element() >= 0.0, "f({wo}, {wi}) = {f}");
+                assert!(
+                    f.is_finite() && f.min_element() >= 0.0,
+                    "f({wo}, {wi}) = {f}"
+                );
                 assert!(p.is_finite() && p >= 0.0, "pdf({wo}, {wi}) = {p}");
                 if wo.z <= 0.0 || wi.z <= 0.0 {
                     assert_eq!(f, Rgb::ZERO);
@@ -249,7 +289,12 @@ pub(crate) mod tests {
     /// Mean and variance of the one-sample estimator of the directional albedo (mean over
     /// RGB) of f cos θi / pdf, with wi from `bxdf.sample` (`importance`) or from the cosine
     /// lobe, `n` independent samples.
-    pub(crate) fn albedo_estimator(bxdf: &(impl Bxdf + ?Sized), wo: Vec3, n: usize, importance: bool) -> (f64, f64) {
+    pub(crate) fn albedo_estimator(
+        bxdf: &(impl Bxdf + ?Sized),
+        wo: Vec3,
+        n: usize,
+        importance: bool,
+    ) -> (f64, f64) {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_pcg::Pcg32::seed_from_u64(7);
         let (mut sum, mut sum2) = (0.0f64, 0.0f64);
@@ -281,11 +326,19 @@ pub(crate) mod tests {
     fn importance_sampling_beats_cosine_sampling() {
         // Directional albedo at θo = 45°: both estimators agree (unbiased) and importance
         // sampling has a much lower variance for the peaky chrome, lower for the rough metal.
-        let wo = Vec3::new(std::f32::consts::FRAC_1_SQRT_2, 0.0, std::f32::consts::FRAC_1_SQRT_2);
+        let wo = Vec3::new(
+            std::f32::consts::FRAC_1_SQRT_2,
+            0.0,
+            std::f32::consts::FRAC_1_SQRT_2,
+        );
         let n = 200_000;
         for (name, min_ratio) in [("chrome", 20.0), ("alum-bronze", 2.0)] {
             let table = merl_fitted_table(name);
-            let merl = MerlBsdf::new(&table, super::super::merl::Interpolation::Trilinear, &TabulatedSamplerConfig::default());
+            let merl = MerlBsdf::new(
+                &table,
+                super::super::merl::Interpolation::Trilinear,
+                &TabulatedSamplerConfig::default(),
+            );
             let nbrdf = nbrdf_bsdf(name);
             for (kind, bxdf) in [("merl", &merl as &dyn Bxdf), ("nbrdf", &nbrdf as &dyn Bxdf)] {
                 let (m_is, v_is) = albedo_estimator(bxdf, wo, n, true);
@@ -295,9 +348,36 @@ pub(crate) mod tests {
                     "{name} ({kind}) θo = 45°: albedo {m_is:.4} (importance) / {m_cos:.4} (cosine), variance {v_is:.3e} / {v_cos:.3e}, ratio {ratio:.1}"
                 );
                 let standard_error = ((v_is + v_cos) / n as f64).sqrt();
-                assert!((m_is - m_cos).abs() < 5.0 * standard_error, "{name} {kind}: biased?");
+                assert!(
+                    (m_is - m_cos).abs() < 5.0 * standard_error,
+                    "{name} {kind}: biased?"
+                );
                 assert!(ratio > min_ratio, "{name} {kind}: variance ratio {ratio}");
             }
+        }
+    }
+
+    #[test]
+    fn chrome_peak_is_kept_finite_and_unclamped() {
+        // README: at θh = 0, θd = 0.3 chrome gives about (494, 538, 537) 1/sr.
+        let table = merl_fitted_table("chrome");
+        let merl = MerlBsdf::new(
+            &table,
+            super::super::merl::Interpolation::Trilinear,
+            &TabulatedSamplerConfig::default(),
+        );
+        let nbrdf = nbrdf_bsdf("chrome");
+        let wo = unit(0.3, 1.0);
+        let mirror = Vec3::new(-wo.x, -wo.y, wo.z);
+        for (kind, bxdf) in [("merl", &merl as &dyn Bxdf), ("nbrdf", &nbrdf as &dyn Bxdf)] {
+            let f = bxdf.eval(wo, mirror);
+            assert!(
+                f.min_element() > 400.0 && f.max_element() < 650.0,
+                "{kind}: {f}"
+            );
+            let p = bxdf.pdf(wo, mirror);
+            assert!(p.is_finite() && p > 10.0, "{kind}: pdf {p}");
+            check_stability(bxdf);
         }
     }
 
@@ -305,15 +385,23 @@ pub(crate) mod tests {
     fn specs_load_both_kinds() {
         let dir = data_dir().join("merl");
         let spec = format!("nbrdf:{}", dir.join("alum-bronze").display());
-        assert!(matches!(MeasuredBsdf::load(&spec).unwrap(), MeasuredBsdf::Nbrdf(_)));
+        assert!(matches!(
+            MeasuredBsdf::load(&spec).unwrap(),
+            MeasuredBsdf::Nbrdf(_)
+        ));
         let spec = format!("nbrdf:{}", dir.join("alum-bronze_fc3.npy").display());
-        assert!(matches!(MeasuredBsdf::load(&spec).unwrap(), MeasuredBsdf::Nbrdf(_)));
+        assert!(matches!(
+            MeasuredBsdf::load(&spec).unwrap(),
+            MeasuredBsdf::Nbrdf(_)
+        ));
         let b = MeasuredBsdf::load_relative_to("nbrdf:merl/chrome", Some(&data_dir())).unwrap();
         assert!(matches!(b, MeasuredBsdf::Nbrdf(_)));
 
         let tmp = tempfile::tempdir().unwrap();
         let path = tmp.path().join("grey.binary");
-        MerlTable::from_fn(|_, _, _| Rgb::splat(0.1)).write(&path).unwrap();
+        MerlTable::from_fn(|_, _, _| Rgb::splat(0.1))
+            .write(&path)
+            .unwrap();
         let b = MeasuredBsdf::load(&format!("merl:{}", path.display())).unwrap();
         assert!(matches!(b, MeasuredBsdf::Merl(_)));
         let b = MeasuredBsdf::load_relative_to("merl:grey", Some(tmp.path())).unwrap();
@@ -326,33 +414,65 @@ pub(crate) mod tests {
         let e = MeasuredBsdf::load("phong:foo.bin").unwrap_err();
         assert!(matches!(e, Error::UnknownName { .. }));
         let msg = e.to_string();
-        assert!(msg.contains("phong:foo.bin") && msg.contains("merl:PATH.binary"), "{msg}");
+        assert!(
+            msg.contains("phong:foo.bin") && msg.contains("merl:PATH.binary"),
+            "{msg}"
+        );
 
-        let msg = MeasuredBsdf::load("just-a-path.binary").unwrap_err().to_string();
-        assert!(msg.contains("just-a-path.binary") && msg.contains("KIND:PATH"), "{msg}");
+        let msg = MeasuredBsdf::load("just-a-path.binary")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("just-a-path.binary") && msg.contains("KIND:PATH"),
+            "{msg}"
+        );
 
         let msg = MeasuredBsdf::load("merl:").unwrap_err().to_string();
-        assert!(msg.contains("'merl:'") && msg.contains("empty path"), "{msg}");
+        assert!(
+            msg.contains("'merl:'") && msg.contains("empty path"),
+            "{msg}"
+        );
 
-        let msg = MeasuredBsdf::load("merl:/nonexistent/x.binary").unwrap_err().to_string();
+        let msg = MeasuredBsdf::load("merl:/nonexistent/x.binary")
+            .unwrap_err()
+            .to_string();
         assert!(msg.contains("/nonexistent/x.binary"), "{msg}");
 
         let spec = format!("nbrdf:{}", data_dir().join("merl/alum-bronz").display());
         let e = MeasuredBsdf::load(&spec).unwrap_err();
         let msg = e.to_string();
-        assert!(matches!(e, Error::UnknownName { .. }) && msg.contains("alum-bronz'") && msg.contains("alum-bronze,"), "{msg}");
+        assert!(
+            matches!(e, Error::UnknownName { .. })
+                && msg.contains("alum-bronz'")
+                && msg.contains("alum-bronze,"),
+            "{msg}"
+        );
 
-        let msg = MeasuredBsdf::load(&format!("nbrdf:{}", data_dir().join("merl").display())).unwrap_err().to_string();
+        let msg = MeasuredBsdf::load(&format!("nbrdf:{}", data_dir().join("merl").display()))
+            .unwrap_err()
+            .to_string();
         assert!(msg.contains("100 NBRDF networks"), "{msg}");
 
-        let msg = MeasuredBsdf::load("nbrdf:/nonexistent/dir/x").unwrap_err().to_string();
+        let msg = MeasuredBsdf::load("nbrdf:/nonexistent/dir/x")
+            .unwrap_err()
+            .to_string();
         assert!(msg.contains("/nonexistent/dir/x_fc1.npy"), "{msg}");
 
         let tmp = tempfile::tempdir().unwrap();
         let bad = tmp.path().join("short.binary");
-        std::fs::write(&bad, [0u8; 100]).unwrap();
-        let msg = MeasuredBsdf::load(&format!("merl:{}", bad.display())).unwrap_err().to_string();
-        assert!(msg.contains("short.binary") && msg.contains("truncated"), "{msg}");
+        let mut bytes: Vec<u8> = [90i32, 90, 180]
+            .iter()
+            .flat_map(|d| d.to_le_bytes())
+            .collect();
+        bytes.extend_from_slice(&[0u8; 88]);
+        std::fs::write(&bad, bytes).unwrap();
+        let msg = MeasuredBsdf::load(&format!("merl:{}", bad.display()))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("short.binary") && msg.contains("truncated"),
+            "{msg}"
+        );
     }
 
     #[test]
@@ -369,64 +489,5 @@ pub(crate) mod tests {
             m.sample(wo, Vec2::new(0.3, 0.6), 0.7),
             inner.sample(wo, Vec2::new(0.3, 0.6), 0.7)
         );
-    }
-}
-#[cfg(test)]
-mod tmp_perf {
-    use super::tests::*;
-    use super::*;
-    use crate::bsdf::merl::Interpolation;
-    use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
-    #[test]
-    fn tmp_perf() {
-        let t0 = std::time::Instant::now();
-        let table = merl_fitted_table("alum-bronze");
-        println!("tabulate in memory: {:?}", t0.elapsed());
-        let t0 = std::time::Instant::now();
-        let merl = MerlBsdf::new(&table, Interpolation::Trilinear, &TabulatedSamplerConfig::default());
-        println!("MerlBsdf::new (render values + sampler fit): {:?}", t0.elapsed());
-        let near = MerlBsdf::new(&table, Interpolation::Nearest, &TabulatedSamplerConfig::default());
-        let t0 = std::time::Instant::now();
-        let nb = nbrdf_bsdf("alum-bronze");
-        println!("NbrdfBsdf::new: {:?} fma {}", t0.elapsed(), nb.network().uses_fma());
-        let n = 2_000_000;
-        let dirs: Vec<(Vec3, Vec3)> = (0..4096).map(|k| {
-            let a = (k as f32 * 0.618034) % 1.0; let b = (k as f32 * 0.75487) % 1.0; let c = (k as f32 * 0.5698) % 1.0; let d = (k as f32 * 0.3247) % 1.0;
-            let wo = Vec3::new((a*1.5).sin()*(c*6.28).cos(), (a*1.5).sin()*(c*6.28).sin(), (a*1.5).cos());
-            let wi = Vec3::new((b*1.5).sin()*(d*6.28).cos(), (b*1.5).sin()*(d*6.28).sin(), (b*1.5).cos());
-            (wo, wi)}).collect();
-        for (name, b) in [("merl trilinear", &merl as &dyn Bxdf), ("merl nearest", &near as &dyn Bxdf), ("nbrdf", &nb as &dyn Bxdf)] {
-            let t0 = std::time::Instant::now();
-            let mut acc = Rgb::ZERO;
-            for k in 0..n { let (wo, wi) = dirs[k & 4095]; acc += b.eval(wo, wi); }
-            let te = t0.elapsed().as_nanos() as f64 / n as f64;
-            let t0 = std::time::Instant::now();
-            let mut p = 0.0;
-            for k in 0..n { let (wo, wi) = dirs[k & 4095]; p += b.pdf(wo, wi); }
-            let tp = t0.elapsed().as_nanos() as f64 / n as f64;
-            let t0 = std::time::Instant::now();
-            let mut q = 0.0;
-            for k in 0..n { let (wo, wi) = dirs[k & 4095]; if let Some(s) = b.sample(wo, Vec2::new(wi.x.abs(), wi.y.abs()), (k as f32 * 0.618) % 1.0) { q += s.pdf; } }
-            let ts = t0.elapsed().as_nanos() as f64 / n as f64;
-            println!("{name}: eval {te:.1} ns, pdf {tp:.1} ns, sample {ts:.1} ns ({acc} {p} {q})");
-        }
-        let net = nb.network();
-        let inputs: Vec<[f32; 6]> = (0..4096).map(|k| crate::brdf_coords::network_input_from_angles((k & 1023) as f32 * 1e-3, 0.3 + (k as f32) * 1e-4, 0.2)).collect();
-        let t0 = std::time::Instant::now();
-        let mut acc = 0.0f32;
-        for k in 0..n { let y = net.forward(std::hint::black_box(inputs[k & 4095])); acc += y[0]; }
-        println!("forward only: {:.1} ns {acc}", t0.elapsed().as_nanos() as f64 / n as f64);
-        let t0 = std::time::Instant::now();
-        let mut acc = Rgb::ZERO;
-        for k in 0..n { acc += net.eval_input(std::hint::black_box(inputs[k & 4095])); }
-        println!("eval_input: {:.1} ns {acc}", t0.elapsed().as_nanos() as f64 / n as f64);
-        let t0 = std::time::Instant::now();
-        let mut acc = 0.0;
-        for k in 0..n { let (wo, wi) = dirs[k & 4095]; acc += crate::brdf_coords::network_input(std::hint::black_box(wi), wo)[3]; }
-        println!("network_input: {:.1} ns {acc}", t0.elapsed().as_nanos() as f64 / n as f64);
-        let t0 = std::time::Instant::now();
-        let mut acc = 0.0;
-        for k in 0..n { let (wo, wi) = dirs[k & 4095]; acc += crate::brdf_coords::isotropic_angles(std::hint::black_box(wi), wo)[2]; }
-        println!("isotropic_angles: {:.1} ns {acc}", t0.elapsed().as_nanos() as f64 / n as f64);
     }
 }

@@ -122,20 +122,29 @@ fn invert_linear(a: f32, b: f32, u: f32) -> f32 {
 
 impl BilinearTable {
     /// Builds from vertex values (negative and non-finite count as 0; all zero becomes
-    /// uniform).
+    /// uniform). The values are rescaled to a maximum of 1, so sums cannot overflow.
     fn new(mut values: Vec<f32>, columns: usize, row_v: &[f32]) -> Self {
         let line = columns + 1;
+        let max = values
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold(0.0f32, |m, &v| m.max(v));
         for v in values.iter_mut() {
-            if !(v.is_finite() && *v > 0.0) {
-                *v = 0.0;
-            }
+            *v = if v.is_finite() && *v > 0.0 {
+                *v / max
+            } else {
+                0.0
+            };
         }
         if values.iter().all(|&v| v == 0.0) {
             values.fill(1.0);
         }
         let dx = 1.0 / columns as f32;
         let mut line_cdf = vec![0f32; values.len()];
-        for (cdf, vals) in line_cdf.chunks_exact_mut(line).zip(values.chunks_exact(line)) {
+        for (cdf, vals) in line_cdf
+            .chunks_exact_mut(line)
+            .zip(values.chunks_exact(line))
+        {
             let mut acc = 0f64;
             for i in 0..columns {
                 acc += 0.5 * (vals[i] + vals[i + 1]) as f64 * dx as f64;
@@ -160,7 +169,10 @@ impl BilinearTable {
     fn sample(&self, u: Vec2, columns: usize, row_v: &[f32]) -> (f32, f32) {
         let line = columns + 1;
         let (r, _, u_row) = self.rows.sample_discrete(u.y);
-        let (c0, c1) = (&self.line_cdf[r * line..(r + 1) * line], &self.line_cdf[(r + 1) * line..(r + 2) * line]);
+        let (c0, c1) = (
+            &self.line_cdf[r * line..(r + 1) * line],
+            &self.line_cdf[(r + 1) * line..(r + 2) * line],
+        );
         let s = invert_linear(c0[columns], c1[columns], u_row);
         let q_cdf = |i: usize| (1.0 - s) * c0[i] + s * c1[i];
         let target = u.x * q_cdf(columns);
@@ -173,7 +185,10 @@ impl BilinearTable {
                 hi = mid;
             }
         }
-        let (v0, v1) = (&self.values[r * line..(r + 1) * line], &self.values[(r + 1) * line..(r + 2) * line]);
+        let (v0, v1) = (
+            &self.values[r * line..(r + 1) * line],
+            &self.values[(r + 1) * line..(r + 2) * line],
+        );
         let q = |i: usize| (1.0 - s) * v0[i] + s * v1[i];
         let (qa, qb) = (q(lo), q(lo + 1));
         let segment = 0.5 * (qa + qb) / columns as f32;
@@ -249,10 +264,15 @@ impl TabulatedSampler {
         let tables = (0..c.theta_o_nodes)
             .into_par_iter()
             .map(|k| {
-                let theta_o = (k as f32 / (c.theta_o_nodes - 1) as f32 * FRAC_PI_2).min(MAX_NODE_THETA_O);
+                let theta_o =
+                    (k as f32 / (c.theta_o_nodes - 1) as f32 * FRAC_PI_2).min(MAX_NODE_THETA_O);
                 let (so, co) = theta_o.sin_cos();
                 let wo = Vec3::new(so, 0.0, co);
-                BilinearTable::new(vertex_values(&brdf, wo, &row_v, c.phi_h_cells), c.phi_h_cells, &row_v)
+                BilinearTable::new(
+                    vertex_values(&brdf, wo, &row_v, c.phi_h_cells),
+                    c.phi_h_cells,
+                    &row_v,
+                )
             })
             .collect();
         TabulatedSampler {
@@ -315,7 +335,7 @@ impl TabulatedSampler {
     fn table_pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let h = (wo + wi).normalize();
         let cos_oh = wo.dot(h);
-        if !(cos_oh > 0.0) {
+        if cos_oh.is_nan() || cos_oh <= 0.0 {
             return 0.0;
         }
         let (c, s) = azimuth(wo);
@@ -329,7 +349,8 @@ impl TabulatedSampler {
         let v = 2.0 * half.sin() * half.sin();
         let x = (hy.atan2(hx).abs() / PI).min(1.0);
         let (k, t) = self.nodes(wo);
-        let mut density = (1.0 - t) * self.tables[k].density(x, v, row, self.phi_cells, &self.row_v);
+        let mut density =
+            (1.0 - t) * self.tables[k].density(x, v, row, self.phi_cells, &self.row_v);
         if t > 0.0 {
             density += t * self.tables[k + 1].density(x, v, row, self.phi_cells, &self.row_v);
         }
@@ -351,7 +372,12 @@ impl TabulatedSampler {
 
 /// Vertex values of one θo node, line-major: f cos θi per unit solid angle of h, averaged
 /// over both signs of φh − φo.
-fn vertex_values(brdf: &impl Fn(Vec3, Vec3) -> Rgb, wo: Vec3, row_v: &[f32], columns: usize) -> Vec<f32> {
+fn vertex_values(
+    brdf: &impl Fn(Vec3, Vec3) -> Rgb,
+    wo: Vec3,
+    row_v: &[f32],
+    columns: usize,
+) -> Vec<f32> {
     let line = columns + 1;
     let mut values = vec![0f32; row_v.len() * line];
     for (r, &v) in row_v.iter().enumerate() {
@@ -418,7 +444,13 @@ mod tests {
 
     #[test]
     fn invert_linear_inverts() {
-        for (a, b) in [(1.0f32, 1.0f32), (0.0, 2.0), (3.0, 0.0), (0.5, 4.0), (0.0, 0.0)] {
+        for (a, b) in [
+            (1.0f32, 1.0f32),
+            (0.0, 2.0),
+            (3.0, 0.0),
+            (0.5, 4.0),
+            (0.0, 0.0),
+        ] {
             for k in 0..=10 {
                 let u = k as f32 / 10.0;
                 let s = invert_linear(a, b, u);
@@ -438,7 +470,7 @@ mod tests {
         let values = vec![1.0, 3.0, 0.0, 2.0, 0.5, 1.0, 0.0, 4.0, 2.0];
         let table = BilinearTable::new(values, 2, &row_v);
         let n = 256;
-        let mut hist = vec![0f64; 16];
+        let mut hist = [0f64; 16];
         for i in 0..n {
             for j in 0..n {
                 let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
@@ -449,7 +481,7 @@ mod tests {
             }
         }
         let mut total = 0.0f64;
-        for cell in 0..16 {
+        for (cell, &sampled) in hist.iter().enumerate() {
             let (cx, cv) = (cell % 4, cell / 4);
             let mut mass = 0.0f64;
             let m = 64;
@@ -462,7 +494,10 @@ mod tests {
                 }
             }
             total += mass;
-            assert!((hist[cell] - mass).abs() < 3e-3, "cell {cell}: sampled {} vs density {mass}", hist[cell]);
+            assert!(
+                (sampled - mass).abs() < 3e-3,
+                "cell {cell}: sampled {sampled} vs density {mass}"
+            );
         }
         assert!((total - 1.0).abs() < 1e-3, "{total}");
     }
@@ -489,7 +524,10 @@ mod tests {
             let total = integrate_pdf(&s, wo);
             let rate = success_rate(&s, wo);
             assert!(total < 1.0 + 1e-3, "θo {theta_o}: ∫pdf = {total}");
-            assert!((total - rate).abs() < 5e-3, "θo {theta_o}: ∫pdf = {total}, sampled {rate}");
+            assert!(
+                (total - rate).abs() < 5e-3,
+                "θo {theta_o}: ∫pdf = {total}, sampled {rate}"
+            );
         }
     }
 
@@ -502,10 +540,40 @@ mod tests {
         let sampled = TabulatedSampler::new(ggx_brdf(0.1), &TabulatedSamplerConfig::default());
         let other = TabulatedSampler::new(ggx_brdf(0.13), &TabulatedSamplerConfig::default());
         let wo = Vec3::new(0.5, 0.3, 0.81).normalize();
-        let good = crate::chi2::test_sampler(|u, uc| sampled.sample(wo, u, uc), |wi| sampled.pdf(wo, wi), &config);
+        let good = crate::chi2::test_sampler(
+            |u, uc| sampled.sample(wo, u, uc),
+            |wi| sampled.pdf(wo, wi),
+            &config,
+        );
         assert!(good.passed(), "{good}");
-        let bad = crate::chi2::test_sampler(|u, uc| sampled.sample(wo, u, uc), |wi| other.pdf(wo, wi), &config);
+        let bad = crate::chi2::test_sampler(
+            |u, uc| sampled.sample(wo, u, uc),
+            |wi| other.pdf(wo, wi),
+            &config,
+        );
         assert!(!bad.passed(), "{bad}");
+    }
+
+    #[test]
+    fn huge_and_invalid_values_keep_the_density_exact() {
+        let brdf = |wo: Vec3, wi: Vec3| {
+            let h = (wo + wi).normalize();
+            if h.z > 0.999 {
+                Rgb::splat(1e37)
+            } else if h.x > 0.5 {
+                Rgb::splat(f32::NAN)
+            } else {
+                Rgb::splat(1.0)
+            }
+        };
+        let s = TabulatedSampler::new(brdf, &TabulatedSamplerConfig::default());
+        let wo = Vec3::new(0.6, 0.0, 0.8);
+        let total = integrate_pdf(&s, wo);
+        let rate = success_rate(&s, wo);
+        assert!(
+            (total - rate).abs() < 5e-3,
+            "∫pdf = {total}, sampled {rate}"
+        );
     }
 
     #[test]
@@ -514,7 +582,10 @@ mod tests {
         let wo = Vec3::new(0.5, -0.2, 0.8).normalize();
         let mut drawn = 0;
         for i in 0..4096u32 {
-            let u = Vec2::new((i as f32 + 0.5) / 4096.0, (i.wrapping_mul(2_654_435_761) >> 8) as f32 / 16_777_216.0);
+            let u = Vec2::new(
+                (i as f32 + 0.5) / 4096.0,
+                (i.wrapping_mul(2_654_435_761) >> 8) as f32 / 16_777_216.0,
+            );
             let uc = ((i * 7919) % 4096) as f32 / 4096.0;
             if let Some(wi) = s.sample(wo, u, uc) {
                 drawn += 1;
@@ -524,7 +595,9 @@ mod tests {
             }
         }
         assert!(drawn > 3900, "{drawn}");
-        assert!(s.sample(Vec3::new(0.0, 0.6, -0.8), Vec2::splat(0.5), 0.5).is_none());
+        assert!(s
+            .sample(Vec3::new(0.0, 0.6, -0.8), Vec2::splat(0.5), 0.5)
+            .is_none());
         assert_eq!(s.pdf(Vec3::Z, Vec3::new(0.0, 0.6, -0.8)), 0.0);
     }
 
@@ -534,6 +607,9 @@ mod tests {
         let wo = Vec3::new(0.6, 0.0, 0.8);
         let total = integrate_pdf(&s, wo);
         let rate = success_rate(&s, wo);
-        assert!(total > 0.1 && (total - rate).abs() < 5e-3, "∫pdf = {total}, sampled {rate}");
+        assert!(
+            total > 0.1 && (total - rate).abs() < 5e-3,
+            "∫pdf = {total}, sampled {rate}"
+        );
     }
 }
