@@ -1,35 +1,60 @@
-//! The glTF 2.0 metallic-roughness material (glTF 2.0 specification, Appendix B).
+//! The glTF 2.0 metallic-roughness material (glTF 2.0 specification, Appendix B), with an
+//! energy-conserving diffuse weighting in place of the specification's `fresnel_mix`.
 //!
-//! With c = `base_color`, m = `metallic`, α = `roughness`², h = normalize(wo + wi) and
-//! D, V the GGX distribution and height-correlated Smith visibility
-//! ([`GgxDistribution::d`], [`GgxDistribution::visibility`]):
+//! With c = `base_color`, m = `metallic`, α = `roughness`², h = normalize(wo + wi),
+//! μo = wo.z, μi = wi.z (cosines to the macroscopic normal) and D, V the GGX distribution
+//! and height-correlated Smith visibility ([`GgxDistribution::d`],
+//! [`GgxDistribution::visibility`]):
 //!
 //! ```text
-//! specular  = D(h) V(wo, wi)                              (the spec's specular_brdf, 1/sr)
-//! F_metal   = c + (1 − c)(1 − wo·h)⁵                      (conductor_fresnel)
-//! F_diel    = 0.04 + 0.96 (1 − wo·h)⁵                     (fresnel_mix with ior 1.5)
-//! metal     = F_metal specular
-//! dielectric= (1 − F_diel) c / π + F_diel specular        (fresnel_mix(diffuse, specular))
-//! f_r       = m metal + (1 − m) dielectric
-//!           = F specular + (1 − m)(1 − F_diel) c / π,  F = F0 + (1 − F0)(1 − wo·h)⁵,
-//!                                                       F0 = mix(0.04, c, m)
+//! specular  = D(h) V(wo, wi)                          (the spec's specular_brdf, 1/sr)
+//! F         = F0 + (1 − F0)(1 − wo·h)⁵,  F0 = mix(0.04, c, m)
+//!                                   (the spec's conductor_fresnel and dielectric Fresnel,
+//!                                    blended by m as the spec's mix does)
+//! F_d(μ)    = 0.04 + 0.96 (1 − μ)⁵                    (dielectric Schlick Fresnel, ior 1.5)
+//! T(μ)      = 1 − F_d(μ) = 0.96 (1 − (1 − μ)⁵)         (transmittance at the macro angle)
+//! diffuse   = (1 − m) c / π · k T(μo) T(μi),  k = 0.995 / T̄ = 0.995 · 35/32 ≈ 1.0883
+//!             with T̄ = 2 ∫₀¹ T(μ) μ dμ = 0.96 (1 − 2/42) = 32/35
+//!             (the cosine-weighted hemispherical mean of T)
+//! f_r       = F specular + diffuse
 //! ```
 //!
-//! The diffuse lobe is thus weighted by the *dielectric's* scalar Fresnel (1 − F_diel), as
-//! the spec's `fresnel_mix` does, not by the coloured mixed F. Fresnel uses the angle between
-//! `wo` and the microfacet normal (wo·h = wi·h), so f_r is reciprocal. Single scattering
-//! only: rough metals lose energy (no multiple-scattering compensation; white metal with
-//! roughness 1 reflects 1 − ln 2 ≈ 0.31 at normal incidence).
+//! The specular lobe is the specification's: Fresnel uses the angle between `wo` and the
+//! microfacet normal (wo·h = wi·h), so it is reciprocal, and a metal (m = 1) is exactly the
+//! spec's `conductor_fresnel(c, specular_brdf)`. Single scattering only: rough surfaces lose
+//! energy (no multiple-scattering compensation; white metal with roughness 1 reflects
+//! 1 − ln 2 ≈ 0.31 at normal incidence).
 //!
-//! **Energy caveat of the spec's form.** Because the diffuse weight 1 − F_diel(wo·h) is
-//! taken at the half vector, most diffuse directions see wo·h ≈ 1 and keep ≈ 96 % of the
-//! diffuse albedo even when `wo` is grazing, while the specular lobe's own Fresnel grows
-//! towards 1 there. A white dielectric therefore reflects *more* than it receives at grazing
-//! view angles: directional albedo ≈ 1.025 at θo = 60° and ≈ 1.22 at θo = 80° for
-//! roughness 0.3, ≈ 1.045 at 80° for roughness 0.6, ≈ 1.010 at 89° for roughness 1
-//! (below 1 at θo ≤ 30° for every roughness). This is the model as specified (and as
-//! rasterisers implement it); a path tracer may see slightly brightened grazing
-//! reflections on white plastics. Metals conserve energy at every angle.
+//! # Departure from the glTF specification
+//! The specification's `fresnel_mix` weights the diffuse base by 1 − F_d(wo·h), at the half
+//! vector. Most diffuse directions then see wo·h ≈ 1 and keep ≈ 96 % of the diffuse albedo
+//! even when `wo` is grazing, while the specular lobe's own Fresnel grows towards 1: a
+//! white dielectric reflects **more energy than it receives** at grazing view angles
+//! (directional albedo ≈ 1.025 at θo = 60° and ≈ 1.22 at θo = 80° for roughness 0.3,
+//! ≈ 1.045 at 80° for roughness 0.6, ≈ 1.010 at 89° for roughness 1). A path tracer must
+//! not gain energy, so this model departs from the specification on purpose.
+//!
+//! The diffuse lobe is instead weighted by the interface's transmittance at *both*
+//! macroscopic angles, T(μo) T(μi), as in the coupled diffuse terms of Ashikhmin & Shirley
+//! (2000) and Kelemen & Szirmay-Kalos (2001). The product is symmetric in wo and wi, so f_r
+//! stays reciprocal. Its energy balance for a white dielectric: ∫ diffuse cos θi dωi =
+//! 0.995 T(μo), so the directional albedo is E_s(μo) + 0.995 (1 − F_d(μo)), with E_s the
+//! albedo of the specular lobe. For a smooth surface E_s ≈ F_d(μo) (a mirror) and the albedo
+//! is ≈ 0.995 + 0.005 F_d(μo) < 1. On rough surfaces E_s can exceed F_d(μo) slightly (Schlick's
+//! Fresnel is convex in wo·h); a quadrature sweep over roughness ∈ [0, 1] in steps of
+//! 0.02 and θo ∈ [0°, 89.9°] in steps of 1° or less found at most 0.0014 (1 − F_d(μo))
+//! (roughness 0.28, θo = 55°, albedo 0.9966), so the 0.5 % the diffuse lobe keeps back (the
+//! factor 0.995 in k) keeps the albedo below 1 everywhere. The largest values, ≈ 0.998, are
+//! those of smooth surfaces near grazing angles, where 0.995 + 0.005 F_d(μo) tends to 1.
+//! Coloured and partly metallic materials reflect less than the white ones (f_r grows with
+//! every channel of c and is affine in m), and metals are unchanged.
+//!
+//! The price is energy *loss* towards grazing angles on rough dielectrics, where the
+//! single-scattering specular lobe falls well short of F_d(μo): a white dielectric
+//! reflects ≈ 0.995 at normal incidence (the spec's form ≈ 1.0), ≈ 0.864 at θo = 80° and
+//! ≈ 0.505 at 89° for roughness 0.3, ≈ 0.629 at 80° and ≈ 0.156 at 89° for roughness 1.
+//! Weighting by 1 − E_s (tabulated) instead of 1 − F_d would recover that energy; rough
+//! metals lose energy at grazing angles in the same way.
 //!
 //! Sampling picks the specular lobe (GGX visible normals, [`GgxDistribution::sample_reflection`])
 //! or the diffuse lobe (cosine-weighted) with the probability of
@@ -61,17 +86,34 @@ use std::f32::consts::FRAC_1_PI;
 /// Reflectance at normal incidence of glTF's dielectric (index of refraction 1.5).
 pub const DIELECTRIC_F0: f32 = 0.04;
 
+/// Cosine-weighted hemispherical mean of the dielectric's transmittance,
+/// T̄ = 2 ∫₀¹ (1 − F_d(μ)) μ dμ = (1 − F0)(1 − 2 ∫₀¹ (1 − μ)⁵ μ dμ) = (1 − F0)(1 − 1/21)
+/// = 32/35 for F0 = 0.04 (dimensionless): the fraction of uniformly diffuse light that
+/// leaves through the interface.
+const DIELECTRIC_MEAN_TRANSMITTANCE: f32 = (1.0 - DIELECTRIC_F0) * (20.0 / 21.0);
+
+/// Fraction of the transmitted energy the diffuse lobe returns (dimensionless). Below 1 to
+/// leave room for rough specular lobes, whose albedo exceeds F_d(μo) by up to 0.14 % of
+/// 1 − F_d(μo) (module documentation).
+const DIFFUSE_RETURN: f32 = 0.995;
+
+/// The diffuse normalisation k = [`DIFFUSE_RETURN`] / T̄ ≈ 1.0883, so that a white diffuse
+/// base returns 0.995 T(μo) of the light arriving from `wo` (dimensionless).
+const DIFFUSE_SCALE: f32 = DIFFUSE_RETURN / DIELECTRIC_MEAN_TRANSMITTANCE;
+
 /// Bounds of the probability of sampling the specular lobe when both lobes are non-zero,
 /// so neither lobe is starved (its variance would grow without bound).
 const MIN_LOBE_PROBABILITY: f32 = 0.1;
 
-/// The glTF 2.0 metallic-roughness BRDF (see the module documentation for the formula).
+/// The glTF 2.0 metallic-roughness BRDF with an energy-conserving diffuse weighting (see
+/// the module documentation for the formula and how it departs from the specification).
 ///
 /// The fields are expected in [0, 1]; [`MetallicRoughness::new`] clamps them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MetallicRoughness {
-    /// Linear RGB base colour, each channel in [0, 1]: the diffuse albedo of the dielectric
-    /// and the normal-incidence reflectance F0 of the metal.
+    /// Linear RGB base colour, each channel in [0, 1]: the diffuse colour of the dielectric
+    /// (its albedo before the interface's transmittance) and the normal-incidence
+    /// reflectance F0 of the metal.
     pub base_color: Rgb,
     /// Metalness in [0, 1]: 0 = dielectric (diffuse + 4 % specular), 1 = metal; values in
     /// between blend the two BRDFs linearly.
@@ -121,13 +163,21 @@ impl MetallicRoughness {
         self.base_color * (1.0 - self.metallic)
     }
 
+    /// The dielectric interface's transmittance T(μ) = 1 − F_d(μ) = 0.96 (1 − (1 − μ)⁵) at
+    /// the macroscopic cosine `cos_theta` (clamped to [0, 1]); in [0, 0.96], 0 on the
+    /// horizon.
+    #[inline]
+    fn dielectric_transmittance(cos_theta: f32) -> f32 {
+        (1.0 - DIELECTRIC_F0) * (1.0 - schlick_weight(cos_theta))
+    }
+
     /// Probability with which [`Bxdf::sample`] draws from the specular lobe given `wo`.
     ///
-    /// Estimated lobe albedos (luminance): specular E_s = lum(F(wo.z)), diffuse
-    /// E_d = lum((1 − m) c) (1 − F_diel(wo.z)), both with Schlick's Fresnel at the
-    /// macroscopic angle; the probability is E_s / (E_s + E_d), clamped to [0.1, 0.9] so
-    /// neither lobe is starved. It is exactly 1 when the diffuse lobe vanishes (metallic 1
-    /// or black base colour), so a pure metal spends no samples on it.
+    /// Estimated lobe albedos (luminance): specular E_s = lum(F(wo.z)), with Schlick's
+    /// Fresnel at the macroscopic angle, and diffuse E_d = 0.995 lum((1 − m) c) T(wo.z), the
+    /// diffuse lobe's exact albedo; the probability is E_s / (E_s + E_d), clamped to
+    /// [0.1, 0.9] so neither lobe is starved. It is exactly 1 when the diffuse lobe vanishes
+    /// (metallic 1 or black base colour), so a pure metal spends no samples on it.
     #[inline]
     pub fn specular_probability(&self, wo: Vec3) -> f32 {
         let diffuse = self.diffuse_color();
@@ -136,8 +186,8 @@ impl MetallicRoughness {
         }
         let cos_o = wo.z.clamp(0.0, 1.0);
         let specular_albedo = luminance(fresnel_schlick(self.f0(), cos_o));
-        let dielectric_fresnel = DIELECTRIC_F0 + (1.0 - DIELECTRIC_F0) * schlick_weight(cos_o);
-        let diffuse_albedo = luminance(diffuse) * (1.0 - dielectric_fresnel);
+        let diffuse_albedo =
+            luminance(diffuse) * DIFFUSE_RETURN * Self::dielectric_transmittance(cos_o);
         let total = specular_albedo + diffuse_albedo;
         let p = if total > 0.0 {
             specular_albedo / total
@@ -150,13 +200,13 @@ impl MetallicRoughness {
 
 impl MetallicRoughness {
     /// f_r for directions already known to lie above the horizon, with the GGX distribution
-    /// and the half vector.
+    /// and the half vector: F D V + (1 − m) c k T(μo) T(μi) / π.
     #[inline]
     fn value(&self, ggx: &GgxDistribution, wo: Vec3, wi: Vec3, h: Vec3) -> Rgb {
-        let cos_oh = wo.dot(h);
-        let specular = fresnel_schlick(self.f0(), cos_oh) * (ggx.d(h) * ggx.visibility(wo, wi));
-        let dielectric_fresnel = DIELECTRIC_F0 + (1.0 - DIELECTRIC_F0) * schlick_weight(cos_oh);
-        specular + self.diffuse_color() * ((1.0 - dielectric_fresnel) * FRAC_1_PI)
+        let specular = fresnel_schlick(self.f0(), wo.dot(h)) * (ggx.d(h) * ggx.visibility(wo, wi));
+        let transmittance =
+            Self::dielectric_transmittance(wo.z) * Self::dielectric_transmittance(wi.z);
+        specular + self.diffuse_color() * (transmittance * (DIFFUSE_SCALE * FRAC_1_PI))
     }
 
     /// The mixture density for directions already known to lie above the horizon.
@@ -231,8 +281,11 @@ impl Bxdf for MetallicRoughness {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bsdf::microfacet::MIN_ALPHA;
     use crate::chi2::{self, Chi2Config, Chi2Domain};
+    use glam::DVec3;
     use std::f32::consts::PI;
+    use std::f64::consts::PI as PI64;
 
     /// Number of chi-square tests in this module, for the Šidák correction.
     const CHI2_TESTS: usize = 18;
@@ -244,6 +297,64 @@ mod tests {
             theta.sin() * phi.sin(),
             theta.cos(),
         )
+    }
+
+    /// Directional albedo ρ(θo) of one channel, with base colour `base`, of the model in the
+    /// module documentation, by quadrature of the formula written out again in f64 (it does
+    /// not call the implementation). `wo` lies in the xz plane at `theta_degrees` from z.
+    ///
+    /// Specular lobe, over half vectors: with wi = 2 (wo·h) h − wo, dωi = 4 (wo·h) dωh, and
+    /// the substitution u = tan²θh / (α² + tan²θh) (the CDF of D(h) cos θh in θh) turns
+    /// D(h) cos θh dωh into du dφ / 2π, so ρ_s = ∫∫ F V μi 4 (wo·h) / cos θh du dφ / 2π over
+    /// wo·h > 0, μi > 0. At grazing `wo` that integrand grows like 1 / cos θh ∝ (1 − u)^(−½)
+    /// as u → 1, so u = 1 − s² (du = 2s ds) makes it bounded; then the midpoint rule in s
+    /// and φ ∈ [0, π] (the integrand is even in φ). Diffuse lobe:
+    /// ρ_d = (1 − m) base k T(μo) ∫₀¹ T(μ) 2μ dμ with the midpoint rule in μ. Accurate to
+    /// ≈ 10⁻⁵ (≈ 2 · 10⁻⁴ for sharp bright lobes at θo ≥ 89°, where the μi > 0 cut-off
+    /// crosses the grid); checked against 1 − ln 2 in `reference_quadrature_anchors`.
+    fn reference_albedo(base: f64, metallic: f64, roughness: f64, theta_degrees: f64) -> f64 {
+        const S_NODES: usize = 512;
+        const PHI_NODES: usize = 96;
+        const MU_NODES: usize = 2048;
+        let alpha = (roughness * roughness).clamp(MIN_ALPHA as f64, 1.0);
+        let alpha2 = alpha * alpha;
+        let theta = theta_degrees.to_radians();
+        let wo = DVec3::new(theta.sin(), 0.0, theta.cos());
+        let f0 = 0.04 * (1.0 - metallic) + base * metallic;
+        let projected = |w: DVec3| (w.z * w.z + alpha2 * (w.x * w.x + w.y * w.y)).sqrt();
+        let azimuths: Vec<(f64, f64)> = (0..PHI_NODES)
+            .map(|j| (PI64 * (j as f64 + 0.5) / PHI_NODES as f64).sin_cos())
+            .collect();
+        let mut specular = 0.0;
+        for i in 0..S_NODES {
+            let s = (i as f64 + 0.5) / S_NODES as f64;
+            let u = 1.0 - s * s;
+            let tan2 = alpha2 * u / (s * s);
+            let cos_h = 1.0 / (1.0 + tan2).sqrt();
+            let sin_h = tan2.sqrt() * cos_h;
+            for &(sin_phi, cos_phi) in &azimuths {
+                let h = DVec3::new(sin_h * cos_phi, sin_h * sin_phi, cos_h);
+                let cos_oh = wo.dot(h);
+                let wi = 2.0 * cos_oh * h - wo;
+                if cos_oh <= 0.0 || wi.z <= 0.0 {
+                    continue;
+                }
+                let v = 0.5 / (wi.z * projected(wo) + wo.z * projected(wi));
+                let fresnel = f0 + (1.0 - f0) * (1.0 - cos_oh).max(0.0).powi(5);
+                specular += fresnel * v * wi.z * 4.0 * cos_oh / cos_h * 2.0 * s;
+            }
+        }
+        specular /= (S_NODES * PHI_NODES) as f64;
+        let transmittance = |mu: f64| 0.96 * (1.0 - (1.0 - mu).powi(5));
+        let mean_transmittance = (0..MU_NODES)
+            .map(|i| {
+                let mu = (i as f64 + 0.5) / MU_NODES as f64;
+                transmittance(mu) * 2.0 * mu
+            })
+            .sum::<f64>()
+            / MU_NODES as f64;
+        let k = 0.995 * 35.0 / 32.0;
+        specular + (1.0 - metallic) * base * k * transmittance(wo.z) * mean_transmittance
     }
 
     fn chi2_config() -> Chi2Config {
@@ -269,10 +380,15 @@ mod tests {
         let metal = MetallicRoughness::new(c, 1.0, r);
         let expected = c / (4.0 * PI * alpha2);
         assert!((metal.eval(Vec3::Z, Vec3::Z) - expected).length() < 1e-5 * expected.length());
+        // Diffuse: T(1) = 0.96 at both angles and k = 0.995 · 35/32 = 1.088 281 25, so
+        // (1 − m) c k T(1)² / π = c · 0.9216 · 1.088 281 25 / π = c · 1.002 96 / π.
         let plastic = MetallicRoughness::new(c, 0.0, r);
-        let expected = Rgb::splat(0.04 / (4.0 * PI * alpha2)) + c * (0.96 / PI);
+        let expected = Rgb::splat(0.04 / (4.0 * PI * alpha2)) + c * (1.002_96 / PI);
         assert!((plastic.eval(Vec3::Z, Vec3::Z) - expected).length() < 1e-5);
-        // Opposite azimuths at 45°: h = n, wo·h = cos 45°.
+        // Opposite azimuths at 45°: h = n, wo·h = cos 45°, w = (1 − 1/√2)⁵ = 0.002 155 5, so
+        // F_d = 0.04 + 0.96 w = 0.042 069; D = 1 / (π α²); V = 0.5 / (2 · √½ · √(½ + α² ½)).
+        // Diffuse: T(cos 45°) = 0.96 (1 − w) = 0.957 931 at both angles, so
+        // k T² / π = 1.088 281 25 · 0.917 631 / π = 0.998 641 / π.
         let wo = direction(45.0, 0.0);
         let wi = direction(45.0, PI);
         let w = (1.0 - 45f32.to_radians().cos()).powi(5);
@@ -280,7 +396,8 @@ mod tests {
         let s = 0.5f32.sqrt();
         let v = 0.5 / (2.0 * s * (0.5 + alpha2 * 0.5).sqrt());
         let fd = 0.04 + 0.96 * w;
-        let expected = Rgb::splat(fd * d * v) + c * ((1.0 - fd) / PI);
+        assert!((fd - 0.042_069).abs() < 1e-6, "{fd}");
+        let expected = Rgb::splat(fd * d * v) + c * (0.998_641 / PI);
         assert!(
             (plastic.eval(wo, wi) - expected).length() < 1e-5,
             "{}",
@@ -303,13 +420,26 @@ mod tests {
 
     #[test]
     fn reciprocal() {
-        let m = MetallicRoughness::new(Rgb::new(0.8, 0.4, 0.1), 0.3, 0.4);
-        for (a, b) in [
-            (direction(10.0, 0.0), direction(70.0, 2.0)),
-            (direction(85.0, 1.0), direction(30.0, -1.0)),
+        for m in [
+            MetallicRoughness::new(Rgb::new(0.8, 0.4, 0.1), 0.3, 0.4),
+            MetallicRoughness::new(Rgb::ONE, 0.0, 0.3),
+            MetallicRoughness::new(Rgb::ONE, 0.0, 1.0),
+            MetallicRoughness::new(Rgb::new(0.2, 0.9, 0.5), 0.7, 0.05),
         ] {
-            let (fab, fba) = (m.eval(a, b), m.eval(b, a));
-            assert!((fab - fba).length() <= 1e-5 * fab.length(), "{fab} {fba}");
+            for (a, b) in [
+                (direction(10.0, 0.0), direction(70.0, 2.0)),
+                (direction(85.0, 1.0), direction(30.0, -1.0)),
+                (direction(0.0, 0.0), direction(89.9, 0.5)),
+                (direction(60.0, 0.0), direction(60.0, PI)),
+                (direction(45.0, 0.3), direction(80.0, 0.3)),
+            ] {
+                let (fab, fba) = (m.eval(a, b), m.eval(b, a));
+                assert!(fab.min_element() > 0.0, "{m:?} {a} {b}: {fab}");
+                assert!(
+                    (fab - fba).length() <= 1e-5 * fab.length(),
+                    "{m:?} {a} {b}: {fab} {fba}"
+                );
+            }
         }
     }
 
@@ -365,54 +495,120 @@ mod tests {
     }
 
     #[test]
+    fn diffuse_normalisation() {
+        // T̄ = 2 ∫₀¹ 0.96 (1 − (1 − μ)⁵) μ dμ = 0.96 (1 − 2 · B(2, 6)) = 0.96 (1 − 2/42)
+        // = 32/35, by the midpoint rule.
+        let n = 100_000;
+        let mean: f64 = (0..n)
+            .map(|i| {
+                let mu = (i as f64 + 0.5) / n as f64;
+                0.96 * (1.0 - (1.0 - mu).powi(5)) * 2.0 * mu
+            })
+            .sum::<f64>()
+            / n as f64;
+        assert!((mean - 32.0 / 35.0).abs() < 1e-9, "{mean}");
+        assert!((DIELECTRIC_MEAN_TRANSMITTANCE as f64 - 32.0 / 35.0).abs() < 1e-7);
+        assert!((DIFFUSE_SCALE as f64 - 0.995 * 35.0 / 32.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn reference_quadrature_anchors() {
+        // White metal, roughness 1, normal incidence: 1 − ln 2 in closed form.
+        let metal = reference_albedo(1.0, 1.0, 1.0, 0.0);
+        assert!((metal - (1.0 - 2f64.ln())).abs() < 1e-5, "{metal}");
+        // White smooth dielectric at normal incidence: the mirror reflects F0 = 0.04 (less
+        // the masking of α = 10⁻³, below 10⁻⁶) and the diffuse lobe 0.995 T(1) = 0.9552.
+        let plastic = reference_albedo(1.0, 0.0, 0.0, 0.0);
+        assert!((plastic - 0.9952).abs() < 1e-5, "{plastic}");
+    }
+
+    #[test]
+    fn albedo_at_most_one_for_all_roughnesses_and_angles() {
+        // The model itself (quadrature of the formula), including roughnesses too sharp for
+        // the Monte Carlo estimator; white is the brightest base colour and f_r is affine in
+        // metallic, so these two materials bound all others.
+        let mut brightest_dielectric = (0.0, 0.0, 0.0);
+        for roughness in [0.0, 0.05, 0.1, 0.2, 0.28, 0.4, 0.6, 0.8, 1.0] {
+            for theta in [
+                0.0, 15.0, 30.0, 45.0, 55.0, 60.0, 70.0, 80.0, 85.0, 89.0, 89.9,
+            ] {
+                for metallic in [0.0, 1.0] {
+                    let albedo = reference_albedo(1.0, metallic, roughness, theta);
+                    assert!(
+                        albedo <= 1.0,
+                        "metallic {metallic}, roughness {roughness}, θo = {theta}°: {albedo}"
+                    );
+                    if metallic == 0.0 && albedo > brightest_dielectric.0 {
+                        brightest_dielectric = (albedo, roughness, theta);
+                    }
+                }
+            }
+        }
+        // Not met by being too dark: a smooth dielectric at grazing angles reflects
+        // 0.995 + 0.005 F_d(μo) → 1 (module documentation).
+        assert!(
+            brightest_dielectric.0 > 0.997,
+            "largest albedo {brightest_dielectric:?}"
+        );
+    }
+
+    #[test]
     fn no_energy_gain() {
-        // White metals at every angle; the white dielectric wherever the spec's form
-        // conserves energy (it gains energy towards grazing angles: see the module
-        // documentation and `albedo_matches_independent_quadrature`).
-        let mut cases = Vec::new();
-        for roughness in [0.3, 0.6, 1.0] {
-            for theta in [0.0, 30.0, 60.0, 80.0, 89.0] {
-                cases.push((1.0, roughness, theta));
-            }
-            for theta in [0.0, 30.0] {
-                cases.push((0.0, roughness, theta));
+        // White dielectric and white metal, at roughnesses the Monte Carlo estimator resolves
+        // (α ≥ 0.09: accurate to a few 10⁻³ up to θo = 80°, ≈ 2 · 10⁻² at 89°). Agreement
+        // with the quadrature shows the bound is not met by a BSDF that is simply too dark.
+        let mut mismatches = Vec::new();
+        for metallic in [0.0f32, 1.0] {
+            for roughness in [0.3f32, 0.6, 1.0] {
+                for theta in [0.0f32, 30.0, 60.0, 80.0, 89.0] {
+                    let m = MetallicRoughness::new(Rgb::ONE, metallic, roughness);
+                    let albedo = chi2::directional_albedo(&m, direction(theta, 0.0), 500_000);
+                    let at = format!("metallic {metallic}, roughness {roughness}, θo = {theta}°");
+                    assert!(albedo.max_element() <= 1.01, "{at}: {albedo}");
+                    let reference =
+                        reference_albedo(1.0, metallic.into(), roughness.into(), theta.into());
+                    let tolerance = match theta {
+                        t if t > 80.0 => 2.5e-2,
+                        t if t > 60.0 => 5e-3,
+                        _ => 2e-3,
+                    };
+                    if (albedo.x as f64 - reference).abs() >= tolerance {
+                        mismatches.push(format!("{at}: {albedo} vs {reference}"));
+                    }
+                }
             }
         }
-        cases.extend([(0.0, 0.6, 60.0), (0.0, 1.0, 60.0), (0.0, 1.0, 80.0)]);
-        for (metallic, roughness, theta) in cases {
-            let m = MetallicRoughness::new(Rgb::ONE, metallic, roughness);
-            let albedo = chi2::directional_albedo(&m, direction(theta, 0.0), 500_000);
-            assert!(
-                albedo.max_element() <= 1.01,
-                "metallic {metallic}, roughness {roughness}, θo = {theta}°: {albedo}"
-            );
-            assert!(
-                albedo.min_element() > 0.3,
-                "{metallic} {roughness} {theta}: {albedo}"
-            );
-        }
+        assert!(mismatches.is_empty(), "{mismatches:#?}");
     }
 
     #[test]
     fn albedo_matches_independent_quadrature() {
-        // (metallic, roughness, θo in degrees, albedo of the white material) from a separate
-        // f64 midpoint quadrature of the same formula (8000 × 2880 nodes); the first is
-        // 1 − ln 2 in closed form. The last four document the spec form's energy gain.
-        for (metallic, roughness, theta, reference) in [
-            (1.0, 1.0, 0.0, 0.306_853),
-            (1.0, 0.6, 60.0, 0.782_123),
-            (0.0, 0.3, 0.0, 0.999_553),
-            (0.0, 0.3, 60.0, 1.025_359),
-            (0.0, 0.3, 80.0, 1.221_262),
-            (0.0, 0.6, 80.0, 1.045_335),
-            (0.0, 1.0, 89.0, 1.010_054),
+        // (base colour, metallic, roughness, θo in degrees), per channel against
+        // `reference_albedo`, where the estimator is accurate to ≈ 10⁻³.
+        for (base, metallic, roughness, theta) in [
+            (Rgb::ONE, 1.0f32, 1.0f32, 0.0f32),
+            (Rgb::ONE, 1.0, 0.6, 60.0),
+            (Rgb::ONE, 0.0, 0.3, 0.0),
+            (Rgb::ONE, 0.0, 0.3, 60.0),
+            (Rgb::ONE, 0.0, 0.3, 80.0),
+            (Rgb::ONE, 0.0, 0.6, 80.0),
+            (Rgb::ONE, 0.0, 1.0, 80.0),
+            (Rgb::new(0.8, 0.3, 0.2), 0.5, 0.5, 45.0),
         ] {
-            let m = MetallicRoughness::new(Rgb::ONE, metallic, roughness);
+            let m = MetallicRoughness::new(base, metallic, roughness);
             let albedo = chi2::directional_albedo(&m, direction(theta, 0.0), 500_000);
-            assert!(
-                (albedo.x - reference).abs() < 2e-3,
-                "metallic {metallic}, roughness {roughness}, θo = {theta}°: {albedo} vs {reference}"
-            );
+            for channel in 0..3 {
+                let reference = reference_albedo(
+                    base[channel].into(),
+                    metallic.into(),
+                    roughness.into(),
+                    theta.into(),
+                );
+                assert!(
+                    (albedo[channel] as f64 - reference).abs() < 2e-3,
+                    "{m:?}, θo = {theta}°, channel {channel}: {albedo} vs {reference}"
+                );
+            }
         }
     }
 
