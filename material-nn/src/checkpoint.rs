@@ -85,7 +85,9 @@ struct Header {
 }
 
 fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3))
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
+    })
 }
 
 impl Checkpoint {
@@ -96,7 +98,8 @@ impl Checkpoint {
             state: self.state.clone(),
         })
         .map_err(|e| Error::Invalid(format!("cannot serialise the training state: {e}")))?;
-        let mut out = Vec::with_capacity(header.len() + self.model.len() + self.optimizer.len() + 48);
+        let mut out =
+            Vec::with_capacity(header.len() + self.model.len() + self.optimizer.len() + 48);
         out.extend_from_slice(&MAGIC);
         out.extend_from_slice(&VERSION.to_le_bytes());
         for section in [&header, &self.model, &self.optimizer] {
@@ -128,7 +131,9 @@ impl Checkpoint {
         let mut sum = [0u8; 8];
         sum.copy_from_slice(tail);
         if fnv1a64(body) != u64::from_le_bytes(sum) {
-            return Err(bad("checksum mismatch: the checkpoint is corrupt or truncated"));
+            return Err(bad(
+                "checksum mismatch: the checkpoint is corrupt or truncated",
+            ));
         }
         let mut at = 12usize;
         let mut sections = Vec::new();
@@ -151,10 +156,9 @@ impl Checkpoint {
         }
         let header: Header = serde_json::from_slice(sections[0])
             .map_err(|e| Error::invalid_file(path, format!("bad checkpoint state: {e}")))?;
-        header
-            .config
-            .check()
-            .map_err(|e| Error::invalid_file(path, format!("bad configuration in checkpoint: {e}")))?;
+        header.config.check().map_err(|e| {
+            Error::invalid_file(path, format!("bad configuration in checkpoint: {e}"))
+        })?;
         Ok(Checkpoint {
             config: header.config,
             state: header.state,

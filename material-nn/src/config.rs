@@ -157,8 +157,8 @@ impl TrainConfig {
     /// Reads a (partial) configuration from JSON; missing fields take their defaults.
     pub fn read(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let config: TrainConfig =
-            serde_json::from_str(&text).map_err(|e| Error::invalid_file(path, format!("bad config: {e}")))?;
+        let config: TrainConfig = serde_json::from_str(&text)
+            .map_err(|e| Error::invalid_file(path, format!("bad config: {e}")))?;
         config.check().map_err(|e| Error::invalid_file(path, e))?;
         Ok(config)
     }
@@ -171,32 +171,58 @@ impl TrainConfig {
     /// Checks ranges; the message names the field.
     pub fn check(&self) -> std::result::Result<(), String> {
         let sum: f64 = self.split.iter().sum();
-        if self.split.iter().any(|f| !(0.0..=1.0).contains(f)) || (sum - 1.0).abs() > 1e-6 || self.split[0] <= 0.0 {
-            return Err(format!("split {:?} must be three fractions summing to 1 with training > 0", self.split));
+        if self.split.iter().any(|f| !(0.0..=1.0).contains(f))
+            || (sum - 1.0).abs() > 1e-6
+            || self.split[0] <= 0.0
+        {
+            return Err(format!(
+                "split {:?} must be three fractions summing to 1 with training > 0",
+                self.split
+            ));
         }
         if !(self.epsilon > 0.0 && self.epsilon.is_finite()) {
             return Err(format!("epsilon {} must be positive", self.epsilon));
         }
-        if self.samples_per_step < 16 || self.encoder_samples == 0 || self.encoder_samples > self.samples_per_step {
-            return Err("need samples_per_step ≥ 16 and 0 < encoder_samples ≤ samples_per_step".to_string());
+        if self.samples_per_step < 16
+            || self.encoder_samples == 0
+            || self.encoder_samples > self.samples_per_step
+        {
+            return Err(
+                "need samples_per_step ≥ 16 and 0 < encoder_samples ≤ samples_per_step".to_string(),
+            );
         }
         if self.materials_per_step == 0 || self.epochs == 0 || self.validation_samples == 0 {
-            return Err("materials_per_step, epochs and validation_samples must be positive".to_string());
+            return Err(
+                "materials_per_step, epochs and validation_samples must be positive".to_string(),
+            );
         }
         if !(self.learning_rate > 0.0 && self.learning_rate.is_finite()) {
-            return Err(format!("learning_rate {} must be positive", self.learning_rate));
+            return Err(format!(
+                "learning_rate {} must be positive",
+                self.learning_rate
+            ));
         }
         let n = &self.net;
         if n.latent_dim == 0
             || n.target_widths.len() < 2
             || n.target_widths[0] != 6
             || n.target_widths.last() != Some(&3)
-            || n.target_widths.iter().chain(&n.encoder_hidden).chain(&n.hyper_hidden).any(|&w| w == 0)
+            || n.target_widths
+                .iter()
+                .chain(&n.encoder_hidden)
+                .chain(&n.hyper_hidden)
+                .any(|&w| w == 0)
         {
             return Err("net: widths must be positive, target widths from 6 to 3".to_string());
         }
-        if self.fre.neighbours == 0 || self.fre.lmax == 0 || self.fre.splat_sigma <= 0.0 || self.fre.degree_sigma <= 0.0 {
-            return Err("fre: lmax, neighbours, splat_sigma and degree_sigma must be positive".to_string());
+        if self.fre.neighbours == 0
+            || self.fre.lmax == 0
+            || self.fre.splat_sigma <= 0.0
+            || self.fre.degree_sigma <= 0.0
+        {
+            return Err(
+                "fre: lmax, neighbours, splat_sigma and degree_sigma must be positive".to_string(),
+            );
         }
         Ok(())
     }

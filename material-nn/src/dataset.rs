@@ -54,7 +54,10 @@ impl MaterialTable {
                 })
             })
             .collect();
-        MaterialTable { name: name.into(), values }
+        MaterialTable {
+            name: name.into(),
+            values,
+        }
     }
 
     /// Reads a `.binary` table; errors name the file (and, for a non-finite value, the channel
@@ -102,7 +105,10 @@ impl MaterialTable {
                 },
             )
             .collect();
-        Ok(MaterialTable { name: name.to_string(), values })
+        Ok(MaterialTable {
+            name: name.to_string(),
+            values,
+        })
     }
 
     /// As a MERL table (raw values = f_r / scale), for writing.
@@ -110,7 +116,11 @@ impl MaterialTable {
         let mut raw = vec![0f64; 3 * BIN_COUNT];
         for (i, v) in self.values.iter().enumerate() {
             for c in 0..3 {
-                raw[c * BIN_COUNT + i] = if v[c] < 0.0 { -1.0 } else { v[c] as f64 / SCALE[c] };
+                raw[c * BIN_COUNT + i] = if v[c] < 0.0 {
+                    -1.0
+                } else {
+                    v[c] as f64 / SCALE[c]
+                };
             }
         }
         Ok(MerlTable::from_raw(raw, &self.name)?)
@@ -131,12 +141,19 @@ pub fn list_tables(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut paths = Vec::new();
     for entry in entries {
         let path = entry.map_err(|e| Error::io(dir, e))?.path();
-        if path.extension().is_some_and(|e| e == crate::tabulate::TABLE_EXTENSION) && path.is_file() {
+        if path
+            .extension()
+            .is_some_and(|e| e == crate::tabulate::TABLE_EXTENSION)
+            && path.is_file()
+        {
             paths.push(path);
         }
     }
     if paths.is_empty() {
-        return Err(Error::invalid_file(dir, "no MERL tables (*.binary) in this directory"));
+        return Err(Error::invalid_file(
+            dir,
+            "no MERL tables (*.binary) in this directory",
+        ));
     }
     paths.sort();
     Ok(paths)
@@ -165,7 +182,8 @@ impl Split {
         names.shuffle(&mut rand_pcg::Pcg64::seed_from_u64(seed ^ 0x5eed_5911));
         let n = names.len();
         let test = ((fractions[2] * n as f64).round() as usize).min(n.saturating_sub(1));
-        let validation = ((fractions[1] * n as f64).round() as usize).min(n.saturating_sub(1 + test));
+        let validation =
+            ((fractions[1] * n as f64).round() as usize).min(n.saturating_sub(1 + test));
         let train = n - test - validation;
         Split {
             seed,
@@ -187,7 +205,10 @@ impl MaterialDataset {
     pub fn load(dir: &Path, names: &[String]) -> Result<Self> {
         let items = names
             .par_iter()
-            .map(|n| MaterialTable::read(&dir.join(format!("{n}.{}", crate::tabulate::TABLE_EXTENSION))).map(Arc::new))
+            .map(|n| {
+                MaterialTable::read(&dir.join(format!("{n}.{}", crate::tabulate::TABLE_EXTENSION)))
+                    .map(Arc::new)
+            })
             .collect::<Result<Vec<_>>>()?;
         Ok(MaterialDataset { items })
     }
@@ -252,7 +273,10 @@ impl SampleSet {
 
     /// The difference directions (unit vectors, = inputs 3..6) of the samples.
     pub fn directions(&self) -> Vec<[f32; 3]> {
-        self.inputs.chunks_exact(6).map(|x| [x[3], x[4], x[5]]).collect()
+        self.inputs
+            .chunks_exact(6)
+            .map(|x| [x[3], x[4], x[5]])
+            .collect()
     }
 
     /// Appends one sample.
@@ -280,16 +304,29 @@ const MAX_ATTEMPTS_PER_SAMPLE: usize = 64;
 impl Sampler {
     /// The sample at (θh, θd, φd) with measured value `f` (1/sr); `None` where f_ref is
     /// unmeasured.
-    pub fn sample_at(&self, theta_h: f32, theta_d: f32, phi_d: f32, f: [f32; 3]) -> Option<([f32; 6], [f32; 3], f32)> {
+    pub fn sample_at(
+        &self,
+        theta_h: f32,
+        theta_d: f32,
+        phi_d: f32,
+        f: [f32; 3],
+    ) -> Option<([f32; 6], [f32; 3], f32)> {
         let r = self.reference.lookup(theta_h, theta_d, phi_d)?;
-        let y = [0, 1, 2].map(|c| self.mapping.forward(f[c].max(0.0), r[c].max(0.0), self.epsilon));
+        let y = [0, 1, 2].map(|c| {
+            self.mapping
+                .forward(f[c].max(0.0), r[c].max(0.0), self.epsilon)
+        });
         let (wi, _) = directions_from_angles(&HalfDiffAngles {
             theta_h,
             phi_h: 0.0,
             theta_d,
             phi_d,
         });
-        Some((network_input_from_angles(theta_h, theta_d, phi_d), y, wi.z.clamp(0.0, 1.0)))
+        Some((
+            network_input_from_angles(theta_h, theta_d, phi_d),
+            y,
+            wi.z.clamp(0.0, 1.0),
+        ))
     }
 
     /// `n` uniform samples of `table` (see the module documentation). Errors when the table
@@ -308,7 +345,9 @@ impl Sampler {
             let theta_h = rng.random::<f32>() * FRAC_PI_2;
             let theta_d = rng.random::<f32>() * FRAC_PI_2;
             let phi_d = rng.random::<f32>() * TAU;
-            let Some(f) = table.lookup(theta_h, theta_d, phi_d) else { continue };
+            let Some(f) = table.lookup(theta_h, theta_d, phi_d) else {
+                continue;
+            };
             if let Some((x, y, c)) = self.sample_at(theta_h, theta_d, phi_d, f) {
                 set.push(x, y, c);
             }
@@ -332,14 +371,26 @@ mod tests {
     fn split_is_seeded_and_complete() {
         let names: Vec<String> = (0..100).map(|i| format!("m{i:03}")).collect();
         let a = Split::new(&names, [0.7, 0.1, 0.2], 7);
-        assert_eq!((a.train.len(), a.validation.len(), a.test.len()), (70, 10, 20));
+        assert_eq!(
+            (a.train.len(), a.validation.len(), a.test.len()),
+            (70, 10, 20)
+        );
         assert_eq!(a, Split::new(&names, [0.7, 0.1, 0.2], 7));
         assert_ne!(a.train, Split::new(&names, [0.7, 0.1, 0.2], 8).train);
-        let mut all: Vec<String> = a.train.iter().chain(&a.validation).chain(&a.test).cloned().collect();
+        let mut all: Vec<String> = a
+            .train
+            .iter()
+            .chain(&a.validation)
+            .chain(&a.test)
+            .cloned()
+            .collect();
         all.sort();
         assert_eq!(all, names);
         let three = Split::new(&names[..3], [0.7, 0.1, 0.2], 1);
-        assert_eq!((three.train.len(), three.validation.len(), three.test.len()), (2, 0, 1));
+        assert_eq!(
+            (three.train.len(), three.validation.len(), three.test.len()),
+            (2, 0, 1)
+        );
         let one = Split::new(&names[..1], [0.7, 0.1, 0.2], 1);
         assert_eq!(one.train.len(), 1);
     }
@@ -359,11 +410,16 @@ mod tests {
         assert!(set.cos_i.iter().all(|c| (0.0..=1.0).contains(c)));
         assert_eq!(set.encoder_input(10).len(), 90);
         let d = set.directions();
-        assert!(d.iter().all(|v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) - 1.0).abs() < 1e-5 && v[2] >= -1e-6));
+        assert!(d.iter().all(
+            |v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) - 1.0).abs() < 1e-5 && v[2] >= -1e-6
+        ));
 
         let mut unmeasured = constant("hole", 0.1);
         unmeasured.values.iter_mut().for_each(|v| *v = [-1.0; 3]);
-        let e = sampler.draw(&unmeasured, 10, &mut rng).unwrap_err().to_string();
+        let e = sampler
+            .draw(&unmeasured, 10, &mut rng)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("'hole'"), "{e}");
     }
 

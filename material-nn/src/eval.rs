@@ -74,8 +74,15 @@ fn compare(
     let mut attempts = 0;
     while set.len() < settings.samples && attempts < 64 * settings.samples {
         attempts += 1;
-        let (th, td, pd) = (rng.random::<f32>() * FRAC_PI_2, rng.random::<f32>() * FRAC_PI_2, rng.random::<f32>() * TAU);
-        let (Some(f), Some(r)) = (truth(th, td, pd), run.sampler.reference.lookup(th, td, pd)) else { continue };
+        let (th, td, pd) = (
+            rng.random::<f32>() * FRAC_PI_2,
+            rng.random::<f32>() * FRAC_PI_2,
+            rng.random::<f32>() * TAU,
+        );
+        let (Some(f), Some(r)) = (truth(th, td, pd), run.sampler.reference.lookup(th, td, pd))
+        else {
+            continue;
+        };
         if let Some((x, y, c)) = run.sampler.sample_at(th, td, pd, f) {
             set.push(x, y, c);
             f_true.push(f);
@@ -115,9 +122,16 @@ fn compare(
 }
 
 /// Reconstruction and editing rows for the materials `names` of `data_dir`.
-pub fn evaluate(run: &TrainedRun, data_dir: &Path, names: &[String], settings: &EvalSettings) -> Result<(Vec<Row>, Vec<Row>)> {
+pub fn evaluate(
+    run: &TrainedRun,
+    data_dir: &Path,
+    names: &[String],
+    settings: &EvalSettings,
+) -> Result<(Vec<Row>, Vec<Row>)> {
     if names.is_empty() {
-        return Err(Error::Invalid("no materials to evaluate (the split is empty)".to_string()));
+        return Err(Error::Invalid(
+            "no materials to evaluate (the split is empty)".to_string(),
+        ));
     }
     let device = run.device.clone();
     let fre_config: FreConfig = run.config.fre.clone();
@@ -127,13 +141,28 @@ pub fn evaluate(run: &TrainedRun, data_dir: &Path, names: &[String], settings: &
     for (i, name) in names.iter().enumerate() {
         let path = data_dir.join(format!("{name}.{}", crate::tabulate::TABLE_EXTENSION));
         let table = MaterialTable::read(&path)?;
-        codes.push(run.encode_table(&table, ENCODE_SAMPLES, settings.seed.wrapping_add(i as u64))?);
+        codes.push(run.encode_table(
+            &table,
+            ENCODE_SAMPLES,
+            settings.seed.wrapping_add(i as u64),
+        )?);
         tables.push(table);
     }
     let mut reconstruction = Vec::new();
     for ((name, table), z) in names.iter().zip(&tables).zip(&codes) {
-        let metrics = compare(run, z, &|a, b, c| table.lookup(a, b, c), settings, &fre, &device)?;
-        reconstruction.push(Row { name: name.clone(), t: 0.0, metrics });
+        let metrics = compare(
+            run,
+            z,
+            &|a, b, c| table.lookup(a, b, c),
+            settings,
+            &fre,
+            &device,
+        )?;
+        reconstruction.push(Row {
+            name: name.clone(),
+            t: 0.0,
+            metrics,
+        });
     }
     let mut editing = Vec::new();
     if tables.len() >= 2 {
@@ -145,7 +174,11 @@ pub fn evaluate(run: &TrainedRun, data_dir: &Path, names: &[String], settings: &
                 b += 1;
             }
             let t: f32 = rng.random();
-            let z: Vec<f32> = codes[a].iter().zip(&codes[b]).map(|(x, y)| (1.0 - t) * x + t * y).collect();
+            let z: Vec<f32> = codes[a]
+                .iter()
+                .zip(&codes[b])
+                .map(|(x, y)| (1.0 - t) * x + t * y)
+                .collect();
             let (ta, tb) = (&tables[a], &tables[b]);
             let blend = |h: f32, d: f32, p: f32| -> Option<[f32; 3]> {
                 let (fa, fb) = (ta.lookup(h, d, p)?, tb.lookup(h, d, p)?);
@@ -181,7 +214,11 @@ pub fn mean(rows: &[Row]) -> Metrics {
 pub fn to_csv(rows: &[Row]) -> String {
     let mut out = String::from("name,t,rmse,rec,fre\n");
     for r in rows {
-        let _ = writeln!(out, "{},{},{:.6e},{:.6e},{:.6e}", r.name, r.t, r.metrics.rmse, r.metrics.rec, r.metrics.fre);
+        let _ = writeln!(
+            out,
+            "{},{},{:.6e},{:.6e},{:.6e}",
+            r.name, r.t, r.metrics.rmse, r.metrics.rec, r.metrics.fre
+        );
     }
     out
 }

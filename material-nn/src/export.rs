@@ -15,13 +15,28 @@ pub const ENCODE_SAMPLES: usize = 65_536;
 
 /// The decoder part of a latent file (no latent codes yet).
 pub fn latent_file(run: &TrainedRun, weight_type: WeightType) -> LatentFile {
-    let hypernetwork = run.model.heads.iter().map(|h| Mlp { layers: h.to_dense() }).collect();
+    let hypernetwork = run
+        .model
+        .heads
+        .iter()
+        .map(|h| Mlp {
+            layers: h.to_dense(),
+        })
+        .collect();
     let f_ref = run
         .sampler
         .reference
         .values
         .par_iter()
-        .map(|v| v.map(|c| if c < 0.0 { f16::from_f32(-1.0) } else { f16::from_f32(c) }))
+        .map(|v| {
+            v.map(|c| {
+                if c < 0.0 {
+                    f16::from_f32(-1.0)
+                } else {
+                    f16::from_f32(c)
+                }
+            })
+        })
         .collect();
     LatentFile {
         latent_dim: run.config.net.latent_dim,
@@ -38,25 +53,42 @@ pub fn latent_file(run: &TrainedRun, weight_type: WeightType) -> LatentFile {
 }
 
 /// Encodes the tables `names` of `data_dir` (`NAME.binary`) with a fixed seed per material.
-pub fn encode_materials(run: &TrainedRun, data_dir: &Path, names: &[String], seed: u64) -> Result<Vec<NamedLatent>> {
+pub fn encode_materials(
+    run: &TrainedRun,
+    data_dir: &Path,
+    names: &[String],
+    seed: u64,
+) -> Result<Vec<NamedLatent>> {
     names
         .iter()
         .enumerate()
         .map(|(i, name)| {
             let path = data_dir.join(format!("{name}.{}", crate::tabulate::TABLE_EXTENSION));
             if !path.exists() {
-                return Err(Error::invalid_file(&path, format!("no table for material '{name}'")));
+                return Err(Error::invalid_file(
+                    &path,
+                    format!("no table for material '{name}'"),
+                ));
             }
             let table = MaterialTable::read(&path)?;
             let z = run.encode_table(&table, ENCODE_SAMPLES, seed.wrapping_add(i as u64))?;
-            Ok(NamedLatent { name: name.clone(), z })
+            Ok(NamedLatent {
+                name: name.clone(),
+                z,
+            })
         })
         .collect()
 }
 
 /// Exports a run to `out`: the materials `names` (default: every material of the run's data
 /// directory) encoded from `data_dir`.
-pub fn export(run: &TrainedRun, data_dir: &Path, names: &[String], weight_type: WeightType, out: &Path) -> Result<LatentFile> {
+pub fn export(
+    run: &TrainedRun,
+    data_dir: &Path,
+    names: &[String],
+    weight_type: WeightType,
+    out: &Path,
+) -> Result<LatentFile> {
     let mut file = latent_file(run, weight_type);
     file.latents = encode_materials(run, data_dir, names, run.config.seed)?;
     file.write(out)?;

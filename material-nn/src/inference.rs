@@ -33,9 +33,16 @@ impl TrainedRun {
     /// Loads `best.bin` (or `checkpoint.bin`), `reference.binary`, `run.json` and `split.json`.
     pub fn load(run_dir: &Path) -> Result<Self> {
         let run = RunDir(run_dir.to_path_buf());
-        let path = if run.best().exists() { run.best() } else { run.checkpoint() };
+        let path = if run.best().exists() {
+            run.best()
+        } else {
+            run.checkpoint()
+        };
         if !path.exists() {
-            return Err(Error::invalid_file(run_dir, "no checkpoint in this run directory (train first)"));
+            return Err(Error::invalid_file(
+                run_dir,
+                "no checkpoint in this run directory (train first)",
+            ));
         }
         let ckpt = Checkpoint::read(&path)?;
         let device = Device::flex();
@@ -60,15 +67,25 @@ impl TrainedRun {
     /// z (latent_dim values) of a sample set: the set encoder's mean over all its samples.
     pub fn encode_samples(&self, set: &SampleSet) -> Result<Vec<f32>> {
         if set.is_empty() {
-            return Err(Error::Invalid("cannot encode an empty sample set".to_string()));
+            return Err(Error::Invalid(
+                "cannot encode an empty sample set".to_string(),
+            ));
         }
         let n = set.len();
-        let x = Tensor::from_data(TensorData::new(set.encoder_input(n), [1, n, 9]), &self.device);
+        let x = Tensor::from_data(
+            TensorData::new(set.encoder_input(n), [1, n, 9]),
+            &self.device,
+        );
         Ok(to_vec(self.model.encode(x)))
     }
 
     /// z of a table from `samples` uniform samples drawn with `seed`.
-    pub fn encode_table(&self, table: &MaterialTable, samples: usize, seed: u64) -> Result<Vec<f32>> {
+    pub fn encode_table(
+        &self,
+        table: &MaterialTable,
+        samples: usize,
+        seed: u64,
+    ) -> Result<Vec<f32>> {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
         let set = self.sampler.draw(table, samples, &mut rng)?;
         self.encode_samples(&set)
@@ -96,7 +113,8 @@ pub fn read_sample_csv(path: &Path, sampler: &Sampler) -> Result<SampleSet> {
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let fields: std::result::Result<Vec<f32>, _> = line.split(',').map(|f| f.trim().parse::<f32>()).collect();
+        let fields: std::result::Result<Vec<f32>, _> =
+            line.split(',').map(|f| f.trim().parse::<f32>()).collect();
         let v = match fields {
             Ok(v) if v.len() == 6 => v,
             Err(_) if line_no == 0 => continue,

@@ -103,7 +103,10 @@ impl FreOperator {
         let targets: Vec<[f64; 3]> = points.iter().map(|&i| grid.direction(i)).collect();
         let mut analysis = grid.analysis_matrix(&points);
         let g = points.len();
-        for (row, w) in analysis.chunks_mut(g).zip(degree_weights(config.lmax, config.degree_sigma)) {
+        for (row, w) in analysis
+            .chunks_mut(g)
+            .zip(degree_weights(config.lmax, config.degree_sigma))
+        {
             row.iter_mut().for_each(|v| *v *= w);
         }
         let c = coefficient_count(config.lmax);
@@ -124,7 +127,12 @@ impl FreOperator {
 
     /// The splat of a sample set with difference directions `directions` (unit vectors).
     pub fn splat(&self, directions: &[[f32; 3]], device: &Device) -> Result<SplatTensors> {
-        let map = splat_map(directions, &self.targets, self.config.neighbours, self.config.splat_sigma)?;
+        let map = splat_map(
+            directions,
+            &self.targets,
+            self.config.neighbours,
+            self.config.splat_sigma,
+        )?;
         let idx: Vec<i64> = map.indices.iter().map(|&i| i as i64).collect();
         let n = idx.len();
         let indices = Tensor::from_data(TensorData::new(idx, [n]), device);
@@ -132,7 +140,11 @@ impl FreOperator {
             TensorData::new(map.weights.clone(), [self.targets.len(), map.k, 1]),
             device,
         );
-        Ok(SplatTensors { map, indices, weights })
+        Ok(SplatTensors {
+            map,
+            indices,
+            weights,
+        })
     }
 
     /// Weighted SH coefficients [(L+1)², 3] of per-sample values [N, 3] (already cos-weighted).
@@ -140,7 +152,9 @@ impl FreOperator {
         let g = self.targets.len();
         let k = splat.map.k;
         let gathered = values.select(0, splat.indices.clone()).reshape([g, k, 3]);
-        let on_grid = (gathered * splat.weights.clone()).sum_dim(1).reshape([g, 3]);
+        let on_grid = (gathered * splat.weights.clone())
+            .sum_dim(1)
+            .reshape([g, 3]);
         self.analysis_tensor.clone().matmul(on_grid)
     }
 
@@ -214,7 +228,10 @@ mod tests {
         let loss = op.loss(&splat, p.clone(), to_tensor(&truth));
         let value: f32 = loss.clone().into_scalar();
         let reference = op.loss_cpu(&splat.map, &pred, &truth);
-        assert!((value as f64 - reference).abs() < 1e-5 * reference.max(1e-3), "{value} vs {reference}");
+        assert!(
+            (value as f64 - reference).abs() < 1e-5 * reference.max(1e-3),
+            "{value} vs {reference}"
+        );
         let grads = loss.backward();
         let grad = crate::model::to_vec(p.grad(&grads).expect("gradient of the predictions"));
         let h = 1e-6;
@@ -224,18 +241,29 @@ mod tests {
             up[i] += h;
             let mut down = pred.clone();
             down[i] -= h;
-            let fd = (op.loss_cpu(&splat.map, &up, &truth) - op.loss_cpu(&splat.map, &down, &truth)) / (2.0 * h);
+            let fd = (op.loss_cpu(&splat.map, &up, &truth)
+                - op.loss_cpu(&splat.map, &down, &truth))
+                / (2.0 * h);
             worst = worst.max((fd - grad[i] as f64).abs());
         }
         let scale = grad.iter().fold(0f32, |m, g| m.max(g.abs())) as f64;
         assert!(scale > 0.0);
-        assert!(worst < 1e-3 * scale.max(1e-3), "worst gradient error {worst} (scale {scale})");
+        assert!(
+            worst < 1e-3 * scale.max(1e-3),
+            "worst gradient error {worst} (scale {scale})"
+        );
     }
 
     #[test]
     fn identical_values_give_zero_and_constant_offset_is_seen() {
         let device = Device::flex();
-        let op = FreOperator::new(&FreConfig { lmax: 6, ..FreConfig::default() }, &device);
+        let op = FreOperator::new(
+            &FreConfig {
+                lmax: 6,
+                ..FreConfig::default()
+            },
+            &device,
+        );
         let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
         let dirs = hemisphere_samples(500, &mut rng);
         let splat = op.splat(&dirs, &device).unwrap();

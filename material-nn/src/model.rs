@@ -25,13 +25,27 @@ pub const NBRDF_WIDTHS: [usize; 4] = [6, 21, 21, 3];
 
 /// A Linear layer with weights and biases drawn U(−k, k), k = 1/√d_in, the weights then
 /// multiplied by `weight_scale`.
-pub fn init_linear(d_in: usize, d_out: usize, weight_scale: f32, rng: &mut impl Rng, device: &Device) -> Linear {
+pub fn init_linear(
+    d_in: usize,
+    d_out: usize,
+    weight_scale: f32,
+    rng: &mut impl Rng,
+    device: &Device,
+) -> Linear {
     let k = 1.0 / (d_in as f32).sqrt();
-    let weight: Vec<f32> = (0..d_in * d_out).map(|_| rng.random_range(-k..k) * weight_scale).collect();
+    let weight: Vec<f32> = (0..d_in * d_out)
+        .map(|_| rng.random_range(-k..k) * weight_scale)
+        .collect();
     let bias: Vec<f32> = (0..d_out).map(|_| rng.random_range(-k..k)).collect();
     Linear {
-        weight: Param::from_tensor(Tensor::from_data(TensorData::new(weight, [d_in, d_out]), device)),
-        bias: Some(Param::from_tensor(Tensor::from_data(TensorData::new(bias, [d_out]), device))),
+        weight: Param::from_tensor(Tensor::from_data(
+            TensorData::new(weight, [d_in, d_out]),
+            device,
+        )),
+        bias: Some(Param::from_tensor(Tensor::from_data(
+            TensorData::new(bias, [d_out]),
+            device,
+        ))),
     }
 }
 
@@ -81,8 +95,16 @@ impl Mlp {
             .map(|l| {
                 let [d_in, d_out] = l.weight.dims();
                 let weight = to_vec(l.weight.val());
-                let bias = l.bias.as_ref().map_or_else(|| vec![0.0; d_out], |b| to_vec(b.val()));
-                renderer::latent_file::DenseLayer { d_in, d_out, weight, bias }
+                let bias = l
+                    .bias
+                    .as_ref()
+                    .map_or_else(|| vec![0.0; d_out], |b| to_vec(b.val()));
+                renderer::latent_file::DenseLayer {
+                    d_in,
+                    d_out,
+                    weight,
+                    bias,
+                }
             })
             .collect()
     }
@@ -90,7 +112,10 @@ impl Mlp {
 
 /// A tensor's values as f32 (row-major).
 pub fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
-    t.into_data().convert::<f32>().try_into_vec::<f32>().unwrap_or_default()
+    t.into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap_or_default()
 }
 
 /// The HyperBRDF autoencoder.
@@ -115,7 +140,12 @@ impl HyperBrdf {
                 let mut widths = vec![config.latent_dim];
                 widths.extend(&config.hyper_hidden);
                 widths.push(numel);
-                heads.push(Mlp::init(&widths, config.hyper_last_init_scale, rng, device));
+                heads.push(Mlp::init(
+                    &widths,
+                    config.hyper_last_init_scale,
+                    rng,
+                    device,
+                ));
             }
         }
         HyperBrdf { encoder, heads }
@@ -131,7 +161,10 @@ impl HyperBrdf {
 
     /// The target-net tensors of latent codes z [B, latent]: per tensor [B, numel].
     pub fn decode(&self, z: Tensor<2>) -> Vec<Tensor<2>> {
-        self.heads.iter().map(|h| h.forward(z.clone(), true)).collect()
+        self.heads
+            .iter()
+            .map(|h| h.forward(z.clone(), true))
+            .collect()
     }
 
     /// (d_in, d_out) of each target-net layer.
@@ -200,14 +233,20 @@ mod tests {
         let device = Device::flex();
         let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
         let model = HyperBrdf::init(&ModelConfig::default(), &mut rng, &device);
-        assert_eq!(model.target_layers(), vec![(6, 60), (60, 60), (60, 60), (60, 60), (60, 3)]);
+        assert_eq!(
+            model.target_layers(),
+            vec![(6, 60), (60, 60), (60, 60), (60, 60), (60, 3)]
+        );
         let target: usize = model.target_layers().iter().map(|(i, o)| i * o + o).sum();
         assert_eq!(target, 11_583);
         let hyper: usize = model.heads.iter().map(|h| h.num_params()).sum();
         assert!((1_700_000..1_720_000).contains(&hyper), "{hyper}");
         let nbrdf = Nbrdf::init(&mut rng, &device);
         assert_eq!(nbrdf.num_params(), 675);
-        let y = nbrdf.forward(Tensor::from_data(TensorData::new(vec![0.5f32; 12], [2, 6]), &device));
+        let y = nbrdf.forward(Tensor::from_data(
+            TensorData::new(vec![0.5f32; 12], [2, 6]),
+            &device,
+        ));
         assert_eq!(y.dims(), [2, 3]);
     }
 
@@ -224,11 +263,23 @@ mod tests {
         let z = model.encode(Tensor::from_data(TensorData::new(enc, [2, 5, 9]), &device));
         let params = model.decode(z.clone());
         let x: Vec<f32> = (0..2 * 4 * 6).map(|i| (i as f32 * 0.11).cos()).collect();
-        let y = to_vec(model.target_forward(&params, Tensor::from_data(TensorData::new(x.clone(), [2, 4, 6]), &device)));
+        let y = to_vec(model.target_forward(
+            &params,
+            Tensor::from_data(TensorData::new(x.clone(), [2, 4, 6]), &device),
+        ));
         let z = to_vec(z);
-        let heads: Vec<PlainMlp> = model.heads.iter().map(|h| PlainMlp { layers: h.to_dense() }).collect();
+        let heads: Vec<PlainMlp> = model
+            .heads
+            .iter()
+            .map(|h| PlainMlp {
+                layers: h.to_dense(),
+            })
+            .collect();
         for b in 0..2 {
-            let outputs: Vec<Vec<f32>> = heads.iter().map(|h| h.forward(&z[40 * b..40 * b + 40])).collect();
+            let outputs: Vec<Vec<f32>> = heads
+                .iter()
+                .map(|h| h.forward(&z[40 * b..40 * b + 40]))
+                .collect();
             let layers = model
                 .target_layers()
                 .iter()
@@ -246,7 +297,10 @@ mod tests {
                 let plain = net.forward(&x[o..o + 6]);
                 for c in 0..3 {
                     let t = y[12 * b + 3 * n + c];
-                    assert!((plain[c] - t).abs() <= 1e-4 * t.abs().max(1.0), "{plain:?} vs {t}");
+                    assert!(
+                        (plain[c] - t).abs() <= 1e-4 * t.abs().max(1.0),
+                        "{plain:?} vs {t}"
+                    );
                 }
             }
         }

@@ -30,7 +30,13 @@ pub struct Trial {
     pub failure: Option<String>,
 }
 
-fn run_trial(data: &Path, dir: &Path, base: &TrainConfig, lr: f64, stop: &AtomicBool) -> Result<Trial> {
+fn run_trial(
+    data: &Path,
+    dir: &Path,
+    base: &TrainConfig,
+    lr: f64,
+    stop: &AtomicBool,
+) -> Result<Trial> {
     let run = dir.join(format!("lr-{lr:.3e}"));
     let config = TrainConfig {
         learning_rate: lr,
@@ -112,7 +118,8 @@ pub fn search(
             learning_rate: best.learning_rate,
             ..base.clone()
         };
-        let text = serde_json::to_string_pretty(&config).map_err(|e| Error::Invalid(e.to_string()))?;
+        let text =
+            serde_json::to_string_pretty(&config).map_err(|e| Error::Invalid(e.to_string()))?;
         crate::checkpoint::write_atomic(&dir.join("best-config.json"), text.as_bytes())?;
     }
     Ok(trials)

@@ -66,7 +66,8 @@ pub fn legendre_normalised(lmax: usize, x: f64, out: &mut [f64]) {
         for l in m + 2..=lmax {
             let (lf, mf) = (l as f64, m as f64);
             let a = ((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf)).sqrt();
-            let b = (((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0)).sqrt();
+            let b = (((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0))
+                .sqrt();
             out[tri(l, m)] = a * (x * out[tri(l - 1, m)] - b * out[tri(l - 2, m)]);
         }
     }
@@ -302,7 +303,11 @@ mod tests {
     fn low_order_closed_forms() {
         let (theta, phi) = (0.7f64, 1.9f64);
         let y = real_sh(2, theta, phi);
-        let (x, yy, z) = (theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+        let (x, yy, z) = (
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        );
         let c1 = (3.0 / (4.0 * PI)).sqrt();
         let expect = [
             0.5 / PI.sqrt(),
@@ -330,7 +335,9 @@ mod tests {
         let weights: Vec<f64> = all.iter().map(|&i| grid.weight(i)).collect();
         pairs
             .map(|(a, b)| {
-                let g: f64 = (0..all.len()).map(|p| weights[p] * basis[p * c + a] * basis[p * c + b]).sum();
+                let g: f64 = (0..all.len())
+                    .map(|p| weights[p] * basis[p * c + a] * basis[p * c + b])
+                    .sum();
                 (g - if a == b { 1.0 } else { 0.0 }).abs()
             })
             .fold(0.0, f64::max)
@@ -347,10 +354,14 @@ mod tests {
         let c = coefficient_count(49);
         let same_m = (40..50usize).flat_map(|l| {
             (40..50usize).flat_map(move |l2| {
-                (-(l.min(l2) as i64)..=l.min(l2) as i64).map(move |m| (sh_index(l, m), sh_index(l2, m)))
+                (-(l.min(l2) as i64)..=l.min(l2) as i64)
+                    .map(move |m| (sh_index(l, m), sh_index(l2, m)))
             })
         });
-        let pairs = (0..c).map(|a| (a, a)).chain(same_m).chain((0..c).step_by(7).map(|a| (a, (a * 31 + 5) % c)));
+        let pairs = (0..c)
+            .map(|a| (a, a))
+            .chain(same_m)
+            .chain((0..c).step_by(7).map(|a| (a, (a * 31 + 5) % c)));
         let worst = gram_deviation(49, pairs);
         assert!(worst < 1e-5, "degree 49: {worst}");
     }
@@ -375,7 +386,10 @@ mod tests {
         let values: Vec<f64> = (0..grid.len()).map(|i| grid.angles(i).0.cos()).collect();
         let c = grid.coefficients(&values);
         assert!((c[sh_index(1, 0)] - (4.0 * PI / 3.0).sqrt()).abs() < 1e-12);
-        assert!(c.iter().enumerate().all(|(i, v)| i == sh_index(1, 0) || v.abs() < 1e-12));
+        assert!(c
+            .iter()
+            .enumerate()
+            .all(|(i, v)| i == sh_index(1, 0) || v.abs() < 1e-12));
     }
 
     #[test]

@@ -35,8 +35,14 @@ impl SplatMap {
         let mut out = vec![0.0; self.targets() * channels];
         for (p, row) in out.chunks_mut(channels).enumerate() {
             for j in 0..self.k {
-                let (i, w) = (self.indices[p * self.k + j] as usize, self.weights[p * self.k + j] as f64);
-                for (o, v) in row.iter_mut().zip(&values[i * channels..(i + 1) * channels]) {
+                let (i, w) = (
+                    self.indices[p * self.k + j] as usize,
+                    self.weights[p * self.k + j] as f64,
+                );
+                for (o, v) in row
+                    .iter_mut()
+                    .zip(&values[i * channels..(i + 1) * channels])
+                {
                     *o += w * v;
                 }
             }
@@ -57,7 +63,10 @@ struct CellIndex {
 impl CellIndex {
     fn new(points: &[[f32; 3]], cell: f64) -> Self {
         let n = (2.0 / cell).ceil() as usize;
-        let coords: Vec<usize> = points.iter().map(|p| Self::flat(n, cell, p.map(f64::from))).collect();
+        let coords: Vec<usize> = points
+            .iter()
+            .map(|p| Self::flat(n, cell, p.map(f64::from)))
+            .collect();
         let mut start = vec![0u32; n * n * n + 1];
         for &c in &coords {
             start[c + 1] += 1;
@@ -71,7 +80,12 @@ impl CellIndex {
             order[fill[c] as usize] = i as u32;
             fill[c] += 1;
         }
-        CellIndex { cell, n, start, order }
+        CellIndex {
+            cell,
+            n,
+            start,
+            order,
+        }
     }
 
     fn axis(n: usize, cell: f64, v: f64) -> usize {
@@ -126,7 +140,12 @@ impl CellIndex {
 /// neighbours and kernel width `sigma` (chordal distance units).
 ///
 /// Errors when there are fewer than `k` samples or `k` is 0.
-pub fn splat_map(samples: &[[f32; 3]], targets: &[[f64; 3]], k: usize, sigma: f64) -> Result<SplatMap> {
+pub fn splat_map(
+    samples: &[[f32; 3]],
+    targets: &[[f64; 3]],
+    k: usize,
+    sigma: f64,
+) -> Result<SplatMap> {
     if k == 0 || samples.len() < k {
         return Err(Error::Invalid(format!(
             "splatting needs at least k = {k} > 0 samples, got {}",
@@ -134,7 +153,9 @@ pub fn splat_map(samples: &[[f32; 3]], targets: &[[f64; 3]], k: usize, sigma: f6
         )));
     }
     // About four samples per occupied cell on the sphere (area ≤ 4π).
-    let cell = (4.0 * std::f64::consts::PI * 4.0 / samples.len() as f64).sqrt().clamp(0.01, 0.5);
+    let cell = (4.0 * std::f64::consts::PI * 4.0 / samples.len() as f64)
+        .sqrt()
+        .clamp(0.01, 0.5);
     let index = CellIndex::new(samples, cell);
     let mut indices = Vec::with_capacity(targets.len() * k);
     let mut weights = Vec::with_capacity(targets.len() * k);
@@ -143,14 +164,21 @@ pub fn splat_map(samples: &[[f32; 3]], targets: &[[f64; 3]], k: usize, sigma: f6
     for &t in targets {
         index.nearest(samples, t, k, &mut best);
         let d0 = best[0].0;
-        let w: Vec<f64> = best.iter().map(|&(d2, _)| (-(d2 - d0) * inv).exp()).collect();
+        let w: Vec<f64> = best
+            .iter()
+            .map(|&(d2, _)| (-(d2 - d0) * inv).exp())
+            .collect();
         let sum: f64 = w.iter().sum();
         for (&(_, i), w) in best.iter().zip(&w) {
             indices.push(i);
             weights.push((w / sum) as f32);
         }
     }
-    Ok(SplatMap { k, indices, weights })
+    Ok(SplatMap {
+        k,
+        indices,
+        weights,
+    })
 }
 
 #[cfg(test)]
@@ -169,7 +197,9 @@ mod tests {
     fn matches_brute_force() {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
         let samples: Vec<[f32; 3]> = (0..3000).map(|_| random_unit(&mut rng)).collect();
-        let targets: Vec<[f64; 3]> = (0..400).map(|_| random_unit(&mut rng).map(f64::from)).collect();
+        let targets: Vec<[f64; 3]> = (0..400)
+            .map(|_| random_unit(&mut rng).map(f64::from))
+            .collect();
         let map = splat_map(&samples, &targets, 2, 0.05).unwrap();
         for (p, t) in targets.iter().enumerate() {
             let mut d: Vec<(f64, u32)> = samples

@@ -17,7 +17,9 @@
 
 use crate::checkpoint::{write_atomic, Checkpoint, EpochRecord, TrainState};
 use crate::config::TrainConfig;
-use crate::dataset::{list_tables, material_name, MaterialDataset, MaterialTable, SampleSet, Sampler, Split};
+use crate::dataset::{
+    list_tables, material_name, MaterialDataset, MaterialTable, SampleSet, Sampler, Split,
+};
 use crate::error::{Error, Result};
 use crate::loss::{reconstruction_loss, FreOperator};
 use crate::model::HyperBrdf;
@@ -80,7 +82,8 @@ pub fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
 }
 
 fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    let text = serde_json::to_string_pretty(value).map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
+    let text = serde_json::to_string_pretty(value)
+        .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
     write_atomic(path, text.as_bytes())
 }
 
@@ -105,7 +108,11 @@ pub struct TrainRequest {
 #[derive(Clone, Debug)]
 pub enum Event {
     /// Training starts: steps in the whole run and steps already done.
-    Start { total_steps: u64, done: u64, parameters: usize },
+    Start {
+        total_steps: u64,
+        done: u64,
+        parameters: usize,
+    },
     /// One optimiser step: (total, L_rec data term, L_fre).
     Step { step: u64, losses: [f64; 3] },
     /// An epoch ended.
@@ -187,7 +194,11 @@ fn clip_global_norm(grads: &mut GradientsParams, model: &HyperBrdf, max_norm: f3
 
 /// Tensors of a batch of sample sets: (encoder input [B, M, 9], x [B, N, 6], y [B, N, 3],
 /// cos θi [B, N, 1]).
-fn batch_tensors(sets: &[SampleSet], encoder_samples: usize, device: &Device) -> (Tensor<3>, Tensor<3>, Tensor<3>, Tensor<3>) {
+fn batch_tensors(
+    sets: &[SampleSet],
+    encoder_samples: usize,
+    device: &Device,
+) -> (Tensor<3>, Tensor<3>, Tensor<3>, Tensor<3>) {
     let b = sets.len();
     let n = sets[0].len();
     let m = encoder_samples.min(n);
@@ -263,7 +274,9 @@ pub fn validation_loss(
     let model = model.valid();
     let mut sum = 0.0;
     for (i, table) in tables.iter().enumerate() {
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(config.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ (i as u64 + 1));
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(
+            config.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ (i as u64 + 1),
+        );
         let set = sampler.draw(table, config.validation_samples, &mut rng)?;
         let (_, data, l_fre) = batch_loss(&model, std::slice::from_ref(&set), config, fre, device)?;
         let mut v = data.into_scalar::<f32>() as f64;
@@ -285,14 +298,22 @@ fn model_bytes(model: &HyperBrdf, path: &Path) -> Result<Vec<u8>> {
 }
 
 /// Loads model weights (burnpack bytes of a checkpoint) into a model of `config`'s shape.
-pub fn load_model(config: &TrainConfig, bytes: &[u8], device: &Device, path: &Path) -> Result<HyperBrdf> {
+pub fn load_model(
+    config: &TrainConfig,
+    bytes: &[u8],
+    device: &Device,
+    path: &Path,
+) -> Result<HyperBrdf> {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(0);
     let model = HyperBrdf::init(&config.net, &mut rng, device);
     let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
         .map_err(|e| Error::invalid_file(path, format!("bad model weights: {e}")))?;
-    model
-        .try_load_record(record)
-        .map_err(|e| Error::invalid_file(path, format!("model weights do not fit the configuration: {e}")))
+    model.try_load_record(record).map_err(|e| {
+        Error::invalid_file(
+            path,
+            format!("model weights do not fit the configuration: {e}"),
+        )
+    })
 }
 
 /// Everything a run needs besides the model.
@@ -307,7 +328,10 @@ fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
     let config = req.config.clone().unwrap_or_default();
     config.check().map_err(Error::Invalid)?;
     let paths = list_tables(&req.data_dir)?;
-    let names = paths.iter().map(|p| material_name(p)).collect::<Result<Vec<_>>>()?;
+    let names = paths
+        .iter()
+        .map(|p| material_name(p))
+        .collect::<Result<Vec<_>>>()?;
     let split = Split::new(&names, config.split, config.seed);
     let train = MaterialDataset::load(&req.data_dir, &split.train)?;
     let validation = MaterialDataset::load(&req.data_dir, &split.validation)?;
@@ -355,7 +379,11 @@ fn existing_run(data_dir: &Path, run: &RunDir, config: TrainConfig) -> Result<Se
 
 /// Trains (or resumes) a run; see the module documentation. `stop` is polled after every
 /// step; `on_event` receives progress.
-pub fn train(req: &TrainRequest, stop: &AtomicBool, on_event: &mut dyn FnMut(Event)) -> Result<Outcome> {
+pub fn train(
+    req: &TrainRequest,
+    stop: &AtomicBool,
+    on_event: &mut dyn FnMut(Event),
+) -> Result<Outcome> {
     let run = RunDir(req.run_dir.clone());
     let device = training_device();
     let ckpt_path = run.checkpoint();
@@ -405,15 +433,23 @@ pub fn train(req: &TrainRequest, stop: &AtomicBool, on_event: &mut dyn FnMut(Eve
     let n_train = setup.train.tables().len();
     let steps_per_epoch = n_train.div_ceil(config.materials_per_step) as u64;
     let inner = device.clone().without_autodiff();
-    let fre = config.uses_fre().then(|| FreOperator::new(&config.fre, &device));
-    let fre_valid = config.uses_fre().then(|| FreOperator::new(&config.fre, &inner));
+    let fre = config
+        .uses_fre()
+        .then(|| FreOperator::new(&config.fre, &device));
+    let fre_valid = config
+        .uses_fre()
+        .then(|| FreOperator::new(&config.fre, &inner));
     on_event(Event::Start {
         total_steps: steps_per_epoch * config.epochs as u64,
         done: state.step,
         parameters: model.num_params(),
     });
     let mut epoch_start = Instant::now();
-    let save = |model: &HyperBrdf, optim: &ModuleOptimizer, state: &TrainState, path: &Path| -> Result<()> {
+    let save = |model: &HyperBrdf,
+                optim: &ModuleOptimizer,
+                state: &TrainState,
+                path: &Path|
+     -> Result<()> {
         let optimizer = optim
             .into_bytes()
             .map_err(|e| Error::invalid_file(path, format!("cannot serialise the optimiser: {e}")))?
@@ -437,7 +473,11 @@ pub fn train(req: &TrainRequest, stop: &AtomicBool, on_event: &mut dyn FnMut(Eve
         let end = (state.position + config.materials_per_step).min(state.order.len());
         let mut sets = Vec::with_capacity(end - state.position);
         for &i in &state.order[state.position..end] {
-            sets.push(setup.sampler.draw(&setup.train.tables()[i], config.samples_per_step, &mut state.rng)?);
+            sets.push(setup.sampler.draw(
+                &setup.train.tables()[i],
+                config.samples_per_step,
+                &mut state.rng,
+            )?);
         }
         let (total, data, l_fre) = batch_loss(&model, &sets, &config, fre.as_ref(), &device)?;
         let grads = total.backward();
@@ -463,7 +503,10 @@ pub fn train(req: &TrainRequest, stop: &AtomicBool, on_event: &mut dyn FnMut(Eve
         state.epoch_steps += 1;
         state.position = end;
         state.step += 1;
-        on_event(Event::Step { step: state.step, losses });
+        on_event(Event::Step {
+            step: state.step,
+            losses,
+        });
         if state.position >= state.order.len() {
             let validation = validation_loss(
                 &model,
@@ -509,7 +552,8 @@ pub fn train(req: &TrainRequest, stop: &AtomicBool, on_event: &mut dyn FnMut(Eve
                 });
             }
         }
-        let requested = stop.load(Ordering::SeqCst) || req.stop_after_steps.is_some_and(|s| state.step >= s);
+        let requested =
+            stop.load(Ordering::SeqCst) || req.stop_after_steps.is_some_and(|s| state.step >= s);
         if requested && !state.finished {
             save(&model, &optim, &state, &ckpt_path)?;
             return Ok(Outcome::Interrupted { step: state.step });

@@ -19,9 +19,29 @@ fn make_data(dir: &Path) -> PathBuf {
     let data = dir.join("data");
     std::fs::create_dir_all(&data).unwrap();
     let materials = [
-        ("red-plastic", AnalyticBrdf::LambertGgx { albedo: Rgb::new(0.6, 0.1, 0.1), specular: Rgb::splat(0.04), alpha: 0.15 }),
-        ("rough-gold", AnalyticBrdf::LambertGgx { albedo: Rgb::new(0.05, 0.04, 0.02), specular: Rgb::new(0.9, 0.7, 0.3), alpha: 0.3 }),
-        ("grey-clay", AnalyticBrdf::OrenNayar { albedo: Rgb::splat(0.4), sigma: 0.5 }),
+        (
+            "red-plastic",
+            AnalyticBrdf::LambertGgx {
+                albedo: Rgb::new(0.6, 0.1, 0.1),
+                specular: Rgb::splat(0.04),
+                alpha: 0.15,
+            },
+        ),
+        (
+            "rough-gold",
+            AnalyticBrdf::LambertGgx {
+                albedo: Rgb::new(0.05, 0.04, 0.02),
+                specular: Rgb::new(0.9, 0.7, 0.3),
+                alpha: 0.3,
+            },
+        ),
+        (
+            "grey-clay",
+            AnalyticBrdf::OrenNayar {
+                albedo: Rgb::splat(0.4),
+                sigma: 0.5,
+            },
+        ),
     ];
     for (name, brdf) in materials {
         let table = MerlTable::from_fn(|th, td, pd| brdf.eval_angles(th, td, pd));
@@ -40,7 +60,10 @@ fn small_config(epochs: usize) -> TrainConfig {
         epochs,
         patience: 100,
         learning_rate: 1e-3,
-        fre: FreConfig { lmax: 8, ..FreConfig::default() },
+        fre: FreConfig {
+            lmax: 8,
+            ..FreConfig::default()
+        },
         net: ModelConfig {
             latent_dim: 8,
             encoder_hidden: vec![32, 32],
@@ -52,7 +75,13 @@ fn small_config(epochs: usize) -> TrainConfig {
     }
 }
 
-fn request(data: &Path, run: &Path, config: Option<TrainConfig>, resume: bool, stop: Option<u64>) -> TrainRequest {
+fn request(
+    data: &Path,
+    run: &Path,
+    config: Option<TrainConfig>,
+    resume: bool,
+    stop: Option<u64>,
+) -> TrainRequest {
     TrainRequest {
         data_dir: data.to_path_buf(),
         run_dir: run.to_path_buf(),
@@ -77,7 +106,10 @@ fn s(p: &Path) -> &str {
 fn error_line(out: &Output) -> String {
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
-    assert!(stderr.starts_with("error: ") && !stderr.contains('\n'), "{stderr}");
+    assert!(
+        stderr.starts_with("error: ") && !stderr.contains('\n'),
+        "{stderr}"
+    );
     stderr
 }
 
@@ -87,7 +119,12 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     let data = make_data(dir.path());
     let run = dir.path().join("run");
     let stop = AtomicBool::new(false);
-    let outcome = train(&request(&data, &run, Some(small_config(12)), false, None), &stop, &mut |_| {}).unwrap();
+    let outcome = train(
+        &request(&data, &run, Some(small_config(12)), false, None),
+        &stop,
+        &mut |_| {},
+    )
+    .unwrap();
     assert_eq!(outcome, Outcome::Completed);
     let ckpt = Checkpoint::read(&RunDir(run.clone()).checkpoint()).unwrap();
     let h = &ckpt.state.history;
@@ -95,14 +132,30 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     let first = h[0].train_loss;
     let last = h[h.len() - 1].train_loss;
     assert!(last < 0.8 * first, "training loss {first} -> {last}");
-    assert!(h.iter().all(|r| r.train_fre > 0.0 && r.validation.is_some()));
-    for f in ["config.json", "split.json", "run.json", "reference.binary", "best.bin"] {
+    assert!(h
+        .iter()
+        .all(|r| r.train_fre > 0.0 && r.validation.is_some()));
+    for f in [
+        "config.json",
+        "split.json",
+        "run.json",
+        "reference.binary",
+        "best.bin",
+    ] {
         assert!(run.join(f).exists(), "{f}");
     }
 
     // Export through the command line; the renderer's plain decoder agrees with burn.
     let latent = dir.path().join("latent.bin");
-    let out = material_nn(&["export", "--run", s(&run), "--out", s(&latent), "--materials", "grey-clay,red-plastic"]);
+    let out = material_nn(&[
+        "export",
+        "--run",
+        s(&run),
+        "--out",
+        s(&latent),
+        "--materials",
+        "grey-clay,red-plastic",
+    ]);
     assert!(out.status.success(), "{out:?}");
     let file = LatentFile::read(&latent).unwrap();
     assert_eq!(file.latent_names(), vec!["grey-clay", "red-plastic"]);
@@ -113,25 +166,55 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     let burn_y = trained.predict(z, &x);
     let plain_y = file.decode(z).forward(&x);
     for c in 0..3 {
-        assert!((burn_y[c] - plain_y[c]).abs() < 1e-4 * burn_y[c].abs().max(1.0), "{burn_y:?} vs {plain_y:?}");
+        assert!(
+            (burn_y[c] - plain_y[c]).abs() < 1e-4 * burn_y[c].abs().max(1.0),
+            "{burn_y:?} vs {plain_y:?}"
+        );
     }
 
     // BRDF-space evaluation writes its tables.
-    let out = material_nn(&["eval", "--run", s(&run), "--split", "train", "--samples", "2000", "--pairs", "3"]);
+    let out = material_nn(&[
+        "eval",
+        "--run",
+        s(&run),
+        "--split",
+        "train",
+        "--samples",
+        "2000",
+        "--pairs",
+        "3",
+    ]);
     assert!(out.status.success(), "{out:?}");
     let csv = std::fs::read_to_string(run.join("eval/editing.csv")).unwrap();
     assert_eq!(csv.lines().count(), 4, "{csv}");
-    assert!(std::fs::read_to_string(run.join("eval/summary.md")).unwrap().contains("| editing | 3 |"));
+    assert!(std::fs::read_to_string(run.join("eval/summary.md"))
+        .unwrap()
+        .contains("| editing | 3 |"));
 
     // Encode a sparse sample set and add it to the file.
     let csv = dir.path().join("sparse.csv");
     let mut text = String::from("theta_h,theta_d,phi_d,r,g,b\n");
     for i in 0..200 {
         let t = i as f32 / 200.0;
-        text.push_str(&format!("{},{},{},0.1,0.05,0.05\n", t * 1.5, (1.0 - t) * 1.5, t * 6.0));
+        text.push_str(&format!(
+            "{},{},{},0.1,0.05,0.05\n",
+            t * 1.5,
+            (1.0 - t) * 1.5,
+            t * 6.0
+        ));
     }
     std::fs::write(&csv, text).unwrap();
-    let out = material_nn(&["encode", "--run", s(&run), "--samples", s(&csv), "--name", "sparse", "--add-to", s(&latent)]);
+    let out = material_nn(&[
+        "encode",
+        "--run",
+        s(&run),
+        "--samples",
+        s(&csv),
+        "--name",
+        "sparse",
+        "--add-to",
+        s(&latent),
+    ]);
     assert!(out.status.success(), "{out:?}");
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["z"].as_array().unwrap().len(), 8);
@@ -142,7 +225,15 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     bytes[8] = 2;
     let v2 = dir.path().join("v2.bin");
     std::fs::write(&v2, bytes).unwrap();
-    let e = error_line(&material_nn(&["encode", "--run", s(&run), "--samples", s(&csv), "--add-to", s(&v2)]));
+    let e = error_line(&material_nn(&[
+        "encode",
+        "--run",
+        s(&run),
+        "--samples",
+        s(&csv),
+        "--add-to",
+        s(&v2),
+    ]));
     assert!(e.contains("v2.bin") && e.contains("version 2"), "{e}");
 }
 
@@ -152,15 +243,35 @@ fn a_resumed_run_ends_with_the_same_weights() {
     let data = make_data(dir.path());
     let stop = AtomicBool::new(false);
     let whole = dir.path().join("whole");
-    train(&request(&data, &whole, Some(small_config(3)), false, None), &stop, &mut |_| {}).unwrap();
+    train(
+        &request(&data, &whole, Some(small_config(3)), false, None),
+        &stop,
+        &mut |_| {},
+    )
+    .unwrap();
 
     // Two training materials: 2 steps per epoch; stop mid-epoch 2, then at the end of epoch 2.
     let parts = dir.path().join("parts");
-    let o = train(&request(&data, &parts, Some(small_config(3)), false, Some(3)), &stop, &mut |_| {}).unwrap();
+    let o = train(
+        &request(&data, &parts, Some(small_config(3)), false, Some(3)),
+        &stop,
+        &mut |_| {},
+    )
+    .unwrap();
     assert_eq!(o, Outcome::Interrupted { step: 3 });
-    let o = train(&request(&data, &parts, None, true, Some(4)), &stop, &mut |_| {}).unwrap();
+    let o = train(
+        &request(&data, &parts, None, true, Some(4)),
+        &stop,
+        &mut |_| {},
+    )
+    .unwrap();
     assert_eq!(o, Outcome::Interrupted { step: 4 });
-    let o = train(&request(&data, &parts, None, true, None), &stop, &mut |_| {}).unwrap();
+    let o = train(
+        &request(&data, &parts, None, true, None),
+        &stop,
+        &mut |_| {},
+    )
+    .unwrap();
     assert_eq!(o, Outcome::Completed);
 
     let a = Checkpoint::read(&RunDir(whole).checkpoint()).unwrap();
@@ -171,16 +282,38 @@ fn a_resumed_run_ends_with_the_same_weights() {
     let weights = |c: &Checkpoint| {
         let device = burn::tensor::Device::flex();
         let m = load_model(&c.config, &c.model, &device, Path::new("checkpoint")).unwrap();
-        let mut all: Vec<f32> = m.encoder.to_dense().iter().flat_map(|l| l.weight.iter().chain(&l.bias).copied()).collect();
+        let mut all: Vec<f32> = m
+            .encoder
+            .to_dense()
+            .iter()
+            .flat_map(|l| l.weight.iter().chain(&l.bias).copied())
+            .collect();
         for h in &m.heads {
-            all.extend(h.to_dense().iter().flat_map(|l| l.weight.iter().chain(&l.bias).copied()));
+            all.extend(
+                h.to_dense()
+                    .iter()
+                    .flat_map(|l| l.weight.iter().chain(&l.bias).copied()),
+            );
         }
         all
     };
     let (wa, wb) = (weights(&a), weights(&b));
-    let worst = wa.iter().zip(&wb).map(|(x, y)| (x - y).abs()).fold(0f32, f32::max);
-    assert!(wa == wb, "weights differ after resuming (largest difference {worst})");
-    let losses = |c: &Checkpoint| c.state.history.iter().map(|r| (r.train_loss, r.validation)).collect::<Vec<_>>();
+    let worst = wa
+        .iter()
+        .zip(&wb)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0f32, f32::max);
+    assert!(
+        wa == wb,
+        "weights differ after resuming (largest difference {worst})"
+    );
+    let losses = |c: &Checkpoint| {
+        c.state
+            .history
+            .iter()
+            .map(|r| (r.train_loss, r.validation))
+            .collect::<Vec<_>>()
+    };
     assert_eq!(losses(&a), losses(&b));
 }
 
@@ -193,7 +326,13 @@ fn bad_input_gives_one_line_errors() {
     let empty = dir.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
     let run = dir.path().join("run");
-    let e = error_line(&material_nn(&["train", "--data", s(&empty), "--out", s(&run)]));
+    let e = error_line(&material_nn(&[
+        "train",
+        "--data",
+        s(&empty),
+        "--out",
+        s(&run),
+    ]));
     assert!(e.contains("empty") && e.contains("no MERL tables"), "{e}");
 
     // A NaN in a table: the error names the material's file and the bin.
@@ -206,31 +345,83 @@ fn bad_input_gives_one_line_errors() {
     let at = HEADER_BYTES as usize + 8 * 1234;
     bad[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
     std::fs::write(nan_dir.join("broken-paint.binary"), bad).unwrap();
-    let e = error_line(&material_nn(&["train", "--data", s(&nan_dir), "--out", s(&run)]));
-    assert!(e.contains("broken-paint.binary") && e.contains("NaN") && e.contains("phi_d 154"), "{e}");
+    let e = error_line(&material_nn(&[
+        "train",
+        "--data",
+        s(&nan_dir),
+        "--out",
+        s(&run),
+    ]));
+    assert!(
+        e.contains("broken-paint.binary") && e.contains("NaN") && e.contains("phi_d 154"),
+        "{e}"
+    );
 
     // Resuming without a checkpoint; a corrupt and a foreign checkpoint.
     let cfg = dir.path().join("config.json");
     std::fs::write(&cfg, serde_json::to_string(&small_config(1)).unwrap()).unwrap();
-    let e = error_line(&material_nn(&["train", "--data", s(&data), "--out", s(&run), "--resume"]));
+    let e = error_line(&material_nn(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run),
+        "--resume",
+    ]));
     assert!(e.contains("checkpoint.bin"), "{e}");
-    let out = material_nn(&["train", "--data", s(&data), "--out", s(&run), "--config", s(&cfg)]);
+    let out = material_nn(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run),
+        "--config",
+        s(&cfg),
+    ]);
     assert!(out.status.success(), "{out:?}");
     let ckpt = RunDir(run.clone()).checkpoint();
     let mut bytes = std::fs::read(&ckpt).unwrap();
     let middle = bytes.len() / 2;
     bytes[middle] ^= 0x55;
     std::fs::write(&ckpt, &bytes).unwrap();
-    let e = error_line(&material_nn(&["train", "--data", s(&data), "--out", s(&run), "--resume"]));
-    assert!(e.contains("checkpoint.bin") && e.contains("checksum"), "{e}");
+    let e = error_line(&material_nn(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run),
+        "--resume",
+    ]));
+    assert!(
+        e.contains("checkpoint.bin") && e.contains("checksum"),
+        "{e}"
+    );
     std::fs::write(&ckpt, b"PK\x03\x04 a zip file").unwrap();
-    let e = error_line(&material_nn(&["train", "--data", s(&data), "--out", s(&run), "--resume"]));
+    let e = error_line(&material_nn(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run),
+        "--resume",
+    ]));
     assert!(e.contains("not a material-nn checkpoint"), "{e}");
 
     // A configuration with an unknown field.
     std::fs::write(&cfg, "{\"learning_rat\": 0.1}").unwrap();
-    let e = error_line(&material_nn(&["train", "--data", s(&data), "--out", s(&dir.path().join("r2")), "--config", s(&cfg)]));
-    assert!(e.contains("config.json") && e.contains("learning_rat"), "{e}");
+    let e = error_line(&material_nn(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&dir.path().join("r2")),
+        "--config",
+        s(&cfg),
+    ]));
+    assert!(
+        e.contains("config.json") && e.contains("learning_rat"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -240,10 +431,20 @@ fn search_tries_the_grid_then_random_rates() {
     let out = dir.path().join("search");
     let stop = AtomicBool::new(false);
     let mut seen = 0;
-    let trials = material_nn::search::search(&data, &out, &small_config(1), 1, &stop, &mut |_| seen += 1).unwrap();
+    let trials =
+        material_nn::search::search(&data, &out, &small_config(1), 1, &stop, &mut |_| seen += 1)
+            .unwrap();
     assert_eq!((trials.len(), seen), (4, 4));
     assert!(trials.windows(2).all(|p| p[0].score <= p[1].score));
-    let best: TrainConfig = serde_json::from_str(&std::fs::read_to_string(out.join("best-config.json")).unwrap()).unwrap();
+    let best: TrainConfig =
+        serde_json::from_str(&std::fs::read_to_string(out.join("best-config.json")).unwrap())
+            .unwrap();
     assert_eq!(best.learning_rate, trials[0].learning_rate);
-    assert_eq!(std::fs::read_to_string(out.join("search.csv")).unwrap().lines().count(), 5);
+    assert_eq!(
+        std::fs::read_to_string(out.join("search.csv"))
+            .unwrap()
+            .lines()
+            .count(),
+        5
+    );
 }

@@ -172,12 +172,18 @@ pub struct LatentFile {
 impl LatentFile {
     /// The shapes (d_in, d_out) of the target-net layers.
     pub fn target_layers(&self) -> Vec<(usize, usize)> {
-        self.target_widths.windows(2).map(|w| (w[0], w[1])).collect()
+        self.target_widths
+            .windows(2)
+            .map(|w| (w[0], w[1]))
+            .collect()
     }
 
     /// The latent code called `name`.
     pub fn latent(&self, name: &str) -> Option<&[f32]> {
-        self.latents.iter().find(|l| l.name == name).map(|l| l.z.as_slice())
+        self.latents
+            .iter()
+            .find(|l| l.name == name)
+            .map(|l| l.z.as_slice())
     }
 
     /// The names of the latent codes, in file order.
@@ -199,7 +205,11 @@ impl LatentFile {
     /// consistent; check user-made codes first).
     pub fn decode(&self, z: &[f32]) -> Mlp {
         assert_eq!(z.len(), self.latent_dim, "latent code size");
-        let outputs: Vec<Vec<f32>> = self.hypernetwork.iter().map(|head| head.forward(z)).collect();
+        let outputs: Vec<Vec<f32>> = self
+            .hypernetwork
+            .iter()
+            .map(|head| head.forward(z))
+            .collect();
         let layers = self
             .target_layers()
             .into_iter()
@@ -224,7 +234,10 @@ impl LatentFile {
             ));
         }
         if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
-            return bad(format!("mapping epsilon {} is not a positive number", self.epsilon));
+            return bad(format!(
+                "mapping epsilon {} is not a positive number",
+                self.epsilon
+            ));
         }
         let layers = self.target_layers();
         if self.hypernetwork.len() != 2 * layers.len() {
@@ -241,7 +254,10 @@ impl LatentFile {
             widths.extend(&self.hyper_hidden);
             widths.push(numel);
             if head.layers.len() + 1 != widths.len() {
-                return bad(format!("hypernetwork head {t} has {} layers", head.layers.len()));
+                return bad(format!(
+                    "hypernetwork head {t} has {} layers",
+                    head.layers.len()
+                ));
             }
             for (l, layer) in head.layers.iter().enumerate() {
                 if layer.d_in != widths[l]
@@ -249,23 +265,44 @@ impl LatentFile {
                     || layer.weight.len() != layer.d_in * layer.d_out
                     || layer.bias.len() != layer.d_out
                 {
-                    return bad(format!("hypernetwork head {t} layer {l} has the wrong shape"));
+                    return bad(format!(
+                        "hypernetwork head {t} layer {l} has the wrong shape"
+                    ));
                 }
-                if let Some(i) = layer.weight.iter().chain(&layer.bias).position(|v| !v.is_finite()) {
-                    return bad(format!("non-finite hypernetwork weight in head {t} layer {l} (value {i})"));
+                if let Some(i) = layer
+                    .weight
+                    .iter()
+                    .chain(&layer.bias)
+                    .position(|v| !v.is_finite())
+                {
+                    return bad(format!(
+                        "non-finite hypernetwork weight in head {t} layer {l} (value {i})"
+                    ));
                 }
             }
         }
         if self.f_ref.len() != BIN_COUNT {
-            return bad(format!("f_ref has {} bins, expected {BIN_COUNT}", self.f_ref.len()));
+            return bad(format!(
+                "f_ref has {} bins, expected {BIN_COUNT}",
+                self.f_ref.len()
+            ));
         }
-        if let Some(i) = self.f_ref.iter().position(|v| v.iter().any(|c| !c.is_finite())) {
+        if let Some(i) = self
+            .f_ref
+            .iter()
+            .position(|v| v.iter().any(|c| !c.is_finite()))
+        {
             return bad(format!("non-finite f_ref value at bin {i}"));
         }
         let mut names = std::collections::HashSet::new();
         for l in &self.latents {
             if l.z.len() != self.latent_dim {
-                return bad(format!("latent '{}' has {} values, expected {}", l.name, l.z.len(), self.latent_dim));
+                return bad(format!(
+                    "latent '{}' has {} values, expected {}",
+                    l.name,
+                    l.z.len(),
+                    self.latent_dim
+                ));
             }
             if l.z.iter().any(|v| !v.is_finite()) {
                 return bad(format!("latent '{}' has a non-finite value", l.name));
@@ -284,9 +321,13 @@ impl LatentFile {
         put_u32(&mut w, VERSION);
         put_u32(&mut w, self.latent_dim as u32);
         put_u32(&mut w, (self.target_widths.len() - 1) as u32);
-        self.target_widths.iter().for_each(|&v| put_u32(&mut w, v as u32));
+        self.target_widths
+            .iter()
+            .for_each(|&v| put_u32(&mut w, v as u32));
         put_u32(&mut w, self.hyper_hidden.len() as u32);
-        self.hyper_hidden.iter().for_each(|&v| put_u32(&mut w, v as u32));
+        self.hyper_hidden
+            .iter()
+            .for_each(|&v| put_u32(&mut w, v as u32));
         w.push(self.mapping.code());
         w.push(match self.weight_type {
             WeightType::F32 => 0,
@@ -313,10 +354,13 @@ impl LatentFile {
         put_u32(&mut w, self.latents.len() as u32);
         for l in &self.latents {
             put_str(&mut w, &l.name);
-            l.z.iter().for_each(|v| w.extend_from_slice(&v.to_le_bytes()));
+            l.z.iter()
+                .for_each(|v| w.extend_from_slice(&v.to_le_bytes()));
         }
         put_u32(&mut w, self.training_materials.len() as u32);
-        self.training_materials.iter().for_each(|n| put_str(&mut w, n));
+        self.training_materials
+            .iter()
+            .for_each(|n| put_str(&mut w, n));
         let sum = fnv1a64(&w);
         w.extend_from_slice(&sum.to_le_bytes());
         w
@@ -326,7 +370,9 @@ impl LatentFile {
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self> {
         let bad = |reason: String| Error::invalid_file(path, reason);
         if bytes.len() < 12 || bytes[..8] != MAGIC {
-            return Err(bad("not a latent file (bad magic; expected \"FRENBRDF\")".to_string()));
+            return Err(bad(
+                "not a latent file (bad magic; expected \"FRENBRDF\")".to_string()
+            ));
         }
         let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
         if version != VERSION {
@@ -340,14 +386,24 @@ impl LatentFile {
         let (body, tail) = bytes.split_at(bytes.len() - 8);
         let stored = u64::from_le_bytes(tail.try_into().map_err(|_| bad("truncated".into()))?);
         if fnv1a64(body) != stored {
-            return Err(bad("checksum mismatch: the file is corrupt or truncated".to_string()));
+            return Err(bad(
+                "checksum mismatch: the file is corrupt or truncated".to_string()
+            ));
         }
-        let mut r = Cursor { bytes: body, at: 12, path };
+        let mut r = Cursor {
+            bytes: body,
+            at: 12,
+            path,
+        };
         let latent_dim = r.dim("latent_dim")?;
         let layer_count = r.dim("target layer count")?;
-        let target_widths = (0..=layer_count).map(|_| r.dim("target width")).collect::<Result<Vec<_>>>()?;
+        let target_widths = (0..=layer_count)
+            .map(|_| r.dim("target width"))
+            .collect::<Result<Vec<_>>>()?;
         let hidden_count = r.dim("hypernetwork layer count")?;
-        let hyper_hidden = (0..hidden_count).map(|_| r.dim("hypernetwork width")).collect::<Result<Vec<_>>>()?;
+        let hyper_hidden = (0..hidden_count)
+            .map(|_| r.dim("hypernetwork width"))
+            .collect::<Result<Vec<_>>>()?;
         let flags = r.take(4)?;
         let mapping = match flags[0] {
             0 => MappingForm::Talk,
@@ -373,7 +429,12 @@ impl LatentFile {
                 for w in widths.windows(2) {
                     let weight = r.weights(w[0] * w[1], weight_type)?;
                     let bias = r.weights(w[1], weight_type)?;
-                    layers.push(DenseLayer { d_in: w[0], d_out: w[1], weight, bias });
+                    layers.push(DenseLayer {
+                        d_in: w[0],
+                        d_out: w[1],
+                        weight,
+                        bias,
+                    });
                 }
                 hypernetwork.push(Mlp { layers });
             }
@@ -391,13 +452,18 @@ impl LatentFile {
         let mut latents = Vec::new();
         for _ in 0..count {
             let name = r.string()?;
-            let z = (0..latent_dim).map(|_| r.f32()).collect::<Result<Vec<_>>>()?;
+            let z = (0..latent_dim)
+                .map(|_| r.f32())
+                .collect::<Result<Vec<_>>>()?;
             latents.push(NamedLatent { name, z });
         }
         let count = r.dim("training material count")?;
         let training_materials = (0..count).map(|_| r.string()).collect::<Result<Vec<_>>>()?;
         if r.at != body.len() {
-            return Err(bad(format!("{} unexpected bytes after the last section", body.len() - r.at)));
+            return Err(bad(format!(
+                "{} unexpected bytes after the last section",
+                body.len() - r.at
+            )));
         }
         let file = LatentFile {
             latent_dim,
@@ -469,7 +535,10 @@ impl Cursor<'_> {
         if self.bytes.len() - self.at < n {
             return Err(Error::invalid_file(
                 self.path,
-                format!("truncated latent file: {n} more bytes needed at offset {}", self.at),
+                format!(
+                    "truncated latent file: {n} more bytes needed at offset {}",
+                    self.at
+                ),
             ));
         }
         self.at += n;
@@ -488,7 +557,10 @@ impl Cursor<'_> {
     fn dim(&mut self, what: &str) -> Result<usize> {
         let v = self.u32()? as usize;
         if v > MAX_DIM {
-            return Err(Error::invalid_file(self.path, format!("{what} {v} is implausibly large")));
+            return Err(Error::invalid_file(
+                self.path,
+                format!("{what} {v} is implausibly large"),
+            ));
         }
         Ok(v)
     }
@@ -555,8 +627,14 @@ mod tests {
             hypernetwork,
             f_ref: vec![[f16::from_f32(0.25); 3]; BIN_COUNT],
             latents: vec![
-                NamedLatent { name: "gold".into(), z: vec![0.5, 1.0] },
-                NamedLatent { name: "blue-acrylic".into(), z: vec![0.0, 2.0] },
+                NamedLatent {
+                    name: "gold".into(),
+                    z: vec![0.5, 1.0],
+                },
+                NamedLatent {
+                    name: "blue-acrylic".into(),
+                    z: vec![0.0, 2.0],
+                },
             ],
             training_materials: vec!["gold".into(), "silver".into()],
         }
@@ -595,7 +673,10 @@ mod tests {
         let mut v2 = good.clone();
         v2[8..12].copy_from_slice(&2u32.to_le_bytes());
         let e = err(&v2);
-        assert!(e.contains("version 2") && e.contains("reads version 1"), "{e}");
+        assert!(
+            e.contains("version 2") && e.contains("reads version 1"),
+            "{e}"
+        );
 
         let e = err(&good[..good.len() - 100]);
         assert!(e.contains("checksum"), "{e}");
@@ -607,8 +688,13 @@ mod tests {
         let mut nan = small_file(WeightType::F32);
         nan.latents[1].z[0] = f32::NAN;
         let e = err(&nan.to_bytes());
-        assert!(e.contains("latent 'blue-acrylic' has a non-finite value"), "{e}");
-        assert!(nan.write(std::env::temp_dir().join("never-written.bin")).is_err());
+        assert!(
+            e.contains("latent 'blue-acrylic' has a non-finite value"),
+            "{e}"
+        );
+        assert!(nan
+            .write(std::env::temp_dir().join("never-written.bin"))
+            .is_err());
 
         let mut dup = small_file(WeightType::F32);
         dup.latents[1].name = "gold".into();
@@ -621,7 +707,10 @@ mod tests {
             for (f, r) in [(0.0f32, 0.1f32), (3.0, 0.2), (500.0, 20.0)] {
                 let y = form.forward(f, r, 0.002);
                 let back = form.inverse(y, r, 0.002);
-                assert!((back - f).abs() <= 1e-4 * f.max(1.0), "{form:?} {f} {r} -> {back}");
+                assert!(
+                    (back - f).abs() <= 1e-4 * f.max(1.0),
+                    "{form:?} {f} {r} -> {back}"
+                );
             }
         }
     }
