@@ -9,6 +9,7 @@ use renderer::camera::PinholeCamera;
 use renderer::integrator::PathTracer;
 use renderer::render::{Budget, Renderer};
 use renderer::render_scene::RenderScene;
+use glam::{Mat4, Vec3};
 use renderer::scene::Camera;
 use renderer::Rgb;
 use std::sync::atomic::AtomicBool;
@@ -45,4 +46,17 @@ pub fn render(scene: &RenderScene, camera: &Camera, width: u32, height: u32, spp
 pub fn mean_rgb(pixels: &[Rgb]) -> Rgb {
     let sum = pixels.iter().fold(glam::DVec3::ZERO, |a, p| a + p.as_dvec3());
     (sum / pixels.len() as f64).as_vec3()
+}
+
+/// A camera at `position` looking at `target` (+y up) with a vertical field of view in degrees.
+pub fn look_at(position: Vec3, target: Vec3, yfov_degrees: f32) -> Camera {
+    let forward = (target - position).normalize();
+    let right = forward.cross(Vec3::Y).normalize();
+    let up = right.cross(forward);
+    Camera {
+        name: "camera".into(),
+        camera_to_world: Mat4::from_cols(right.extend(0.0), up.extend(0.0), (-forward).extend(0.0), position.extend(1.0)),
+        yfov: yfov_degrees.to_radians(),
+        aspect_ratio: None,
+    }
 }

@@ -1,26 +1,12 @@
 //! Scenes with a known answer (as pbrt-v4's integrator tests): the white furnace and the
 //! inside of a uniformly emitting, uniformly reflecting sphere, for every estimator.
 
-use glam::{Mat4, Vec3};
-use neural_brdf_tests::{mean_rgb, render, shapes::add_sphere};
+use glam::Vec3;
+use neural_brdf_tests::{look_at, mean_rgb, render, shapes::add_sphere};
 use renderer::integrator::{PathTracer, Strategy};
 use renderer::render_scene::RenderScene;
-use renderer::scene::{Camera, EnvironmentSource, EnvironmentSpec, Geometry, Material, SceneDescription, SurfaceModel};
+use renderer::scene::{EnvironmentSource, EnvironmentSpec, Geometry, Material, SceneDescription, SurfaceModel};
 use renderer::Rgb;
-
-fn camera_at(position: Vec3, target: Vec3) -> Camera {
-    Camera {
-        name: "camera".into(),
-        camera_to_world: {
-            let forward = (target - position).normalize();
-            let right = forward.cross(Vec3::Y).normalize();
-            let up = right.cross(forward);
-            Mat4::from_cols(right.extend(0.0), up.extend(0.0), (-forward).extend(0.0), position.extend(1.0))
-        },
-        yfov: 40f32.to_radians(),
-        aspect_ratio: None,
-    }
-}
 
 fn lambert(name: &str, albedo: f32, emission: f32) -> Material {
     Material {
@@ -49,7 +35,7 @@ fn white_furnace_lambert() {
         ..SceneDescription::default()
     };
     let scene = RenderScene::new(description).expect("scene");
-    let camera = camera_at(Vec3::new(0.0, 0.0, 3.5), Vec3::ZERO);
+    let camera = look_at(Vec3::new(0.0, 0.0, 3.5), Vec3::ZERO, 40.0);
     for strategy in [Strategy::Mis, Strategy::BsdfOnly, Strategy::LightOnly] {
         let integrator = PathTracer {
             max_depth: -1,
@@ -77,7 +63,7 @@ fn emitting_sphere_interior_is_le_over_one_minus_albedo() {
         ..SceneDescription::default()
     };
     let scene = RenderScene::new(description).expect("scene");
-    let camera = camera_at(Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.5, -0.2, -0.4));
+    let camera = look_at(Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.5, -0.2, -0.4), 40.0);
     for strategy in [Strategy::Mis, Strategy::BsdfOnly, Strategy::LightOnly] {
         let integrator = PathTracer {
             max_depth: -1,

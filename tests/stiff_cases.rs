@@ -3,25 +3,13 @@
 //! bright sun. Each must render without NaN/Inf pixels or panics, and where an answer is known
 //! the estimators must agree on it.
 
-use glam::{Mat4, Vec2, Vec3};
-use neural_brdf_tests::{mean_rgb, render, shapes::{add_floor, add_sphere}};
+use glam::{Vec2, Vec3};
+use neural_brdf_tests::{look_at, mean_rgb, render, shapes::{add_floor, add_sphere}};
 use renderer::integrator::{PathTracer, Strategy};
 use renderer::render_scene::RenderScene;
-use renderer::scene::{Camera, EnvironmentSource, EnvironmentSpec, Geometry, Material, SceneDescription, SurfaceModel};
+use renderer::scene::{EnvironmentSource, EnvironmentSpec, Geometry, Material, SceneDescription, SurfaceModel};
 use renderer::Rgb;
 use std::path::PathBuf;
-
-fn camera(position: Vec3, target: Vec3) -> Camera {
-    let forward = (target - position).normalize();
-    let right = forward.cross(Vec3::Y).normalize();
-    let up = right.cross(forward);
-    Camera {
-        name: "camera".into(),
-        camera_to_world: Mat4::from_cols(right.extend(0.0), up.extend(0.0), (-forward).extend(0.0), position.extend(1.0)),
-        yfov: 45f32.to_radians(),
-        aspect_ratio: None,
-    }
-}
 
 fn material(name: &str, model: SurfaceModel, base: f32, emission: f32) -> Material {
     Material {
@@ -76,7 +64,7 @@ fn tiny_bright_emitter_degenerate_and_sliver_triangles() {
         ..SceneDescription::default()
     };
     let scene = RenderScene::new(description).expect("scene");
-    let cam = camera(Vec3::new(0.0, 1.5, 3.0), Vec3::new(0.0, 0.4, 0.0));
+    let cam = look_at(Vec3::new(0.0, 1.5, 3.0), Vec3::new(0.0, 0.4, 0.0), 45.0);
     for strategy in [Strategy::Mis, Strategy::BsdfOnly, Strategy::LightOnly] {
         let img = render(&scene, &cam, 24, 24, 16, PathTracer { max_depth: 6, strategy, ..PathTracer::default() }, 5);
         assert_finite(&img, &format!("{strategy:?}"));
@@ -103,7 +91,7 @@ fn camera_inside_geometry() {
         ..SceneDescription::default()
     };
     let scene = RenderScene::new(description).expect("scene");
-    let img = render(&scene, &camera(Vec3::ZERO, Vec3::Z), 16, 16, 8, PathTracer::default(), 1);
+    let img = render(&scene, &look_at(Vec3::ZERO, Vec3::Z, 45.0), 16, 16, 8, PathTracer::default(), 1);
     assert_finite(&img, "inside");
     assert!(mean_rgb(&img.mean).max_element() < 1e-6, "light leaked inside: {}", mean_rgb(&img.mean));
 }
@@ -126,7 +114,7 @@ fn bright_sun_environment_estimators_agree() {
         ..SceneDescription::default()
     };
     let scene = RenderScene::new(description).expect("scene");
-    let cam = camera(Vec3::new(0.0, 0.0, 2.2), Vec3::ZERO);
+    let cam = look_at(Vec3::new(0.0, 0.0, 2.2), Vec3::ZERO, 45.0);
     let run = |strategy, spp| {
         let img = render(&scene, &cam, 12, 12, spp, PathTracer { max_depth: 3, strategy, ..PathTracer::default() }, 11);
         assert_finite(&img, "sunset");

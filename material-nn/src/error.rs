@@ -6,39 +6,24 @@ use std::path::PathBuf;
 /// Errors of the material-nn library.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// An error of the renderer library (MERL tables, latent files), which names its file.
+    /// A file-level error (I/O, invalid contents) in the renderer's error type, which names
+    /// its file: MERL tables, latent files and material-nn's own files alike.
     #[error(transparent)]
     Renderer(#[from] renderer::Error),
-    /// A file could not be opened, read or written.
-    #[error("{}: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    /// A file was read but its contents are invalid for the named reason.
-    #[error("{}: {reason}", path.display())]
-    InvalidFile { path: PathBuf, reason: String },
     /// A configuration value, argument or data set is unusable for the named reason.
     #[error("{0}")]
     Invalid(String),
 }
 
 impl Error {
-    /// Shorthand for [`Error::InvalidFile`].
+    /// A file whose contents are invalid for the named reason.
     pub fn invalid_file(path: impl Into<PathBuf>, reason: impl Into<String>) -> Self {
-        Error::InvalidFile {
-            path: path.into(),
-            reason: reason.into(),
-        }
+        Error::Renderer(renderer::Error::invalid_file(path, reason))
     }
 
-    /// Shorthand for [`Error::Io`].
+    /// A file that could not be opened, read or written.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io {
-            path: path.into(),
-            source,
-        }
+        Error::Renderer(renderer::Error::io(path, source))
     }
 }
 

@@ -143,13 +143,7 @@ impl Bxdf for MerlBsdf {
     }
 
     fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
-        let wi = self.sampler.sample(wo, u, uc)?;
-        let pdf = self.sampler.pdf(wo, wi);
-        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample {
-            wi,
-            f: self.eval(wo, wi),
-            pdf,
-        })
+        self.sampler.sample_bsdf(wo, u, uc, |wi| self.eval(wo, wi))
     }
 }
 

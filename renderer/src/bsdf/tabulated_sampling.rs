@@ -33,6 +33,7 @@
 //! The BRDF is never asked for a density: only its values enter the fit.
 
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, Distribution1D};
+use crate::bsdf::BsdfSample;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -290,6 +291,15 @@ impl TabulatedSampler {
         let s = crate::brdf_coords::polar_angle(wo) / FRAC_PI_2 * (n - 1) as f32;
         let k = (s.max(0.0) as usize).min(n - 2);
         (k, (s - k as f32).clamp(0.0, 1.0))
+    }
+
+    /// Draws `wi` and packs it with the BSDF value `eval(wi)` and this sampler's density, as
+    /// every BSDF sampled by a tabulated sampler returns it.
+    #[inline]
+    pub fn sample_bsdf(&self, wo: Vec3, u: Vec2, uc: f32, eval: impl FnOnce(Vec3) -> Rgb) -> Option<BsdfSample> {
+        let wi = self.sample(wo, u, uc)?;
+        let pdf = self.pdf(wo, wi);
+        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample { wi, f: eval(wi), pdf })
     }
 
     /// Draws wi given `wo` (local frame, z > 0) from a 2D sample `u` and a 1D sample `uc`
