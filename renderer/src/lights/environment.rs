@@ -109,12 +109,12 @@ impl Environment {
         }
     }
 
-    fn to_map(&self, d: Vec3) -> Vec3 {
+    fn world_to_map(&self, d: Vec3) -> Vec3 {
         let (c, s) = self.rotation;
         Vec3::new(c * d.x - s * d.z, d.y, s * d.x + c * d.z)
     }
 
-    fn from_map(&self, d: Vec3) -> Vec3 {
+    fn map_to_world(&self, d: Vec3) -> Vec3 {
         let (c, s) = self.rotation;
         Vec3::new(c * d.x + s * d.z, d.y, -s * d.x + c * d.z)
     }
@@ -130,7 +130,7 @@ impl Environment {
                 texels,
                 ..
             } => {
-                let uv = direction_to_uv(self.to_map(d));
+                let uv = direction_to_uv(self.world_to_map(d));
                 let x = ((uv.x * *width as f32) as usize).min(width - 1);
                 let y = ((uv.y * *height as f32) as usize).min(height - 1);
                 texels[x + width * y]
@@ -156,7 +156,7 @@ impl Environment {
                 if sin_theta <= 0.0 {
                     return None;
                 }
-                let direction = self.from_map(local);
+                let direction = self.map_to_world(local);
                 Some(EnvironmentSample {
                     direction,
                     radiance: self.radiance(direction),
@@ -171,7 +171,7 @@ impl Environment {
         match &self.kind {
             Kind::Constant(_) => uniform_sphere_pdf(),
             Kind::Image { distribution, .. } => {
-                let local = self.to_map(d);
+                let local = self.world_to_map(d);
                 let sin_theta = (1.0 - local.y * local.y).max(0.0).sqrt();
                 if sin_theta <= 0.0 {
                     return 0.0;
