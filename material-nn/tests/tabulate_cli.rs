@@ -1,6 +1,9 @@
 //! The `material-nn tabulate` command line: outputs, and one-line errors with exit code 2.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::{error_line, path_str};
+use std::path::PathBuf;
 use std::process::{Command, Output};
 
 fn material_nn(args: &[&str]) -> Output {
@@ -12,21 +15,6 @@ fn material_nn(args: &[&str]) -> Output {
 
 fn nbrdf_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/nbrdf/merl")
-}
-
-fn path_str(p: &Path) -> &str {
-    p.to_str().expect("UTF-8 temporary path")
-}
-
-/// The one-line error of a failed run (exit code 2).
-fn error_line(out: &Output) -> String {
-    assert_eq!(out.status.code(), Some(2), "{out:?}");
-    let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
-    assert!(
-        stderr.starts_with("error: ") && !stderr.contains('\n'),
-        "{stderr}"
-    );
-    stderr
 }
 
 #[test]

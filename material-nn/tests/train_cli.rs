@@ -2,6 +2,9 @@
 //! export → latent.bin → the renderer's plain decoder, encode, and bad input (one-line errors,
 //! exit code 2).
 
+mod common;
+
+use common::{error_line, path_str};
 use material_nn::checkpoint::Checkpoint;
 use material_nn::config::{FreConfig, ModelConfig, TrainConfig};
 use material_nn::training::{load_model, train, Outcome, RunDir, TrainRequest};
@@ -98,21 +101,6 @@ fn material_nn(args: &[&str]) -> Output {
         .expect("material-nn runs")
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().expect("UTF-8 temporary path")
-}
-
-/// The one-line error of a failed run (exit code 2).
-fn error_line(out: &Output) -> String {
-    assert_eq!(out.status.code(), Some(2), "{out:?}");
-    let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
-    assert!(
-        stderr.starts_with("error: ") && !stderr.contains('\n'),
-        "{stderr}"
-    );
-    stderr
-}
-
 #[test]
 fn training_lowers_the_loss_and_exports_a_latent_file() {
     let dir = tempfile::tempdir().unwrap();
@@ -150,9 +138,9 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     let out = material_nn(&[
         "export",
         "--run",
-        s(&run),
+        path_str(&run),
         "--out",
-        s(&latent),
+        path_str(&latent),
         "--materials",
         "grey-clay,red-plastic",
     ]);
@@ -176,7 +164,7 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     let out = material_nn(&[
         "eval",
         "--run",
-        s(&run),
+        path_str(&run),
         "--split",
         "train",
         "--samples",
@@ -207,13 +195,13 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     let out = material_nn(&[
         "encode",
         "--run",
-        s(&run),
+        path_str(&run),
         "--samples",
-        s(&csv),
+        path_str(&csv),
         "--name",
         "sparse",
         "--add-to",
-        s(&latent),
+        path_str(&latent),
     ]);
     assert!(out.status.success(), "{out:?}");
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -228,11 +216,11 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     let e = error_line(&material_nn(&[
         "encode",
         "--run",
-        s(&run),
+        path_str(&run),
         "--samples",
-        s(&csv),
+        path_str(&csv),
         "--add-to",
-        s(&v2),
+        path_str(&v2),
     ]));
     assert!(e.contains("v2.bin") && e.contains("version 2"), "{e}");
 }
@@ -329,9 +317,9 @@ fn bad_input_gives_one_line_errors() {
     let e = error_line(&material_nn(&[
         "train",
         "--data",
-        s(&empty),
+        path_str(&empty),
         "--out",
-        s(&run),
+        path_str(&run),
     ]));
     assert!(e.contains("empty") && e.contains("no MERL tables"), "{e}");
 
@@ -348,9 +336,9 @@ fn bad_input_gives_one_line_errors() {
     let e = error_line(&material_nn(&[
         "train",
         "--data",
-        s(&nan_dir),
+        path_str(&nan_dir),
         "--out",
-        s(&run),
+        path_str(&run),
     ]));
     assert!(
         e.contains("broken-paint.binary") && e.contains("NaN") && e.contains("phi_d 154"),
@@ -363,20 +351,20 @@ fn bad_input_gives_one_line_errors() {
     let e = error_line(&material_nn(&[
         "train",
         "--data",
-        s(&data),
+        path_str(&data),
         "--out",
-        s(&run),
+        path_str(&run),
         "--resume",
     ]));
     assert!(e.contains("checkpoint.bin"), "{e}");
     let out = material_nn(&[
         "train",
         "--data",
-        s(&data),
+        path_str(&data),
         "--out",
-        s(&run),
+        path_str(&run),
         "--config",
-        s(&cfg),
+        path_str(&cfg),
     ]);
     assert!(out.status.success(), "{out:?}");
     let ckpt = RunDir(run.clone()).checkpoint();
@@ -387,9 +375,9 @@ fn bad_input_gives_one_line_errors() {
     let e = error_line(&material_nn(&[
         "train",
         "--data",
-        s(&data),
+        path_str(&data),
         "--out",
-        s(&run),
+        path_str(&run),
         "--resume",
     ]));
     assert!(
@@ -400,9 +388,9 @@ fn bad_input_gives_one_line_errors() {
     let e = error_line(&material_nn(&[
         "train",
         "--data",
-        s(&data),
+        path_str(&data),
         "--out",
-        s(&run),
+        path_str(&run),
         "--resume",
     ]));
     assert!(e.contains("not a material-nn checkpoint"), "{e}");
@@ -412,11 +400,11 @@ fn bad_input_gives_one_line_errors() {
     let e = error_line(&material_nn(&[
         "train",
         "--data",
-        s(&data),
+        path_str(&data),
         "--out",
-        s(&dir.path().join("r2")),
+        path_str(&dir.path().join("r2")),
         "--config",
-        s(&cfg),
+        path_str(&cfg),
     ]));
     assert!(
         e.contains("config.json") && e.contains("learning_rat"),
