@@ -21,7 +21,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use renderer::brdf_coords::{directions_from_angles, network_input_from_angles, HalfDiffAngles};
 use renderer::latent_file::MappingForm;
-use renderer::merl::{trilinear_corners, MerlTable, BIN_COUNT, SCALE};
+use renderer::merl::{lookup_trilinear_measured, MerlTable, BIN_COUNT, SCALE};
 use serde::{Deserialize, Serialize};
 use std::f32::consts::{FRAC_PI_2, TAU};
 use std::path::{Path, PathBuf};
@@ -70,19 +70,7 @@ impl MaterialTable {
     /// Trilinear look-up at (θh, θd, φd) (radians): f_r (1/sr), or `None` where every corner
     /// is unmeasured.
     pub fn lookup(&self, theta_h: f32, theta_d: f32, phi_d: f32) -> Option<[f32; 3]> {
-        let (idx, w) = trilinear_corners(theta_h, theta_d, phi_d);
-        let mut acc = [0f32; 3];
-        let mut wsum = 0f32;
-        for (&i, &wk) in idx.iter().zip(&w) {
-            let v = self.values[i];
-            if wk > 0.0 && v.iter().all(|&c| c >= 0.0) {
-                for c in 0..3 {
-                    acc[c] += wk * v[c];
-                }
-                wsum += wk;
-            }
-        }
-        (wsum > 0.0).then(|| acc.map(|a| a / wsum))
+        lookup_trilinear_measured(&self.values, theta_h, theta_d, phi_d)
     }
 
     /// The per-bin, per-channel median of `tables` (unmeasured entries left out; −1 where

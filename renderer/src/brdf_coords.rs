@@ -156,6 +156,21 @@ pub fn network_input(wi: Vec3, wo: Vec3) -> [f32; 6] {
     [sin_h, 0.0, hd.h.z, d.x, d.y, d.z]
 }
 
+/// [`network_input`] and [`isotropic_angles`] of (wi, wo) together, from one half/difference
+/// computation: the network input and (θh, θd, φd) with φd folded into [0, π).
+#[inline]
+pub fn network_input_and_angles(wi: Vec3, wo: Vec3) -> ([f32; 6], [f32; 3]) {
+    let hd = half_diff(wi, wo);
+    let sin_h = (hd.h.x * hd.h.x + hd.h.y * hd.h.y).sqrt();
+    let d = if needs_fold(hd.d) {
+        Vec3::new(-hd.d.x, -hd.d.y, hd.d.z)
+    } else {
+        hd.d
+    };
+    let angles = [sin_h.atan2(hd.h.z), polar_angle(d), fold_phi_d(d.y.atan2(d.x))];
+    ([sin_h, 0.0, hd.h.z, d.x, d.y, d.z], angles)
+}
+
 /// The 6D NBRDF network input of the isotropic angles (θh, θd, φd), radians; φd is used as
 /// given (not folded).
 #[inline]
@@ -182,6 +197,20 @@ mod tests {
     fn circular_distance(a: f32, b: f32, period: f32) -> f32 {
         let r = (a - b).rem_euclid(period);
         r.min(period - r)
+    }
+
+    proptest! {
+        #[test]
+        fn input_and_angles_agree_with_separate_functions(
+            ti in 0.0f32..1.5, pi in -3.1f32..3.1, to in 0.0f32..1.5, po in -3.1f32..3.1,
+        ) {
+            let (wi, wo) = (unit(ti, pi), unit(to, po));
+            let (x, a) = network_input_and_angles(wi, wo);
+            prop_assert_eq!(x, network_input(wi, wo));
+            let b = isotropic_angles(wi, wo);
+            prop_assert!((a[0] - b[0]).abs() < 1e-5 && (a[1] - b[1]).abs() < 1e-5);
+            prop_assert!(circular_distance(a[2], b[2], PI) < 1e-4, "{:?} vs {:?}", a, b);
+        }
     }
 
     #[test]

@@ -6,13 +6,10 @@ use std::path::PathBuf;
 /// Errors of the renderer library.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// A file could not be opened, read or written.
-    #[error("{}: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// A file could not be opened, read or written. The I/O error is part of the message
+    /// (not a `source`, so a report of the error chain names it once).
+    #[error("{}: {error}", path.display())]
+    Io { path: PathBuf, error: std::io::Error },
     /// A file was read but its contents are invalid for the named reason.
     #[error("{}: {reason}", path.display())]
     InvalidFile { path: PathBuf, reason: String },
@@ -38,10 +35,10 @@ impl Error {
     }
 
     /// Shorthand for [`Error::Io`].
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    pub fn io(path: impl Into<PathBuf>, error: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            source,
+            error,
         }
     }
 }

@@ -98,9 +98,13 @@ pub fn write_exr(path: &Path, width: u32, height: u32, pixels: &[Rgb]) -> Result
 
 /// Writes an 8-bit sRGB PNG of a linear image.
 pub fn write_png(path: &Path, width: u32, height: u32, pixels: &[Rgb], tone_map: ToneMap, exposure: f32) -> Result<()> {
-    let bytes = to_srgb8(pixels, tone_map, exposure);
+    write_png_rgb8(path, width, height, &to_srgb8(pixels, tone_map, exposure))
+}
+
+/// Writes 8-bit RGB pixels (row-major, 3 bytes each) as a PNG, atomically.
+pub fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb8: &[u8]) -> Result<()> {
     write_atomically(path, |tmp| {
-        image::save_buffer_with_format(tmp, &bytes, width, height, image::ColorType::Rgb8, image::ImageFormat::Png)
+        image::save_buffer_with_format(tmp, rgb8, width, height, image::ColorType::Rgb8, image::ImageFormat::Png)
             .map_err(|e| Error::invalid_file(path, format!("cannot write PNG: {e}")))
     })
 }

@@ -589,10 +589,11 @@ impl Cursor<'_> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn small_file(weight_type: WeightType) -> LatentFile {
+    /// A tiny valid file: target net 6-4-3, latent size 2, codes "gold" and "blue-acrylic".
+    pub(crate) fn small_file(weight_type: WeightType) -> LatentFile {
         let widths = vec![6, 4, 3];
         let hidden = vec![5];
         let latent_dim = 2;

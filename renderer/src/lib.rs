@@ -22,6 +22,7 @@ pub mod frame;
 pub mod image_io;
 pub mod integrator;
 pub mod latent_file;
+pub mod latent_library;
 pub mod lights;
 pub mod merl;
 pub mod metrics;
@@ -31,6 +32,8 @@ pub mod render_scene;
 pub mod sampler;
 pub mod sampling;
 pub mod scene;
+pub mod sweep;
+pub mod target_net;
 
 pub use color::Rgb;
 pub use error::{Error, Result};

@@ -145,6 +145,27 @@ pub fn trilinear_corners(theta_h: f32, theta_d: f32, phi_d: f32) -> ([usize; 8],
     (idx, w)
 }
 
+/// Trilinear look-up in per-bin f32 RGB values (within-channel index order, a negative
+/// channel marks the bin unmeasured) at the isotropic angles (radians): unmeasured corners
+/// are left out and the weights of the others renormalised; `None` when all eight corners
+/// are unmeasured. The look-up of f_ref in training and rendering.
+#[inline]
+pub fn lookup_trilinear_measured(values: &[[f32; 3]], theta_h: f32, theta_d: f32, phi_d: f32) -> Option<[f32; 3]> {
+    let (idx, w) = trilinear_corners(theta_h, theta_d, phi_d);
+    let mut acc = [0f32; 3];
+    let mut wsum = 0f32;
+    for (&i, &wk) in idx.iter().zip(&w) {
+        let v = values[i];
+        if wk > 0.0 && v[0] >= 0.0 && v[1] >= 0.0 && v[2] >= 0.0 {
+            for c in 0..3 {
+                acc[c] += wk * v[c];
+            }
+            wsum += wk;
+        }
+    }
+    (wsum > 0.0).then(|| acc.map(|a| a / wsum))
+}
+
 /// A MERL table in memory: the raw values exactly as in the file (so write → read is exact).
 #[derive(Clone)]
 pub struct MerlTable {

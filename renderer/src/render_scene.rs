@@ -1,13 +1,14 @@
 //! A scene prepared for rendering: the BVH, the lights, the bound BSDFs and everything
 //! the integrator looks up per hit. Only what the scene uses is built: measured BSDFs are
-//! loaded only for materials some triangle uses, and the environment's sampling structures
-//! exist only when the scene has an environment.
+//! loaded and latent codes decoded only for materials some triangle uses, and the
+//! environment's sampling structures exist only when the scene has an environment.
 
 use crate::accel::{interpolate_point, Bvh, Hit};
 use crate::bsdf::{Bsdf, Lambert, MeasuredBsdf, MetallicRoughness};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::lights::environment::Environment;
+use crate::latent_library::{LatentLibrary, NEURAL_SPEC_PREFIX};
 use crate::lights::LightSet;
 use crate::scene::{Geometry, Material, SceneDescription, SurfaceModel, Texture};
 use crate::Rgb;
@@ -30,6 +31,9 @@ pub struct RenderScene {
     surfaces: Vec<Surface>,
     pub textures: Vec<Texture>,
     measured: Vec<MeasuredBsdf>,
+    /// Materials that ask for a latent code while no latent file was given: (material,
+    /// latent name); they render with their glTF parameters.
+    unbound_neural: Vec<(String, String)>,
     pub bvh: Bvh,
     /// Corners and unit geometric normal (zero for degenerate triangles) per triangle,
     /// gathered once so a hit reads one record.
@@ -60,8 +64,17 @@ pub struct SurfacePoint {
 
 impl RenderScene {
     /// Builds the BVH, resolves bound BSDFs (loading each distinct specification once), loads
-    /// the environment and builds the light set.
+    /// the environment and builds the light set. Without latent files, materials bound to a
+    /// latent code (`neural:NAME`) fall back to their glTF parameters
+    /// ([`RenderScene::unbound_neural`]).
     pub fn new(description: SceneDescription) -> Result<Self> {
+        Self::with_latents(description, &LatentLibrary::default())
+    }
+
+    /// As [`RenderScene::new`], decoding the latent codes that used materials bind from
+    /// `latents` (each distinct code once); an unknown latent name is an error listing the
+    /// available ones.
+    pub fn with_latents(description: SceneDescription, latents: &LatentLibrary) -> Result<Self> {
         let SceneDescription {
             geometry,
             materials,
@@ -76,16 +89,24 @@ impl RenderScene {
         }
         let mut measured = Vec::new();
         let mut loaded: HashMap<String, usize> = HashMap::new();
+        let mut unbound_neural = Vec::new();
         let mut surfaces = Vec::with_capacity(materials.len());
         for (material, &is_used) in materials.iter().zip(&used) {
             surfaces.push(match &material.model {
                 SurfaceModel::Lambert => Surface::Lambert,
                 SurfaceModel::MetallicRoughness => Surface::MetallicRoughness,
+                SurfaceModel::Bound(spec) if is_used && latents.is_empty() && spec.starts_with(NEURAL_SPEC_PREFIX) => {
+                    unbound_neural.push((material.name.clone(), spec[NEURAL_SPEC_PREFIX.len()..].to_string()));
+                    Surface::MetallicRoughness
+                }
                 SurfaceModel::Bound(spec) if is_used => {
                     let index = match loaded.get(spec) {
                         Some(&i) => i,
                         None => {
-                            measured.push(MeasuredBsdf::load(spec)?);
+                            measured.push(match spec.strip_prefix(NEURAL_SPEC_PREFIX) {
+                                Some(name) => MeasuredBsdf::Neural(latents.decode(name)?),
+                                None => MeasuredBsdf::load(spec)?,
+                            });
                             loaded.insert(spec.clone(), measured.len() - 1);
                             measured.len() - 1
                         }
@@ -121,6 +142,7 @@ impl RenderScene {
             surfaces,
             textures,
             measured,
+            unbound_neural,
             bvh,
             hit_records,
             lights,
@@ -132,6 +154,44 @@ impl RenderScene {
     /// Number of distinct measured BSDFs loaded.
     pub fn measured_count(&self) -> usize {
         self.measured.len()
+    }
+
+    /// The distinct measured (and neural) BSDFs in use.
+    pub fn measured(&self) -> &[MeasuredBsdf] {
+        &self.measured
+    }
+
+    /// Indices (into [`RenderScene::measured`]) of the decoded latent codes in use.
+    pub fn neural_slots(&self) -> Vec<usize> {
+        (0..self.measured.len())
+            .filter(|&i| matches!(self.measured[i], MeasuredBsdf::Neural(_)))
+            .collect()
+    }
+
+    /// Replaces the measured BSDF at `slot` (e.g. by another latent code in an editing
+    /// sweep); every material bound to it follows.
+    ///
+    /// # Panics
+    /// If `slot` is out of range.
+    pub fn set_measured(&mut self, slot: usize, bsdf: MeasuredBsdf) {
+        self.measured[slot] = bsdf;
+    }
+
+    /// Materials that asked for a latent code without a latent file: (material, latent).
+    pub fn unbound_neural(&self) -> &[(String, String)] {
+        &self.unbound_neural
+    }
+
+    /// Evaluations of the decoded latent codes whose value was clamped to 0 (see
+    /// [`crate::bsdf::frenbrdf::FrenbrdfBsdf::clamped_count`]).
+    pub fn clamped_bsdf_values(&self) -> u64 {
+        self.measured
+            .iter()
+            .map(|m| match m {
+                MeasuredBsdf::Neural(b) => b.clamped_count(),
+                _ => 0,
+            })
+            .sum()
     }
 
     /// The surface point of a hit of a ray with direction `direction`; `None` for a

@@ -2,45 +2,11 @@
 //! of bad input gives a one-line error naming the file or flag, exit code 2, no panic, and
 //! no output file.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn render(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_render"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run render")
-}
-
-fn cornell_box() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box/scene.gltf")
-}
-
-/// Asserts a failed run: exit code 2, one `error:` line on stderr containing every needle,
-/// no panic, and no file named `out` in `dir`.
-fn assert_clean_failure(out: &Output, needles: &[&str], dir: &Path) {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
-    assert!(!stderr.contains("panicked"), "{stderr}");
-    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert!(lines.len() == 1 && lines[0].starts_with("error:"), "one line expected: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "'{n}' not in: {stderr}");
-    }
-    let leftovers: Vec<_> = std::fs::read_dir(dir)
-        .expect("ls")
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().starts_with("out"))
-        .collect();
-    assert!(leftovers.is_empty(), "output written: {leftovers:?}");
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> String {
-    let path = dir.join(name);
-    std::fs::write(&path, text).expect("write");
-    path.to_string_lossy().into_owned()
-}
+use common::{assert_clean_failure, cornell_box, render, write};
+use std::path::Path;
+use std::process::Command;
 
 /// A minimal glTF with one triangle whose JSON can be altered per test.
 fn gltf_with(positions: [f32; 9], mode: u32) -> String {

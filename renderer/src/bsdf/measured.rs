@@ -1,5 +1,6 @@
-//! Measured BRDFs bound to materials: tabulated MERL ([`MerlBsdf`]) and NBRDF networks
-//! ([`NbrdfBsdf`]), loaded from a binding specification.
+//! Measured BRDFs bound to materials: tabulated MERL ([`MerlBsdf`]), NBRDF networks
+//! ([`NbrdfBsdf`]), loaded from a binding specification, and decoded FreNBRDF latent codes
+//! ([`FrenbrdfBsdf`], made by [`crate::latent_library::LatentLibrary`] from `neural:NAME`).
 //!
 //! # Specifications
 //! `KIND:PATH`, with relative paths resolved against the current directory (or a base
@@ -21,6 +22,7 @@
 //! # Ok::<(), renderer::Error>(())
 //! ```
 
+use super::frenbrdf::FrenbrdfBsdf;
 use super::merl::MerlBsdf;
 use super::nbrdf::NbrdfBsdf;
 use super::{BsdfSample, Bxdf};
@@ -29,7 +31,7 @@ use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 
 /// The specification kinds [`MeasuredBsdf::load`] understands, in the form they are written.
-pub const SPEC_FORMS: [&str; 2] = ["merl:PATH.binary", "nbrdf:PATH_PREFIX"];
+pub const SPEC_FORMS: [&str; 3] = ["merl:PATH.binary", "nbrdf:PATH_PREFIX", "neural:LATENT_NAME"];
 
 /// A measured BSDF shared by every shading point of the materials bound to it.
 ///
@@ -42,6 +44,8 @@ pub enum MeasuredBsdf {
     Merl(MerlBsdf),
     /// An NBRDF network.
     Nbrdf(NbrdfBsdf),
+    /// A decoded FreNBRDF/HyperBRDF latent code.
+    Neural(FrenbrdfBsdf),
 }
 
 impl MeasuredBsdf {
@@ -60,6 +64,12 @@ impl MeasuredBsdf {
                 reason: format!("expected KIND:PATH, one of {}", SPEC_FORMS.join(", ")),
             });
         };
+        if kind == "neural" {
+            return Err(Error::InvalidArgument {
+                flag: format!("BRDF spec '{spec}'"),
+                reason: "a latent code needs a latent file (render --material FILE)".to_string(),
+            });
+        }
         if !["merl", "nbrdf"].contains(&kind) {
             return Err(Error::UnknownName {
                 what: "BRDF spec kind",
@@ -147,6 +157,7 @@ macro_rules! dispatch {
         match $self {
             MeasuredBsdf::Merl($b) => $e,
             MeasuredBsdf::Nbrdf($b) => $e,
+            MeasuredBsdf::Neural($b) => $e,
         }
     };
 }
@@ -191,8 +202,9 @@ pub(crate) mod tests {
         std::f32::consts::FRAC_PI_4,
         80.0 * std::f32::consts::PI / 180.0,
     ];
-    /// Chi-square tests in the family (both measured BSDF kinds), for the Šidák correction.
-    const CHI2_TESTS: usize = 2 * CHI2_MATERIALS.len() * CHI2_THETAS.len();
+    /// Chi-square tests in the family (tabulated, NBRDF and FreNBRDF), for the Šidák
+    /// correction.
+    const CHI2_TESTS: usize = 3 * CHI2_MATERIALS.len() * CHI2_THETAS.len();
 
     /// The MERL-layout table of a merl/ network, tabulated in memory once per test process.
     pub(crate) fn merl_fitted_table(name: &str) -> Arc<MerlTable> {

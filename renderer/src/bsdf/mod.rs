@@ -13,6 +13,7 @@
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
+pub mod frenbrdf;
 pub mod lambert;
 pub mod measured;
 pub mod merl;

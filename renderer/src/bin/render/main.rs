@@ -1,0 +1,379 @@
+//! `render`: renders a glTF or OBJ scene with the path tracer.
+//!
+//! Errors are reported once, here, as one line on stderr with exit code 2; no output file
+//! is written when the render cannot start, and files are replaced atomically.
+
+mod sweep;
+
+use anyhow::{bail, Context, Result};
+use clap::Parser;
+use indicatif::{ProgressBar, ProgressStyle};
+use renderer::camera::PinholeCamera;
+use renderer::image_io::{write_image, ImageFormat, ToneMap};
+use renderer::integrator::PathTracer;
+use renderer::metrics::{display_values, ImageError};
+use renderer::render::{Budget, RenderStats, Renderer};
+use renderer::latent_library::{LatentLibrary, NEURAL_SPEC_PREFIX};
+use renderer::render_scene::RenderScene;
+use renderer::scene::{SceneDescription, SurfaceModel};
+use renderer::sweep::SweepSpec;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+#[derive(Parser, Debug)]
+#[command(name = "render", version, about = "Physically based path tracer for glTF and OBJ scenes with measured and neural BRDFs")]
+struct Args {
+    /// Scene file (.gltf, .glb or .obj).
+    scene: PathBuf,
+    /// Samples per pixel.
+    #[arg(long, conflicts_with = "time", allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
+    spp: Option<u32>,
+    /// Render for this many seconds (passes of one sample per pixel, at least one).
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_seconds)]
+    time: Option<f64>,
+    /// Image size as WIDTHxHEIGHT (default: 512 wide, height from the camera's aspect ratio).
+    #[arg(long, value_parser = parse_resolution)]
+    resolution: Option<(u32, u32)>,
+    /// Longest light path in segments, as Mitsuba 3's max_depth: 1 = emitters seen
+    /// directly, 2 = direct lighting, ...; -1 = unlimited.
+    #[arg(long, default_value_t = 8, allow_negative_numbers = true, value_parser = clap::value_parser!(i32).range(-1..))]
+    max_depth: i32,
+    /// Seed of the random streams; the same seed gives the same image for any thread count.
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    seed: u64,
+    /// Worker threads (0 = one per core).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    threads: usize,
+    /// Camera name (default: the scene's first camera).
+    #[arg(long)]
+    camera: Option<String>,
+    /// Output image: .exr (linear f32 RGB) or .png (8-bit sRGB, tone-mapped); with --sweep,
+    /// the directory receiving the frames.
+    #[arg(long, short, default_value = "render.exr")]
+    output: PathBuf,
+    /// Write render statistics as JSON to this file.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// Latent file (latent.bin) whose codes materials may bind (repeatable; a name is taken
+    /// from the first file holding it). Materials named like a latent code bind to it.
+    #[arg(long)]
+    material: Vec<PathBuf>,
+    /// Bind a material: MATERIAL=LATENT_NAME (needs --material), or MATERIAL=SPEC with
+    /// SPEC merl:PATH.binary or nbrdf:PATH_PREFIX (repeatable).
+    #[arg(long, value_parser = parse_binding)]
+    bind: Vec<(String, String)>,
+    /// Editing sweep A:B:STEPS: renders STEPS frames with the latent code
+    /// (1 − t) z_A + t z_B, t from 0 to 1, into the directory --output, with a contact sheet.
+    #[arg(long, requires = "material", conflicts_with_all = ["reference", "error_log"])]
+    sweep: Option<SweepSpec>,
+    /// Directory of MERL tables A.binary and B.binary: sweep frames are also rendered with
+    /// the linear blend of the tables and their error is written to sweep.csv.
+    #[arg(long, requires = "sweep")]
+    tables: Option<PathBuf>,
+    /// Tone mapping for PNG output.
+    #[arg(long, value_enum, default_value_t = ToneMapArg::Clamp)]
+    tonemap: ToneMapArg,
+    /// Reference image (.exr) to measure error against after every pass (needs --error-log).
+    #[arg(long, requires = "error_log")]
+    reference: Option<PathBuf>,
+    /// CSV file receiving, after every pass: wall seconds (without the time spent measuring),
+    /// spp, RMSE (linear), PSNR and SSIM (8-bit display images) against --reference.
+    #[arg(long, requires = "reference")]
+    error_log: Option<PathBuf>,
+    /// Exposure in stops applied before tone mapping (PNG output only).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_finite)]
+    exposure: f32,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum ToneMapArg {
+    Clamp,
+    Aces,
+}
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(t) if t.is_finite() && t > 0.0 => Ok(t),
+        _ => Err(format!("'{s}' is not a positive number of seconds")),
+    }
+}
+
+fn parse_finite(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("'{s}' is not a finite number")),
+    }
+}
+
+fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let err = || format!("'{s}' is not WIDTHxHEIGHT with both in 1..=16384");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
+    let w: u32 = w.trim().parse().map_err(|_| err())?;
+    let h: u32 = h.trim().parse().map_err(|_| err())?;
+    if (1..=16384).contains(&w) && (1..=16384).contains(&h) {
+        Ok((w, h))
+    } else {
+        Err(err())
+    }
+}
+
+fn parse_binding(s: &str) -> Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((m, spec)) if !m.is_empty() && !spec.is_empty() => Ok((m.to_string(), spec.to_string())),
+        _ => Err(format!("'{s}' is not MATERIAL=SPEC")),
+    }
+}
+
+/// What `--stats` writes: the render's statistics plus load timing.
+#[derive(Serialize)]
+struct StatsFile<'a> {
+    scene: &'a Path,
+    load_seconds: f64,
+    /// Neural BSDF evaluations whose value the inverse mapping sent below 0, clamped to 0.
+    clamped_bsdf_values: u64,
+    #[serde(flatten)]
+    render: &'a RenderStats,
+}
+
+/// Applies `--bind` to the scene's materials: a value with `:` is a specification, one
+/// without names a latent code (which needs a latent file).
+fn bind_materials(description: &mut SceneDescription, binds: &[(String, String)], latents: &LatentLibrary) -> Result<()> {
+    for (material, value) in binds {
+        let names: Vec<String> = description.materials.iter().map(|m| m.name.clone()).collect();
+        let Some(m) = description.materials.iter_mut().find(|m| &m.name == material) else {
+            return Err(renderer::Error::UnknownName {
+                what: "material (in --bind)",
+                name: material.clone(),
+                available: names,
+            }
+            .into());
+        };
+        let spec = if value.contains(':') {
+            value.clone()
+        } else if latents.is_empty() {
+            bail!("invalid value for --bind: {material}={value}: a latent name needs --material FILE");
+        } else {
+            latents.latent(value)?;
+            format!("{NEURAL_SPEC_PREFIX}{value}")
+        };
+        m.model = SurfaceModel::Bound(spec);
+    }
+    Ok(())
+}
+
+/// What every render of this invocation shares.
+struct Job<'a> {
+    args: &'a Args,
+    camera: renderer::scene::Camera,
+    width: u32,
+    height: u32,
+    budget: Budget,
+    tone_map: ToneMap,
+    reference: Option<Vec<renderer::Rgb>>,
+    cancel: Arc<AtomicBool>,
+    pool: rayon::ThreadPool,
+}
+
+impl Job<'_> {
+    /// Renders the scene once with a progress bar; returns the film, the statistics and the
+    /// error-log CSV (empty without a reference).
+    fn render(&self, scene: &RenderScene) -> (renderer::film::Film, RenderStats, String) {
+        let (width, height) = (self.width, self.height);
+        let renderer = Renderer {
+            scene,
+            camera: PinholeCamera::new(&self.camera, width, height),
+            integrator: PathTracer {
+                max_depth: self.args.max_depth,
+                ..PathTracer::default()
+            },
+            seed: self.args.seed,
+        };
+        let bar = match self.budget {
+            Budget::Spp(spp) => ProgressBar::new(width as u64 * height as u64 * spp as u64).with_style(
+                ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {percent}% {per_sec} samples, eta {eta}")
+                    .expect("valid template")
+                    .progress_chars("=> "),
+            ),
+            Budget::Time(t) => ProgressBar::new(t.as_millis() as u64).with_style(
+                ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {msg}")
+                    .expect("valid template")
+                    .progress_chars("=> "),
+            ),
+        };
+        let progress = |n: u64| {
+            if matches!(self.budget, Budget::Spp(_)) {
+                bar.inc(n)
+            }
+        };
+        let mut error_rows = String::new();
+        if self.reference.is_some() {
+            error_rows += "seconds,spp,rmse,psnr,ssim\n";
+        }
+        let mut measuring = Duration::ZERO;
+        let mut after_pass = |film: &renderer::film::Film, elapsed: Duration| {
+            if let Some(reference) = &self.reference {
+                let start = Instant::now();
+                let e = ImageError::between(&film.mean(), reference, width as usize, height as usize, |img| {
+                    display_values(img, self.tone_map, self.args.exposure)
+                });
+                let spp = film.total_samples() as f64 / (width as f64 * height as f64);
+                let seconds = (elapsed - measuring).as_secs_f64();
+                error_rows += &format!("{seconds:.6},{spp},{:.8e},{:.4},{:.6}\n", e.rmse, e.psnr, e.ssim);
+                measuring += start.elapsed();
+            }
+            if matches!(self.budget, Budget::Time(_)) {
+                bar.set_position(elapsed.as_millis() as u64);
+                bar.set_message(format!("{:.1} spp", film.total_samples() as f64 / (width as f64 * height as f64)));
+            }
+        };
+        let (film, stats) = self
+            .pool
+            .install(|| renderer.render(width, height, self.budget, &self.cancel, &progress, &mut after_pass));
+        bar.finish_and_clear();
+        (film, stats, error_rows)
+    }
+}
+
+/// One line summing up a render.
+fn summary(stats: &RenderStats) -> String {
+    format!(
+        "{}x{} {:.1} spp in {:.2} s: {:.3} M samples/s, {:.2} M rays/s{}",
+        stats.width,
+        stats.height,
+        stats.spp,
+        stats.wall_seconds,
+        stats.samples_per_second * 1e-6,
+        stats.rays_per_second * 1e-6,
+        if stats.discarded_samples > 0 {
+            format!(", {} NaN/Inf samples discarded", stats.discarded_samples)
+        } else {
+            String::new()
+        }
+    )
+}
+
+fn run(args: Args) -> Result<()> {
+    if args.sweep.is_none() && ImageFormat::from_path(&args.output).is_none() {
+        bail!(
+            "invalid value for --output: {}: unsupported image extension (use .exr or .png)",
+            args.output.display()
+        );
+    }
+    if args.sweep.is_some() && args.output.is_file() {
+        bail!("invalid value for --output: {}: --sweep writes a directory of frames, and this is a file", args.output.display());
+    }
+    let load_start = Instant::now();
+    let latents = LatentLibrary::load(&args.material)?;
+    let mut description = SceneDescription::load(&args.scene)?;
+    bind_materials(&mut description, &args.bind, &latents)?;
+    latents.bind_equal_names(&mut description);
+    let aspect = args.resolution.map(|(w, h)| w as f32 / h as f32);
+    let camera = description.camera_or_default(args.camera.as_deref(), aspect)?;
+    let (width, height) = args.resolution.unwrap_or_else(|| {
+        let aspect = camera.aspect_ratio.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
+        (512, ((512.0 / aspect).round() as u32).clamp(1, 16384))
+    });
+    let reference = match &args.reference {
+        Some(path) => {
+            let (w, h, pixels) = renderer::image_io::read_image(path)?;
+            if (w, h) != (width, height) {
+                bail!("{}: reference is {w}x{h} but the render is {width}x{height}", path.display());
+            }
+            Some(pixels)
+        }
+        None => None,
+    };
+    let mut scene = RenderScene::with_latents(description, &latents)?;
+    for (material, latent) in scene.unbound_neural() {
+        eprintln!("note: material '{material}' binds latent '{latent}' but no --material file was given: rendering its glTF parameters");
+    }
+    let load_seconds = load_start.elapsed().as_secs_f64();
+
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        ctrlc::set_handler(move || cancel.store(true, Ordering::Relaxed)).context("cannot install the Ctrl-C handler")?;
+    }
+    let job = Job {
+        args: &args,
+        camera,
+        width,
+        height,
+        budget: match (args.spp, args.time) {
+            (_, Some(t)) => Budget::Time(Duration::from_secs_f64(t)),
+            (Some(spp), None) => Budget::Spp(spp),
+            (None, None) => Budget::Spp(64),
+        },
+        tone_map: match args.tonemap {
+            ToneMapArg::Clamp => ToneMap::Clamp,
+            ToneMapArg::Aces => ToneMap::Aces,
+        },
+        reference,
+        cancel,
+        pool: rayon::ThreadPoolBuilder::new()
+            .num_threads(args.threads)
+            .build()
+            .context("cannot start the worker threads")?,
+    };
+    if let Some(sweep) = &args.sweep {
+        return sweep::run(&job, &mut scene, &latents, sweep);
+    }
+
+    let (film, stats, error_rows) = job.render(&scene);
+    if let Some(path) = &args.error_log {
+        renderer::image_io::write_text(path, &error_rows)?;
+    }
+    write_image(&args.output, width, height, &film.mean(), job.tone_map, args.exposure)?;
+    if let Some(path) = &args.stats {
+        let json = serde_json::to_string_pretty(&StatsFile {
+            scene: &args.scene,
+            load_seconds,
+            clamped_bsdf_values: scene.clamped_bsdf_values(),
+            render: &stats,
+        })?;
+        renderer::image_io::write_text(path, &(json + "\n"))?;
+    }
+    if stats.interrupted {
+        eprintln!("interrupted: wrote {} with {:.1} spp", args.output.display(), stats.spp);
+    }
+    eprintln!("{}", summary(&stats));
+    Ok(())
+}
+
+/// Parses the command line; a usage error becomes one line (clap's message up to its usage
+/// section) and exit code 2.
+fn parse_args() -> Result<Args, ExitCode> {
+    Args::try_parse().map_err(|e| {
+        use clap::error::ErrorKind;
+        if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+            let _ = e.print();
+            return ExitCode::SUCCESS;
+        }
+        let text = e.render().to_string();
+        let message: Vec<&str> = text
+            .lines()
+            .map(str::trim)
+            .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
+            .collect();
+        eprintln!("{}", message.join(" "));
+        ExitCode::from(2)
+    })
+}
+
+fn main() -> ExitCode {
+    let args = match parse_args() {
+        Ok(args) => args,
+        Err(code) => return code,
+    };
+    match run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,183 @@
+//! The latent files given to the renderer (`render --material FILE`), read and validated
+//! once; latent codes are decoded into [`FrenbrdfBsdf`]s on demand, so a scene pays only for
+//! the codes it binds. The f_ref table of a file (17.5 MB as f32) is converted on the first
+//! decode from that file and shared by every code decoded from it.
+//!
+//! Binding rules (see also [`crate::scene::gltf`]): a material binds latent NAME through
+//! `extras: {"neural": "NAME"}`, through `render --bind MATERIAL=NAME`, or — for materials
+//! without an explicit binding — by having the same name as a latent code
+//! ([`LatentLibrary::bind_equal_names`]). Names are searched in the files in the order given;
+//! the first file holding a name wins.
+
+use crate::bsdf::frenbrdf::{FrenbrdfBsdf, ReferenceValues};
+use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
+use crate::latent_file::LatentFile;
+use crate::scene::{SceneDescription, SurfaceModel};
+use crate::target_net::TargetNet;
+use crate::{Error, Result};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+
+/// The prefix of binding specifications that name a latent code: `neural:NAME`.
+pub const NEURAL_SPEC_PREFIX: &str = "neural:";
+
+/// One file of the library.
+#[derive(Debug)]
+struct LibraryFile {
+    path: PathBuf,
+    file: LatentFile,
+    reference: OnceLock<ReferenceValues>,
+}
+
+/// Latent files, searched in order.
+#[derive(Debug, Default)]
+pub struct LatentLibrary {
+    files: Vec<LibraryFile>,
+}
+
+/// Where a latent code lives: the file's index in the library and the code.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LatentCode {
+    pub file: usize,
+    pub z: Vec<f32>,
+}
+
+impl LatentLibrary {
+    /// Reads and validates every file (errors name the file).
+    pub fn load(paths: &[impl AsRef<Path>]) -> Result<Self> {
+        let files = paths
+            .iter()
+            .map(|p| {
+                Ok(LibraryFile {
+                    path: p.as_ref().to_path_buf(),
+                    file: LatentFile::read(p)?,
+                    reference: OnceLock::new(),
+                })
+            })
+            .collect::<Result<_>>()?;
+        Ok(LatentLibrary { files })
+    }
+
+    /// True when no file was given.
+    pub fn is_empty(&self) -> bool {
+        self.files.is_empty()
+    }
+
+    /// The files' paths, in order.
+    pub fn paths(&self) -> Vec<&Path> {
+        self.files.iter().map(|f| f.path.as_path()).collect()
+    }
+
+    /// Every latent name, in file order, each once.
+    pub fn names(&self) -> Vec<String> {
+        let mut names: Vec<String> = Vec::new();
+        for f in &self.files {
+            for l in &f.file.latents {
+                if !names.contains(&l.name) {
+                    names.push(l.name.clone());
+                }
+            }
+        }
+        names
+    }
+
+    /// The code called `name`; an unknown name lists the available ones.
+    pub fn latent(&self, name: &str) -> Result<LatentCode> {
+        self.files
+            .iter()
+            .enumerate()
+            .find_map(|(file, f)| f.file.latent(name).map(|z| LatentCode { file, z: z.to_vec() }))
+            .ok_or_else(|| Error::UnknownName {
+                what: "latent code",
+                name: name.to_string(),
+                available: self.names(),
+            })
+    }
+
+    /// Decodes the code called `name` into a BSDF.
+    pub fn decode(&self, name: &str) -> Result<FrenbrdfBsdf> {
+        let code = self.latent(name)?;
+        self.decode_code(&code, name)
+    }
+
+    /// Decodes any code (e.g. an interpolated one) with the decoder of `code.file`; `label`
+    /// names the result. Errors name the file when the code has the wrong size or a
+    /// non-finite value.
+    pub fn decode_code(&self, code: &LatentCode, label: &str) -> Result<FrenbrdfBsdf> {
+        let f = self.files.get(code.file).ok_or_else(|| Error::InvalidArgument {
+            flag: "latent code".to_string(),
+            reason: format!("file index {} out of range", code.file),
+        })?;
+        let file = &f.file;
+        if code.z.len() != file.latent_dim || code.z.iter().any(|v| !v.is_finite()) {
+            return Err(Error::invalid_file(
+                &f.path,
+                format!("latent '{label}' must be {} finite values", file.latent_dim),
+            ));
+        }
+        let net = TargetNet::new(&file.decode(&code.z))
+            .map_err(|e| Error::invalid_file(&f.path, format!("decoding '{label}': {e}")))?;
+        let reference = f
+            .reference
+            .get_or_init(|| Arc::new(file.f_ref.par_iter().map(|v| v.map(|h| h.to_f32())).collect()))
+            .clone();
+        Ok(FrenbrdfBsdf::new(
+            label,
+            net,
+            reference,
+            file.mapping,
+            file.epsilon,
+            &TabulatedSamplerConfig::default(),
+        ))
+    }
+
+    /// Binds every material without an explicit binding whose name equals a latent name to
+    /// that latent; returns the names of the materials bound.
+    pub fn bind_equal_names(&self, description: &mut SceneDescription) -> Vec<String> {
+        let names = self.names();
+        let mut bound = Vec::new();
+        for m in &mut description.materials {
+            if !matches!(m.model, SurfaceModel::Bound(_)) && names.contains(&m.name) {
+                m.model = SurfaceModel::Bound(format!("{NEURAL_SPEC_PREFIX}{}", m.name));
+                bound.push(m.name.clone());
+            }
+        }
+        bound
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::Bxdf;
+    use crate::latent_file::tests::small_file;
+    use crate::latent_file::WeightType;
+    use glam::Vec3;
+
+    fn library() -> (tempfile::TempDir, LatentLibrary) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("latent.bin");
+        small_file(WeightType::F32).write(&path).unwrap();
+        let lib = LatentLibrary::load(&[&path]).unwrap();
+        (dir, lib)
+    }
+
+    #[test]
+    fn decodes_named_codes_and_rejects_unknown_or_bad_ones() {
+        let (_dir, lib) = library();
+        let names = lib.names();
+        assert!(!names.is_empty());
+        let bsdf = lib.decode(&names[0]).unwrap();
+        let f = bsdf.eval(Vec3::new(0.3, 0.1, 0.95).normalize(), Vec3::new(-0.2, 0.4, 0.89).normalize());
+        assert!(f.is_finite() && f.min_element() >= 0.0, "{f}");
+        let err = lib.decode("no-such-material").unwrap_err().to_string();
+        assert!(err.contains("no-such-material") && err.contains(&names[0]), "{err}");
+        let mut code = lib.latent(&names[0]).unwrap();
+        code.z[0] = f32::NAN;
+        let err = lib.decode_code(&code, "bad").unwrap_err().to_string();
+        assert!(err.contains("latent.bin") && err.contains("finite"), "{err}");
+        code.z.pop();
+        assert!(lib.decode_code(&code, "short").is_err());
+    }
+}

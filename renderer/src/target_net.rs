@@ -1,0 +1,403 @@
+//! A decoded FreNBRDF target net — the per-material MLP the hypernetwork generates from a
+//! latent code — packed for fast f32 evaluation on the CPU.
+//!
+//! The net maps the 6D input of [`crate::brdf_coords::network_input`] to the mapped value y
+//! per RGB channel: ReLU after every hidden layer, a linear output layer. Layout: every hidden
+//! layer's output width is padded to a multiple of [`CHUNK`] lanes with zero weights and
+//! biases, so the padded activations are 0 after ReLU and never contribute; its weights are
+//! stored `[d_in][stride]` row-major. The output layer (3 channels) is stored transposed,
+//! `[3][stride]`, and evaluated as dot products.
+//!
+//! Kernels, chosen once per net from the CPU's features: AVX-512F (a chunk of 64 outputs is
+//! four 512-bit accumulators), AVX2 + FMA (two halves of four 256-bit accumulators), and a
+//! portable loop. A single point is latency-bound on the FMA chains, so its kernel keeps two
+//! accumulator sets (even and odd inputs); a batch of [`BATCH`] points shares every weight
+//! load between the points' chains and runs close to the FMA throughput.
+
+use crate::latent_file::Mlp;
+use crate::{Error, Result};
+
+/// Input width of the target net.
+pub const INPUTS: usize = 6;
+/// Output width (RGB).
+pub const OUTPUTS: usize = 3;
+/// Hidden widths are padded to a multiple of this many lanes.
+pub const CHUNK: usize = 64;
+/// Widest hidden layer the evaluator supports (activations live on the stack).
+pub const MAX_WIDTH: usize = 256;
+/// Points per call of the batched kernel.
+pub const BATCH: usize = 4;
+
+/// The forward-pass implementation in use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernel {
+    /// 512-bit vectors (x86-64 with AVX-512F).
+    Avx512,
+    /// 256-bit vectors with fused multiply-add (x86-64 with AVX2 and FMA).
+    Avx2Fma,
+    /// Plain loops, any CPU.
+    Portable,
+}
+
+impl Kernel {
+    /// The fastest kernel this CPU runs.
+    pub fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::is_x86_feature_detected!("avx512f") {
+                return Kernel::Avx512;
+            }
+            if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+                return Kernel::Avx2Fma;
+            }
+        }
+        Kernel::Portable
+    }
+}
+
+/// A hidden layer: relu(x · W + b), padded.
+#[derive(Clone, Debug)]
+struct HiddenLayer {
+    /// Real input width (the padded inputs beyond it are zero and skipped).
+    d_in: usize,
+    /// Padded output width, a multiple of [`CHUNK`].
+    stride: usize,
+    /// W, `[d_in][stride]` row-major, zero beyond the real output width.
+    weight: Vec<f32>,
+    /// b, `[stride]`, zero beyond the real output width.
+    bias: Vec<f32>,
+}
+
+/// A target net ready for evaluation.
+#[derive(Clone, Debug)]
+pub struct TargetNet {
+    hidden: Vec<HiddenLayer>,
+    /// Output layer transposed, `[OUTPUTS][stride of the last hidden layer]`.
+    out_weight: Vec<f32>,
+    out_bias: [f32; OUTPUTS],
+    /// Multiply-adds of one evaluation at the real (unpadded) widths.
+    macs: usize,
+    kernel: Kernel,
+}
+
+/// Activations of one point, hidden widths padded (64-byte aligned for the vector loads).
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+struct Activations([f32; MAX_WIDTH]);
+
+impl TargetNet {
+    /// Packs a decoded MLP (see [`crate::latent_file::LatentFile::decode`]) for the fastest
+    /// kernel of this CPU. Errors unless it maps [`INPUTS`] to [`OUTPUTS`] values through at
+    /// least one hidden layer no wider than [`MAX_WIDTH`], with finite weights.
+    pub fn new(mlp: &Mlp) -> Result<Self> {
+        Self::with_kernel(mlp, Kernel::detect())
+    }
+
+    /// As [`TargetNet::new`] with a chosen kernel; a kernel the CPU lacks falls back to the
+    /// portable one.
+    pub fn with_kernel(mlp: &Mlp, kernel: Kernel) -> Result<Self> {
+        let invalid = |reason: String| Error::InvalidArgument {
+            flag: "target net".to_string(),
+            reason,
+        };
+        let layers = &mlp.layers;
+        let widths: Vec<usize> = layers.iter().map(|l| l.d_in).chain(layers.last().map(|l| l.d_out)).collect();
+        if layers.len() < 2 || widths[0] != INPUTS || widths[widths.len() - 1] != OUTPUTS {
+            return Err(invalid(format!(
+                "widths {widths:?}: expected {INPUTS} inputs, hidden layers and {OUTPUTS} outputs"
+            )));
+        }
+        if let Some(w) = widths[1..widths.len() - 1].iter().find(|&&w| w > MAX_WIDTH) {
+            return Err(invalid(format!("hidden width {w} exceeds {MAX_WIDTH}")));
+        }
+        for (k, layer) in layers.iter().enumerate() {
+            if layer.weight.len() != layer.d_in * layer.d_out
+                || layer.bias.len() != layer.d_out
+                || (k > 0 && layer.d_in != layers[k - 1].d_out)
+            {
+                return Err(invalid(format!("layer {k} has inconsistent shapes")));
+            }
+            if layer.weight.iter().chain(&layer.bias).any(|v| !v.is_finite()) {
+                return Err(invalid(format!("layer {k} has non-finite weights")));
+            }
+        }
+        let (output, hidden_layers) = layers.split_last().expect("at least two layers");
+        let hidden: Vec<HiddenLayer> = hidden_layers
+            .iter()
+            .map(|l| {
+                let stride = l.d_out.div_ceil(CHUNK) * CHUNK;
+                let mut weight = vec![0.0; l.d_in * stride];
+                for (row, src) in weight.chunks_exact_mut(stride).zip(l.weight.chunks_exact(l.d_out)) {
+                    row[..l.d_out].copy_from_slice(src);
+                }
+                let mut bias = vec![0.0; stride];
+                bias[..l.d_out].copy_from_slice(&l.bias);
+                HiddenLayer {
+                    d_in: l.d_in,
+                    stride,
+                    weight,
+                    bias,
+                }
+            })
+            .collect();
+        let last_stride = hidden.last().expect("a hidden layer").stride;
+        let mut out_weight = vec![0.0; OUTPUTS * last_stride];
+        for i in 0..output.d_in {
+            for c in 0..OUTPUTS {
+                out_weight[c * last_stride + i] = output.weight[i * OUTPUTS + c];
+            }
+        }
+        let kernel = if kernel == Kernel::Portable || Kernel::detect() == Kernel::Portable {
+            Kernel::Portable
+        } else if kernel == Kernel::Avx512 && Kernel::detect() != Kernel::Avx512 {
+            Kernel::Avx2Fma
+        } else {
+            kernel
+        };
+        Ok(TargetNet {
+            hidden,
+            out_weight,
+            out_bias: [output.bias[0], output.bias[1], output.bias[2]],
+            macs: layers.iter().map(|l| l.d_in * l.d_out).sum(),
+            kernel,
+        })
+    }
+
+    /// The kernel in use.
+    pub fn kernel(&self) -> Kernel {
+        self.kernel
+    }
+
+    /// Floating-point operations of one evaluation at the real widths (a multiply-add counts
+    /// two), the figure throughput is measured against.
+    pub fn flops_per_eval(&self) -> usize {
+        2 * self.macs
+    }
+
+    /// The output y for one input.
+    #[inline]
+    pub fn forward(&self, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
+        let mut out = [[0.0; OUTPUTS]];
+        self.forward_points::<1>(&[x], &mut out);
+        out[0]
+    }
+
+    /// The outputs for many inputs (`outputs.len()` must equal `inputs.len()`), [`BATCH`] at
+    /// a time.
+    pub fn forward_batch(&self, inputs: &[[f32; INPUTS]], outputs: &mut [[f32; OUTPUTS]]) {
+        assert_eq!(inputs.len(), outputs.len(), "one output per input");
+        let mut ins = inputs.chunks_exact(BATCH);
+        let mut outs = outputs.chunks_exact_mut(BATCH);
+        for (x, y) in (&mut ins).zip(&mut outs) {
+            self.forward_points::<BATCH>(x.try_into().expect("a full batch"), y.try_into().expect("a full batch"));
+        }
+        for (x, y) in ins.remainder().iter().zip(outs.into_remainder()) {
+            *y = self.forward(*x);
+        }
+    }
+
+    /// The forward pass of `B` points through the selected kernel.
+    #[inline]
+    fn forward_points<const B: usize>(&self, x: &[[f32; INPUTS]; B], y: &mut [[f32; OUTPUTS]; B]) {
+        let mut a = [Activations([0.0; MAX_WIDTH]); B];
+        let mut b = [Activations([0.0; MAX_WIDTH]); B];
+        for (act, xi) in a.iter_mut().zip(x) {
+            act.0[..INPUTS].copy_from_slice(xi);
+        }
+        for layer in &self.hidden {
+            match self.kernel {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: the kernel is Avx512 only when the CPU reported AVX-512F.
+                Kernel::Avx512 => unsafe { simd::hidden_avx512::<B>(layer, &a, &mut b) },
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: the kernel is Avx2Fma only when the CPU reported AVX2 and FMA.
+                Kernel::Avx2Fma => unsafe { simd::hidden_avx2::<B>(layer, &a, &mut b) },
+                _ => hidden_portable(layer, &a, &mut b),
+            }
+            std::mem::swap(&mut a, &mut b);
+        }
+        let stride = self.hidden.last().expect("a hidden layer").stride;
+        for (act, out) in a.iter().zip(y.iter_mut()) {
+            for (c, o) in out.iter_mut().enumerate() {
+                let w = &self.out_weight[c * stride..(c + 1) * stride];
+                *o = self.out_bias[c] + dot(&act.0[..stride], w);
+            }
+        }
+    }
+}
+
+/// Dot product with eight partial sums (vectorises on every target).
+#[inline]
+fn dot(a: &[f32], b: &[f32]) -> f32 {
+    let mut acc = [0f32; 8];
+    for (ca, cb) in a.chunks_exact(8).zip(b.chunks_exact(8)) {
+        for k in 0..8 {
+            acc[k] += ca[k] * cb[k];
+        }
+    }
+    acc.iter().sum()
+}
+
+/// One hidden layer of `B` points, portable.
+fn hidden_portable<const B: usize>(layer: &HiddenLayer, input: &[Activations; B], output: &mut [Activations; B]) {
+    let s = layer.stride;
+    for (inp, out) in input.iter().zip(output.iter_mut()) {
+        let out = &mut out.0[..s];
+        out.copy_from_slice(&layer.bias);
+        for (xi, row) in inp.0[..layer.d_in].iter().zip(layer.weight.chunks_exact(s)) {
+            for (o, w) in out.iter_mut().zip(row) {
+                *o += xi * w;
+            }
+        }
+        out.iter_mut().for_each(|v| *v = v.max(0.0));
+    }
+}
+
+/// The vector kernels: one macro body instantiated for 512- and 256-bit registers.
+#[cfg(target_arch = "x86_64")]
+mod simd {
+    use super::{Activations, HiddenLayer};
+    use std::arch::x86_64::*;
+
+    macro_rules! hidden_kernel {
+        ($name:ident, $feature:literal, $vec:ty, $lanes:expr, $load:ident, $store:ident, $set1:ident,
+         $fmadd:ident, $add:ident, $max:ident, $zero:ident) => {
+            /// One hidden layer of `B` points: relu(x · W + b) over the padded width, four
+            /// registers of outputs at a time.
+            #[target_feature(enable = $feature)]
+            pub(super) unsafe fn $name<const B: usize>(
+                layer: &HiddenLayer,
+                input: &[Activations; B],
+                output: &mut [Activations; B],
+            ) {
+                const GROUP: usize = 4 * $lanes;
+                let s = layer.stride;
+                let w = layer.weight.as_ptr();
+                for c in (0..s).step_by(GROUP) {
+                    // SAFETY (all loads and stores below): c + GROUP ≤ stride ≤ MAX_WIDTH,
+                    // rows i < d_in of `stride` floats lie inside `weight`.
+                    let mut bias: [$vec; 4] = [$zero(); 4];
+                    for g in 0..4 {
+                        bias[g] = unsafe { $load(layer.bias.as_ptr().add(c + g * $lanes)) };
+                    }
+                    let mut acc = [bias; B];
+                    let mut i = 0;
+                    if B <= 2 {
+                        // Too few independent chains to hide the FMA latency: a second set
+                        // takes the odd inputs.
+                        let mut odd = [[$zero(); 4]; B];
+                        while i + 1 < layer.d_in {
+                            let r0 = unsafe { w.add(i * s + c) };
+                            let r1 = unsafe { r0.add(s) };
+                            for p in 0..B {
+                                let x0 = $set1(input[p].0[i]);
+                                let x1 = $set1(input[p].0[i + 1]);
+                                for g in 0..4 {
+                                    acc[p][g] = $fmadd(x0, unsafe { $load(r0.add(g * $lanes)) }, acc[p][g]);
+                                    odd[p][g] = $fmadd(x1, unsafe { $load(r1.add(g * $lanes)) }, odd[p][g]);
+                                }
+                            }
+                            i += 2;
+                        }
+                        for p in 0..B {
+                            for g in 0..4 {
+                                acc[p][g] = $add(acc[p][g], odd[p][g]);
+                            }
+                        }
+                    }
+                    while i < layer.d_in {
+                        let r0 = unsafe { w.add(i * s + c) };
+                        for p in 0..B {
+                            let x0 = $set1(input[p].0[i]);
+                            for g in 0..4 {
+                                acc[p][g] = $fmadd(x0, unsafe { $load(r0.add(g * $lanes)) }, acc[p][g]);
+                            }
+                        }
+                        i += 1;
+                    }
+                    for p in 0..B {
+                        for g in 0..4 {
+                            let v = $max(acc[p][g], $zero());
+                            unsafe { $store(output[p].0.as_mut_ptr().add(c + g * $lanes), v) };
+                        }
+                    }
+                }
+            }
+        };
+    }
+
+    hidden_kernel!(hidden_avx512, "avx512f", __m512, 16, _mm512_loadu_ps, _mm512_storeu_ps, _mm512_set1_ps,
+        _mm512_fmadd_ps, _mm512_add_ps, _mm512_max_ps, _mm512_setzero_ps);
+    hidden_kernel!(hidden_avx2, "avx2,fma", __m256, 8, _mm256_loadu_ps, _mm256_storeu_ps, _mm256_set1_ps,
+        _mm256_fmadd_ps, _mm256_add_ps, _mm256_max_ps, _mm256_setzero_ps);
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::latent_file::DenseLayer;
+    use rand::{Rng, SeedableRng};
+
+    /// A random MLP of the given widths (weights ~ U(−s, s) with s = 1/√d_in).
+    pub(crate) fn random_mlp(widths: &[usize], seed: u64) -> Mlp {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(seed);
+        Mlp {
+            layers: widths
+                .windows(2)
+                .map(|w| {
+                    let s = 1.0 / (w[0] as f32).sqrt();
+                    DenseLayer {
+                        d_in: w[0],
+                        d_out: w[1],
+                        weight: (0..w[0] * w[1]).map(|_| rng.random_range(-s..s)).collect(),
+                        bias: (0..w[1]).map(|_| rng.random_range(-0.1..0.1)).collect(),
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    fn random_inputs(n: usize) -> Vec<[f32; INPUTS]> {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(9);
+        (0..n).map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0))).collect()
+    }
+
+    #[test]
+    fn every_kernel_matches_the_reference_mlp() {
+        for widths in [&[6, 60, 60, 60, 60, 3][..], &[6, 7, 3], &[6, 130, 65, 3]] {
+            let mlp = random_mlp(widths, 3);
+            for kernel in [Kernel::Avx512, Kernel::Avx2Fma, Kernel::Portable] {
+                let net = TargetNet::with_kernel(&mlp, kernel).unwrap();
+                let inputs = random_inputs(11);
+                let mut batch = vec![[0.0; OUTPUTS]; inputs.len()];
+                net.forward_batch(&inputs, &mut batch);
+                for (x, yb) in inputs.iter().zip(&batch) {
+                    let want = mlp.forward(x);
+                    let y = net.forward(*x);
+                    for c in 0..OUTPUTS {
+                        let tol = 1e-5 * (1.0 + want[c].abs());
+                        assert!((y[c] - want[c]).abs() < tol, "{kernel:?} {widths:?}: {y:?} vs {want:?}");
+                        assert!((yb[c] - want[c]).abs() < tol, "{kernel:?} batch: {yb:?} vs {want:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn flop_count_uses_real_widths() {
+        let net = TargetNet::new(&random_mlp(&[6, 60, 60, 60, 60, 3], 1)).unwrap();
+        assert_eq!(net.flops_per_eval(), 2 * (6 * 60 + 3 * 60 * 60 + 60 * 3));
+    }
+
+    #[test]
+    fn rejects_unusable_shapes_and_values() {
+        for widths in [&[6, 3][..], &[5, 8, 3], &[6, 8, 4], &[6, 300, 3]] {
+            let err = TargetNet::new(&random_mlp(widths, 1)).unwrap_err().to_string();
+            assert!(err.contains("target net"), "{err}");
+        }
+        let mut mlp = random_mlp(&[6, 8, 3], 1);
+        mlp.layers[1].bias[2] = f32::NAN;
+        assert!(TargetNet::new(&mlp).unwrap_err().to_string().contains("non-finite"));
+    }
+}

@@ -1,0 +1,132 @@
+//! `render --material latent.bin`: binding latent codes (extras, equal names, `--bind`),
+//! editing sweeps, and clean errors for bad latent files and names.
+
+mod common;
+
+use common::{assert_clean_failure, render, repo_file};
+use renderer::merl::MerlTable;
+use renderer::nbrdf::NbrdfNetwork;
+use std::path::Path;
+
+fn shipped_latents() -> String {
+    repo_file("scenes/materials/latent.bin").to_string_lossy().into_owned()
+}
+
+fn preview_scene() -> String {
+    repo_file("scenes/material-preview/scene.gltf").to_string_lossy().into_owned()
+}
+
+fn mean_of(path: &Path) -> f32 {
+    let (_, _, pixels) = renderer::image_io::read_image(path).expect("image");
+    pixels.iter().map(|p| p.x + p.y + p.z).sum::<f32>() / pixels.len() as f32
+}
+
+#[test]
+fn binds_by_flag_and_by_equal_name() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (latents, scene) = (shipped_latents(), preview_scene());
+    let base = ["--spp", "2", "--resolution", "24x24"];
+    let run = |extra: &[&str]| {
+        let mut args: Vec<&str> = vec![&scene];
+        args.extend(base);
+        args.extend(extra);
+        let out = render(&args, dir.path());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    run(&["--material", &latents, "--bind", "preview=alum-bronze", "--output", "flag.exr", "--stats", "s.json"]);
+    let stats: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("s.json")).unwrap()).unwrap();
+    assert!(stats["clamped_bsdf_values"].is_u64(), "{stats}");
+    run(&["--output", "plain.exr"]);
+    assert_ne!(mean_of(&dir.path().join("flag.exr")), mean_of(&dir.path().join("plain.exr")));
+
+    // An OBJ whose material is called like a latent code binds to it by name.
+    std::fs::write(dir.path().join("scene.mtl"), "newmtl chrome\nKd 0.5 0.5 0.5\nnewmtl light\nKe 4 4 4\n").unwrap();
+    std::fs::write(
+        dir.path().join("scene.obj"),
+        "mtllib scene.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv -1 -1 3\nv 1 -1 3\nv 0 1 3\n\
+         usemtl chrome\nf 1 2 3\nf 1 3 4\nusemtl light\nf 5 7 6\n",
+    )
+    .unwrap();
+    let obj = dir.path().join("scene.obj").to_string_lossy().into_owned();
+    for (extra, out) in [(vec!["--material", latents.as_str()], "named.exr"), (vec![], "unnamed.exr")] {
+        let mut args = vec![obj.as_str(), "--spp", "2", "--resolution", "16x16", "--output", out];
+        args.extend(extra);
+        let o = render(&args, dir.path());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert_ne!(mean_of(&dir.path().join("named.exr")), mean_of(&dir.path().join("unnamed.exr")));
+}
+
+#[test]
+fn bad_latent_files_and_names_fail_cleanly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (latents, scene) = (shipped_latents(), preview_scene());
+    let bytes = std::fs::read(&latents).unwrap();
+    let mut wrong_version = bytes.clone();
+    wrong_version[8..12].copy_from_slice(&99u32.to_le_bytes());
+    std::fs::write(dir.path().join("version.bin"), &wrong_version).unwrap();
+    std::fs::write(dir.path().join("short.bin"), &bytes[..bytes.len() / 2]).unwrap();
+    std::fs::write(dir.path().join("foreign.bin"), b"not a latent file at all").unwrap();
+    let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
+        (vec!["--material", "version.bin"], vec!["version.bin", "version"]),
+        (vec!["--material", "short.bin"], vec!["short.bin"]),
+        (vec!["--material", "foreign.bin"], vec!["foreign.bin"]),
+        (vec!["--material", "missing.bin"], vec!["missing.bin"]),
+        (vec!["--material", &latents, "--bind", "preview=no-such-material"], vec!["no-such-material", "alum-bronze"]),
+        (vec!["--bind", "preview=alum-bronze"], vec!["--bind", "--material"]),
+        (vec!["--material", &latents, "--sweep", "alum-bronze:chrome:3"], vec!["--sweep", "bound"]),
+        (vec!["--material", &latents, "--bind", "preview=alum-bronze", "--sweep", "alum-bronze:nothing:3"], vec!["nothing"]),
+        (vec!["--material", &latents, "--sweep", "alum-bronze:chrome:1"], vec!["--sweep"]),
+    ];
+    for (extra, needles) in cases {
+        let mut args = vec![scene.as_str(), "--spp", "1", "--resolution", "8x8", "--output", "out.exr"];
+        args.extend(extra.iter().copied());
+        let out = render(&args, dir.path());
+        assert_clean_failure(&out, &needles, dir.path());
+    }
+}
+
+/// The MERL-layout table of a shipped NBRDF network (the data the latent file was trained on).
+fn write_table(dir: &Path, name: &str) {
+    let net = NbrdfNetwork::load(repo_file("../shared/data/nbrdf/merl").join(name)).expect("network");
+    MerlTable::from_fn(|th, td, pd| net.eval_angles(th, td, pd))
+        .write(dir.join(format!("{name}.binary")))
+        .expect("write table");
+}
+
+#[test]
+fn sweep_writes_frames_contact_sheet_and_errors() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let tables = dir.path().join("tables");
+    std::fs::create_dir(&tables).unwrap();
+    write_table(&tables, "alum-bronze");
+    write_table(&tables, "chrome");
+    let (latents, scene) = (shipped_latents(), preview_scene());
+    let out = render(
+        &[
+            &scene, "--material", &latents, "--bind", "preview=alum-bronze", "--sweep", "alum-bronze:chrome:3",
+            "--tables", tables.to_str().unwrap(), "--spp", "2", "--resolution", "24x24", "--output", "sweep",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let sweep = dir.path().join("sweep");
+    for k in 0..3 {
+        for kind in ["frame", "table"] {
+            for ext in ["exr", "png"] {
+                assert!(sweep.join(format!("{kind}-{k:03}.{ext}")).is_file(), "{kind}-{k:03}.{ext}");
+            }
+        }
+    }
+    let sheet = image::open(sweep.join("contact-sheet.png")).expect("contact sheet");
+    assert!(sheet.width() > 3 * 24 && sheet.height() > 2 * 24);
+    let csv = std::fs::read_to_string(sweep.join("sweep.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 3, "{csv}");
+    for row in rows {
+        let psnr: f64 = row.split(',').nth(3).unwrap().parse().unwrap();
+        assert!(psnr.is_finite() && psnr > 10.0, "{row}");
+    }
+    // The end frames differ (the sweep moves from one material to the other).
+    assert_ne!(mean_of(&sweep.join("frame-000.exr")), mean_of(&sweep.join("frame-002.exr")));
+}
