@@ -8,8 +8,10 @@ and tabulated BRDFs:
 - "sphere": a UV sphere of radius SPHERE_RADIUS at the origin (LONGITUDE_SEGMENTS x
   LATITUDE_SEGMENTS quads, the pole rows as single triangles), analytic smooth normals and
   texture coordinates (u increasing to the right seen from the camera, the seam at the back,
-  v = 0 at the top, glTF's convention). Its material is named "preview": a copper-like
-  metallic-roughness default, replaced by `--bind preview=SPEC` or material extras.
+  v = 0 at the top, glTF's convention). Its material is named "preview": it binds the latent
+  code "alum-bronze" (extras {"neural": "alum-bronze"}) when the renderer is given a latent
+  file (`render ... --material scenes/materials/latent.bin`), and otherwise renders as its
+  copper-like metallic-roughness parameters; `--bind preview=SPEC` rebinds it.
   With the camera at distance 2 and yfov 30 deg, radius 0.37 makes the sphere's silhouette
   span about 70 % of the frame height: tan(asin(0.37 / 2)) / tan(15 deg) = 0.70.
 - "ground": a 100 x 100 quad touching the sphere's bottom (y = -SPHERE_RADIUS), neutral grey
@@ -205,6 +207,7 @@ def build():
                     "metallicFactor": 1.0,
                     "roughnessFactor": PREVIEW_ROUGHNESS,
                 },
+                "extras": {"neural": "alum-bronze"},
             },
             {
                 "name": "ground",

@@ -2,6 +2,7 @@
 //! description to mean and variance images, and the statistical image comparison used by the
 //! regression tests.
 
+pub mod regression;
 pub mod shapes;
 pub mod ztest;
 
@@ -46,6 +47,17 @@ pub fn render(scene: &RenderScene, camera: &Camera, width: u32, height: u32, spp
 pub fn mean_rgb(pixels: &[Rgb]) -> Rgb {
     let sum = pixels.iter().fold(glam::DVec3::ZERO, |a, p| a + p.as_dvec3());
     (sum / pixels.len() as f64).as_vec3()
+}
+
+/// The largest per-channel z-score of the difference of two renders' image means: the mean
+/// difference over its standard error from the variance-of-the-mean images (pixels are
+/// independent, so the variance of the image mean is the sum of pixel variances / N²).
+pub fn image_mean_z(a: &Rendered, b: &Rendered) -> f32 {
+    let n = a.mean.len() as f64;
+    let var = |r: &Rendered| r.variance.iter().fold(glam::DVec3::ZERO, |s, v| s + v.as_dvec3()) / (n * n);
+    let diff = (mean_rgb(&a.mean) - mean_rgb(&b.mean)).as_dvec3().abs();
+    let se = (var(a) + var(b)).max(glam::DVec3::splat(1e-30)).powf(0.5);
+    (diff / se).max_element() as f32
 }
 
 /// A camera at `position` looking at `target` (+y up) with a vertical field of view in degrees.

@@ -2,13 +2,12 @@
 //! bit-identical images for any thread count, and robustness far from the origin.
 
 use glam::{Mat4, Vec3};
-use neural_brdf_tests::{mean_rgb, render, ztest, Rendered};
-use renderer::image_io::{read_image, write_exr};
+use neural_brdf_tests::regression::Case;
+use neural_brdf_tests::{mean_rgb, render, Rendered};
 use renderer::integrator::PathTracer;
 use renderer::render_scene::RenderScene;
 use renderer::scene::SceneDescription;
-use renderer::Rgb;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 const SIZE: u32 = 48;
 const TEST_SPP: u32 = 64;
@@ -32,34 +31,11 @@ fn render_box(description: SceneDescription, spp: u32, seed: u64) -> Rendered {
     render(&scene, &camera, SIZE, SIZE, spp, integrator, seed)
 }
 
-fn write_failure_images(dir: &Path, img: &Rendered, reference: &[Rgb], report: &ztest::ZTestReport) {
-    std::fs::create_dir_all(dir).expect("failure directory");
-    let error: Vec<Rgb> = img.mean.iter().zip(reference).map(|(a, b)| (*a - *b).abs()).collect();
-    let p: Vec<Rgb> = report.p_values.iter().map(|&p| Rgb::splat(p)).collect();
-    for (name, px) in [("image", &img.mean), ("reference", &reference.to_vec()), ("error", &error), ("p-value", &p)] {
-        write_exr(&dir.join(format!("{name}.exr")), SIZE, SIZE, px).expect("write failure image");
-    }
-}
-
-fn reference_paths() -> (PathBuf, PathBuf) {
-    let refs = root().join("tests/references");
-    (refs.join("cornell-box.exr"), refs.join("cornell-box.variance.exr"))
-}
-
-/// Z-test of `img` (at TEST_SPP) against the committed reference; returns the report and
-/// the reference image.
-fn compare_with_reference(img: &Rendered) -> (ztest::ZTestReport, Vec<Rgb>) {
-    let (mean_path, var_path) = reference_paths();
-    let (_, _, reference) = read_image(&mean_path).expect("reference image");
-    let (_, _, reference_var) = read_image(&var_path).expect("reference variance");
-    // The test image's variance comes from the reference's per-sample variance (same
-    // estimator, fewer samples): 64 samples alone estimate it poorly where values are
-    // heavy-tailed (pixels that see the light's edge).
-    let scale = REFERENCE_SPP as f32 / TEST_SPP as f32;
-    let image_var: Vec<Rgb> = reference_var.iter().map(|v| *v * scale).collect();
-    let report = ztest::compare(&img.mean, &image_var, &reference, &reference_var, 0.01, 0.9975);
-    (report, reference)
-}
+const CASE: Case = Case {
+    name: "cornell-box",
+    test_spp: TEST_SPP,
+    reference_spp: REFERENCE_SPP,
+};
 
 /// Compares a 48² render at 64 spp with the committed reference (4096 spp) by per-pixel
 /// Z-tests at α = 0.01 with Šidák's correction; ≥ 99.75 % of pixel channels must pass,
@@ -68,25 +44,7 @@ fn compare_with_reference(img: &Rendered) -> (ztest::ZTestReport, Vec<Rgb>) {
 /// tests/README.md).
 #[test]
 fn regression_against_reference() {
-    if std::env::var_os("BLESS").is_some() {
-        let (mean_path, var_path) = reference_paths();
-        let reference = render_box(cornell_box(), REFERENCE_SPP, 12345);
-        write_exr(&mean_path, SIZE, SIZE, &reference.mean).expect("write reference");
-        write_exr(&var_path, SIZE, SIZE, &reference.variance).expect("write variance");
-    }
-    let img = render_box(cornell_box(), TEST_SPP, 7);
-    let (report, reference) = compare_with_reference(&img);
-    if !report.passed {
-        let dir = root().join("target/regression-failures/cornell-box");
-        write_failure_images(&dir, &img, &reference, &report);
-        panic!(
-            "{:.4} % of {} pixel channels pass (need 99.75 %), image-mean p = {:.2e}; images in {}",
-            100.0 * report.pass_fraction,
-            report.tests,
-            report.mean_p_value,
-            dir.display()
-        );
-    }
+    CASE.check(|spp, seed| render_box(cornell_box(), spp, seed));
 }
 
 /// The test has power: darkening the white walls by 3 % fails it.
@@ -97,7 +55,7 @@ fn regression_detects_a_three_percent_albedo_change() {
         m.base_color *= 0.97;
     }
     let img = render_box(darker, TEST_SPP, 7);
-    let (report, _) = compare_with_reference(&img);
+    let (report, _) = CASE.compare(&img);
     assert!(!report.passed, "{:.4} % pass, mean p = {:.2e}", 100.0 * report.pass_fraction, report.mean_p_value);
 }
 

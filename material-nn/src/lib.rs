@@ -9,6 +9,7 @@ pub mod export;
 pub mod inference;
 pub mod loss;
 pub mod model;
+pub mod nbrdf_fit;
 pub mod search;
 pub mod sh;
 pub mod splat;

@@ -29,6 +29,7 @@ pub mod metrics;
 pub mod nbrdf;
 pub mod render;
 pub mod render_scene;
+pub mod report;
 pub mod sampler;
 pub mod sampling;
 pub mod scene;

@@ -36,8 +36,15 @@ fn binds_by_flag_and_by_equal_name() {
     run(&["--material", &latents, "--bind", "preview=alum-bronze", "--output", "flag.exr", "--stats", "s.json"]);
     let stats: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("s.json")).unwrap()).unwrap();
     assert!(stats["clamped_bsdf_values"].is_u64(), "{stats}");
-    run(&["--output", "plain.exr"]);
-    assert_ne!(mean_of(&dir.path().join("flag.exr")), mean_of(&dir.path().join("plain.exr")));
+    // The scene's extras bind the preview to alum-bronze; without a latent file it renders
+    // its glTF parameters and says so.
+    run(&["--material", &latents, "--output", "extras.exr"]);
+    let out = render(&[&scene, "--spp", "2", "--resolution", "24x24", "--output", "plain.exr"], dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && stderr.contains("note: material 'preview' binds latent 'alum-bronze'"), "{stderr}");
+    let (flag, extras, plain) = (mean_of(&dir.path().join("flag.exr")), mean_of(&dir.path().join("extras.exr")), mean_of(&dir.path().join("plain.exr")));
+    assert_eq!(flag, extras);
+    assert_ne!(flag, plain);
 
     // An OBJ whose material is called like a latent code binds to it by name.
     std::fs::write(dir.path().join("scene.mtl"), "newmtl chrome\nKd 0.5 0.5 0.5\nnewmtl light\nKe 4 4 4\n").unwrap();
@@ -74,10 +81,16 @@ fn bad_latent_files_and_names_fail_cleanly() {
         (vec!["--material", "missing.bin"], vec!["missing.bin"]),
         (vec!["--material", &latents, "--bind", "preview=no-such-material"], vec!["no-such-material", "alum-bronze"]),
         (vec!["--bind", "preview=alum-bronze"], vec!["--bind", "--material"]),
-        (vec!["--material", &latents, "--sweep", "alum-bronze:chrome:3"], vec!["--sweep", "bound"]),
+
         (vec!["--material", &latents, "--bind", "preview=alum-bronze", "--sweep", "alum-bronze:nothing:3"], vec!["nothing"]),
         (vec!["--material", &latents, "--sweep", "alum-bronze:chrome:1"], vec!["--sweep"]),
     ];
+    let cornell = common::cornell_box().to_string_lossy().into_owned();
+    let out = render(
+        &[&cornell, "--material", &latents, "--sweep", "alum-bronze:chrome:3", "--output", "out"],
+        dir.path(),
+    );
+    assert_clean_failure(&out, &["--sweep", "bound"], dir.path());
     for (extra, needles) in cases {
         let mut args = vec![scene.as_str(), "--spp", "1", "--resolution", "8x8", "--output", "out.exr"];
         args.extend(extra.iter().copied());

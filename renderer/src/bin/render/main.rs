@@ -347,29 +347,86 @@ fn run(args: Args) -> Result<()> {
 /// Parses the command line; a usage error becomes one line (clap's message up to its usage
 /// section) and exit code 2.
 fn parse_args() -> Result<Args, ExitCode> {
-    Args::try_parse().map_err(|e| {
-        use clap::error::ErrorKind;
-        if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
-            let _ = e.print();
-            return ExitCode::SUCCESS;
+    Args::try_parse().map_err(clap_exit)
+}
+
+/// Prints help or version (exit code 0) or a usage error as one line (exit code 2).
+fn clap_exit(e: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        let _ = e.print();
+        return ExitCode::SUCCESS;
+    }
+    let text = e.render().to_string();
+    let message: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
+        .collect();
+    eprintln!("{}", message.join(" "));
+    ExitCode::from(2)
+}
+
+/// `render report CONFIG.toml`: the error-against-time report ([`renderer::report`]).
+#[derive(Parser, Debug)]
+#[command(name = "render report", about = "Error against render time of several material representations")]
+struct ReportArgs {
+    /// Report configuration (TOML; see the renderer::report documentation and docs/report/).
+    config: PathBuf,
+}
+
+fn run_report(args: ReportArgs) -> Result<()> {
+    let config = renderer::report::ReportConfig::read(&args.config)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        ctrlc::set_handler(move || cancel.store(true, Ordering::Relaxed)).context("cannot install the Ctrl-C handler")?;
+    }
+    let bar = ProgressBar::new(1000).with_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {percent}% eta {eta} {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let progress = |message: &str, fraction: f64| {
+        if message.starts_with("note:") {
+            bar.suspend(|| eprintln!("{message}"));
+        } else {
+            bar.set_message(message.to_string());
         }
-        let text = e.render().to_string();
-        let message: Vec<&str> = text
-            .lines()
-            .map(str::trim)
-            .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
-            .collect();
-        eprintln!("{}", message.join(" "));
-        ExitCode::from(2)
-    })
+        bar.set_position((fraction * 1000.0) as u64);
+    };
+    let curves = renderer::report::run(&config, &cancel, &progress)?;
+    bar.finish_and_clear();
+    for c in &curves {
+        let last = c.points.last();
+        eprintln!(
+            "{} / {}: {:.1} spp in {:.1} s, RMSE {:.4e}, floor {}",
+            c.material,
+            c.representation,
+            last.map_or(0.0, |p| p.spp),
+            last.map_or(0.0, |p| p.seconds),
+            last.map_or(f64::NAN, |p| p.error.rmse),
+            c.floor.map_or("–".to_string(), |f| format!("{f:.4e}"))
+        );
+    }
+    eprintln!("wrote errors.csv, error-vs-time.png and report.md to {}", config.output.display());
+    Ok(())
 }
 
 fn main() -> ExitCode {
-    let args = match parse_args() {
-        Ok(args) => args,
-        Err(code) => return code,
+    let outcome = if std::env::args_os().nth(1).is_some_and(|a| a == "report") {
+        let parsed = ReportArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit);
+        match parsed {
+            Ok(args) => run_report(args),
+            Err(code) => return code,
+        }
+    } else {
+        match parse_args() {
+            Ok(args) => run(args),
+            Err(code) => return code,
+        }
     };
-    match run(args) {
+    match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
