@@ -1,17 +1,32 @@
-//! `material-nn eval`: BRDF-space evaluation of a trained run on held-out materials — the
-//! reconstruction (talk Table 1) and editing (talk Table 2) analogues that need no renderer.
+//! `material-nn eval`: evaluation of a trained run on held-out materials — the reconstruction
+//! (talk Table 1) and editing (talk Table 2) analogues — optionally beside the per-material
+//! NBRDF baseline of [`crate::nbrdf_fit`].
 //!
+//! # BRDF space
 //! For each material: z = encoder over [`crate::export::ENCODE_SAMPLES`] samples of its table,
 //! then the decoded network is compared with the table at `samples` uniform points (θh, θd,
 //! φd) drawn from a fixed seed (trilinear look-ups, unmeasured points left out):
 //! - `rmse`: √ mean over points and RGB of ((f' − f) cos θi)², f in 1/sr (f' clamped ≥ 0);
-//! - `rec`: mean |(y' − y) cos θi| in the mapped space (the L_rec data term);
+//! - `rec`: mean |(y' − y) cos θi| in the run's mapped space (the L_rec data term);
 //! - `fre`: L_fre of the mapped, cos-weighted values, with the run's L_fre settings.
+//!
+//! An NBRDF network is compared at the same points, evaluated as the renderer evaluates it
+//! (φd folded into [0, π)): its f' gives `rmse` directly, and its mapped values
+//! y' = mapping(f', f_ref) with the run's mapping, ε and f_ref give `rec` and `fre`, so all
+//! three columns measure the same quantity for both models.
 //!
 //! Editing: `pairs` random pairs (a, b) of the materials and t ~ U(0, 1); the network of
 //! z(t) = (1 − t) z_a + t z_b is compared with the linear blend (1 − t) f_a + t f_b of the
-//! tables, with the same metrics. Image metrics (PSNR, SSIM of rendered previews) need the
-//! renderer's neural BSDF and are not computed here.
+//! tables, with the same metrics (BRDF space only; NBRDF has no latent space to edit in).
+//!
+//! # Images
+//! Unless turned off, each material is also rendered in the material-preview scene
+//! ([`ImageSettings`]: its material `preview` bound in turn to the tabulated table, to the
+//! decoded network and to the NBRDF network), every image with the same seed, samples per
+//! pixel and path depth 8. Each model's image is compared with the table's by
+//! [`renderer::metrics::ImageError::between`] on 8-bit display values (clamp tone map,
+//! exposure 0): `psnr` (dB, data range 255), `ssim` (7-pixel window) and `image_rmse` (linear
+//! radiance). The decoded network uses the run's f32 f_ref (a latent file stores it as f16).
 
 use crate::config::FreConfig;
 use crate::dataset::{MaterialTable, SampleSet};
@@ -21,9 +36,34 @@ use crate::inference::TrainedRun;
 use crate::loss::FreOperator;
 use burn::tensor::Device;
 use rand::{Rng, SeedableRng};
+use renderer::brdf_coords::fold_phi_d;
+use renderer::bsdf::frenbrdf::{FrenbrdfBsdf, ReferenceValues};
+use renderer::bsdf::merl::MerlBsdf;
+use renderer::bsdf::nbrdf::NbrdfBsdf;
+use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
+use renderer::bsdf::MeasuredBsdf;
+use renderer::camera::PinholeCamera;
+use renderer::image_io::ToneMap;
+use renderer::integrator::PathTracer;
+use renderer::latent_file::{LatentFile, WeightType};
+use renderer::metrics::{display_values, ImageError};
+use renderer::nbrdf::NbrdfNetwork;
+use renderer::render::{Budget, Renderer};
+use renderer::render_scene::RenderScene;
+use renderer::scene::{SceneDescription, SurfaceModel};
+use renderer::Rgb;
 use std::f32::consts::{FRAC_PI_2, TAU};
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+/// Name of the NBRDF baseline's rows.
+pub const NBRDF_MODEL: &str = "nbrdf";
+/// The material of the preview scene that the evaluated BSDFs are bound to.
+pub const PREVIEW_MATERIAL: &str = "preview";
+/// Longest path of the preview renders, in segments.
+pub const PREVIEW_MAX_DEPTH: i32 = 8;
 
 /// Metrics of one comparison.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -34,17 +74,36 @@ pub struct Metrics {
     pub rec: f64,
     /// L_fre.
     pub fre: f64,
+    /// Image metrics against the table's preview (when rendered).
+    pub image: Option<ImageError>,
 }
 
 /// One evaluated row.
 #[derive(Clone, Debug)]
 pub struct Row {
+    /// The model: the run's (`frenbrdf`, `hyperbrdf`) or [`NBRDF_MODEL`].
+    pub model: String,
     /// Material name, or `a|b` for an editing pair.
     pub name: String,
     /// Blend parameter t (0 for reconstruction rows).
     pub t: f32,
     /// The metrics.
     pub metrics: Metrics,
+}
+
+/// Preview rendering settings.
+#[derive(Clone, Debug)]
+pub struct ImageSettings {
+    /// The scene: a glTF file with a material named [`PREVIEW_MATERIAL`].
+    pub scene: PathBuf,
+    /// Image size in pixels.
+    pub width: u32,
+    /// See `width`.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Where to write the previews as PNG (`NAME-table.png`, `NAME-MODEL.png`), if anywhere.
+    pub out_dir: Option<PathBuf>,
 }
 
 /// Evaluation settings.
@@ -54,14 +113,31 @@ pub struct EvalSettings {
     pub samples: usize,
     /// Editing pairs.
     pub pairs: usize,
-    /// Seed of points, pairs and t.
+    /// Seed of points, pairs, t and the renders.
     pub seed: u64,
+    /// Directory of NBRDF networks (`DIR/NAME_fc1.npy` ...) to evaluate beside the run.
+    pub nbrdf_dir: Option<PathBuf>,
+    /// Preview rendering; `None` for BRDF-space metrics only.
+    pub images: Option<ImageSettings>,
 }
 
-/// Compares the network of `z` with a reference BRDF `truth(θh, θd, φd)` (1/sr).
+/// The run's model name as rows and summaries show it (`frenbrdf`, `hyperbrdf`).
+pub fn model_name(run: &TrainedRun) -> String {
+    format!("{:?}", run.config.model).to_lowercase()
+}
+
+/// What is compared with a reference BRDF.
+enum Candidate<'a> {
+    /// The run's decoder at latent code z.
+    Latent(&'a [f32]),
+    /// An NBRDF network.
+    Nbrdf(&'a NbrdfNetwork),
+}
+
+/// Compares a candidate with a reference BRDF `truth(θh, θd, φd)` (1/sr).
 fn compare(
     run: &TrainedRun,
-    z: &[f32],
+    candidate: &Candidate<'_>,
     truth: &dyn Fn(f32, f32, f32) -> Option<[f32; 3]>,
     settings: &EvalSettings,
     fre: &FreOperator,
@@ -71,6 +147,7 @@ fn compare(
     let mut set = SampleSet::default();
     let mut f_true = Vec::new();
     let mut f_ref = Vec::new();
+    let mut angles = Vec::new();
     let mut attempts = 0;
     while set.len() < settings.samples && attempts < 64 * settings.samples {
         attempts += 1;
@@ -87,27 +164,43 @@ fn compare(
             set.push(x, y, c);
             f_true.push(f);
             f_ref.push(r);
+            angles.push([th, td, pd]);
         }
     }
     if set.is_empty() {
         return Err(Error::Invalid("no measured points to evaluate".to_string()));
     }
-    let pred = run.predict(z, &set.inputs);
     let n = set.len();
+    let (mapping, epsilon) = (run.sampler.mapping, run.sampler.epsilon);
+    // (y', f') per point and channel.
+    let predicted: Vec<(f32, f32)> = match candidate {
+        Candidate::Latent(z) => {
+            let y = run.predict(z, &set.inputs);
+            (0..3 * n)
+                .map(|k| {
+                    let r = f_ref[k / 3][k % 3].max(0.0);
+                    (y[k], mapping.inverse(y[k], r, epsilon).max(0.0))
+                })
+                .collect()
+        }
+        Candidate::Nbrdf(net) => angles
+            .iter()
+            .zip(&f_ref)
+            .flat_map(|(&[th, td, pd], r)| {
+                let f = net.eval_angles(th, td, fold_phi_d(pd));
+                (0..3).map(move |c| (mapping.forward(f[c], r[c].max(0.0), epsilon), f[c]))
+            })
+            .collect(),
+    };
     let (mut se, mut abs) = (0f64, 0f64);
     let mut pred_cos = Vec::with_capacity(3 * n);
     let mut true_cos = Vec::with_capacity(3 * n);
     for i in 0..n {
         let c = set.cos_i[i] as f64;
         for ch in 0..3 {
-            let y_pred = pred[3 * i + ch];
+            let (y_pred, f_pred) = predicted[3 * i + ch];
             let y_true = set.values[3 * i + ch];
-            let f_pred = run
-                .sampler
-                .mapping
-                .inverse(y_pred, f_ref[i][ch].max(0.0), run.sampler.epsilon)
-                .max(0.0) as f64;
-            se += ((f_pred - f_true[i][ch] as f64) * c).powi(2);
+            se += ((f_pred as f64 - f_true[i][ch] as f64) * c).powi(2);
             abs += ((y_pred - y_true) as f64 * c).abs();
             pred_cos.push(y_pred as f64 * c);
             true_cos.push(y_true as f64 * c);
@@ -118,15 +211,154 @@ fn compare(
         rmse: (se / (3 * n) as f64).sqrt(),
         rec: abs / (3 * n) as f64,
         fre: fre.loss_cpu(&splat.map, &pred_cos, &true_cos),
+        image: None,
     })
 }
 
-/// Reconstruction and editing rows for the materials `names` of `data_dir`.
+/// The material-preview scene, ready to render with any BSDF bound to its preview material.
+pub struct PreviewScene {
+    scene: RenderScene,
+    camera: PinholeCamera,
+    slot: usize,
+    width: u32,
+    height: u32,
+    spp: u32,
+    seed: u64,
+}
+
+impl PreviewScene {
+    /// Loads the scene of `settings` with [`PREVIEW_MATERIAL`] bound to the table at
+    /// `table` (any table: every render replaces it). Errors name the scene file.
+    pub fn load(settings: &ImageSettings, table: &Path, seed: u64) -> Result<Self> {
+        let path = &settings.scene;
+        let mut description = SceneDescription::load(path)?;
+        let index = description
+            .materials
+            .iter()
+            .position(|m| m.name == PREVIEW_MATERIAL)
+            .ok_or_else(|| {
+                Error::invalid_file(
+                    path,
+                    format!("no material named '{PREVIEW_MATERIAL}' to bind the BRDFs to"),
+                )
+            })?;
+        let table = std::path::absolute(table).map_err(|e| Error::io(table, e))?;
+        let spec = format!("merl:{}", table.display());
+        description.materials[index].model = SurfaceModel::Bound(spec.clone());
+        // The slot RenderScene gives each distinct specification of a used material, in
+        // material order (latent codes without a latent file get none).
+        let mut used = vec![false; description.materials.len()];
+        for &m in &description.geometry.material_ids {
+            used[m as usize] = true;
+        }
+        if !used[index] {
+            return Err(Error::invalid_file(
+                path,
+                format!("material '{PREVIEW_MATERIAL}' is on no triangle"),
+            ));
+        }
+        let mut specs: Vec<&String> = Vec::new();
+        for (m, _) in description.materials.iter().zip(&used).filter(|(_, u)| **u) {
+            if let SurfaceModel::Bound(s) = &m.model {
+                if !s.starts_with(renderer::latent_library::NEURAL_SPEC_PREFIX)
+                    && !specs.contains(&s)
+                {
+                    specs.push(s);
+                }
+            }
+        }
+        let slot = specs.iter().position(|s| **s == spec).unwrap_or(usize::MAX);
+        let expected = specs.len();
+        let camera = description.camera(None)?.clone();
+        let scene = RenderScene::new(description)?;
+        if slot >= scene.measured_count() || scene.measured_count() != expected {
+            return Err(Error::invalid_file(
+                path,
+                format!("cannot find the measured BRDF bound to '{PREVIEW_MATERIAL}'"),
+            ));
+        }
+        Ok(PreviewScene {
+            camera: PinholeCamera::new(&camera, settings.width, settings.height),
+            scene,
+            slot,
+            width: settings.width,
+            height: settings.height,
+            spp: settings.spp,
+            seed,
+        })
+    }
+
+    /// Renders the scene with `bsdf` on the preview material: linear radiance, row-major.
+    pub fn render(&mut self, bsdf: MeasuredBsdf) -> Vec<Rgb> {
+        self.scene.set_measured(self.slot, bsdf);
+        let renderer = Renderer {
+            scene: &self.scene,
+            camera: self.camera.clone(),
+            integrator: PathTracer {
+                max_depth: PREVIEW_MAX_DEPTH,
+                ..PathTracer::default()
+            },
+            seed: self.seed,
+        };
+        let (film, _) = renderer.render(
+            self.width,
+            self.height,
+            Budget::Spp(self.spp),
+            &AtomicBool::new(false),
+            &|_| {},
+            &mut |_, _| {},
+        );
+        film.mean()
+    }
+
+    /// The image metrics of `image` against `reference` (see the module documentation).
+    pub fn error(&self, image: &[Rgb], reference: &[Rgb]) -> ImageError {
+        ImageError::between(
+            image,
+            reference,
+            self.width as usize,
+            self.height as usize,
+            |img| display_values(img, ToneMap::Clamp, 0.0),
+        )
+    }
+
+    /// Writes `image` as a PNG (clamp tone map) to `dir/file`.
+    fn write_png(&self, dir: Option<&Path>, file: &str, image: &[Rgb]) -> Result<()> {
+        if let Some(dir) = dir {
+            renderer::image_io::write_png(
+                &dir.join(file),
+                self.width,
+                self.height,
+                image,
+                ToneMap::Clamp,
+                0.0,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The NBRDF prefix `dir/name`, checked to hold a network.
+fn nbrdf_prefix(dir: &Path, name: &str) -> Result<PathBuf> {
+    let prefix = dir.join(name);
+    let fc1 = renderer::nbrdf::tensor_paths(&prefix)[0].clone();
+    if !fc1.is_file() {
+        return Err(Error::invalid_file(
+            fc1,
+            format!("no NBRDF network for '{name}' (fit it with material-nn nbrdf-fit)"),
+        ));
+    }
+    Ok(prefix)
+}
+
+/// Reconstruction and editing rows for the materials `names` of `data_dir`; `progress` is
+/// called with a description of each step as it starts.
 pub fn evaluate(
     run: &TrainedRun,
     data_dir: &Path,
     names: &[String],
     settings: &EvalSettings,
+    progress: &mut dyn FnMut(&str),
 ) -> Result<(Vec<Row>, Vec<Row>)> {
     if names.is_empty() {
         return Err(Error::Invalid(
@@ -136,11 +368,23 @@ pub fn evaluate(
     let device = run.device.clone();
     let fre_config: FreConfig = run.config.fre.clone();
     let fre = FreOperator::new(&fre_config, &device);
+    let model = model_name(run);
+    let table_path =
+        |name: &str| data_dir.join(format!("{name}.{}", crate::tabulate::TABLE_EXTENSION));
+    let nbrdf_prefixes = match &settings.nbrdf_dir {
+        Some(dir) => Some(
+            names
+                .iter()
+                .map(|n| nbrdf_prefix(dir, n))
+                .collect::<Result<Vec<_>>>()?,
+        ),
+        None => None,
+    };
     let mut tables = Vec::new();
     let mut codes = Vec::new();
     for (i, name) in names.iter().enumerate() {
-        let path = data_dir.join(format!("{name}.{}", crate::tabulate::TABLE_EXTENSION));
-        let table = MaterialTable::read(&path)?;
+        progress(&format!("encoding {name}"));
+        let table = MaterialTable::read(&table_path(name))?;
         codes.push(run.encode_table(
             &table,
             ENCODE_SAMPLES,
@@ -148,26 +392,69 @@ pub fn evaluate(
         )?);
         tables.push(table);
     }
+    let mut preview = match &settings.images {
+        Some(images) => {
+            if let Some(dir) = &images.out_dir {
+                std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            }
+            let file = crate::export::latent_file(run, WeightType::F32);
+            let reference: ReferenceValues = Arc::new(run.sampler.reference.values.clone());
+            Some((
+                PreviewScene::load(images, &table_path(&names[0]), settings.seed)?,
+                file,
+                reference,
+                images.out_dir.clone(),
+            ))
+        }
+        None => None,
+    };
     let mut reconstruction = Vec::new();
-    for ((name, table), z) in names.iter().zip(&tables).zip(&codes) {
-        let metrics = compare(
-            run,
-            z,
-            &|a, b, c| table.lookup(a, b, c),
-            settings,
-            &fre,
-            &device,
-        )?;
+    for (i, ((name, table), z)) in names.iter().zip(&tables).zip(&codes).enumerate() {
+        progress(&format!("reconstruction {name}"));
+        let truth = |a, b, c| table.lookup(a, b, c);
+        let mut latent = compare(run, &Candidate::Latent(z), &truth, settings, &fre, &device)?;
+        let nbrdf = match &nbrdf_prefixes {
+            Some(prefixes) => {
+                let net = NbrdfNetwork::load(&prefixes[i])?;
+                let m = compare(run, &Candidate::Nbrdf(&net), &truth, settings, &fre, &device)?;
+                Some((m, &prefixes[i]))
+            }
+            None => None,
+        };
+        if let Some((scene, file, reference, dir)) = &mut preview {
+            let dir = dir.as_deref();
+            let table_image = scene.render(MeasuredBsdf::Merl(MerlBsdf::load(table_path(name))?));
+            scene.write_png(dir, &format!("{name}-table.png"), &table_image)?;
+            let neural = neural_bsdf(run, file, reference, name, z)?;
+            let image = scene.render(MeasuredBsdf::Neural(neural));
+            scene.write_png(dir, &format!("{name}-{model}.png"), &image)?;
+            latent.image = Some(scene.error(&image, &table_image));
+            if let Some((m, prefix)) = &mut nbrdf {
+                let image = scene.render(MeasuredBsdf::Nbrdf(NbrdfBsdf::load(prefix.as_path())?));
+                scene.write_png(dir, &format!("{name}-{NBRDF_MODEL}.png"), &image)?;
+                m.image = Some(scene.error(&image, &table_image));
+            }
+        }
         reconstruction.push(Row {
+            model: model.clone(),
             name: name.clone(),
             t: 0.0,
-            metrics,
+            metrics: latent,
         });
+        if let Some((metrics, _)) = nbrdf {
+            reconstruction.push(Row {
+                model: NBRDF_MODEL.to_string(),
+                name: name.clone(),
+                t: 0.0,
+                metrics,
+            });
+        }
     }
     let mut editing = Vec::new();
     if tables.len() >= 2 {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(settings.seed ^ 0xed17);
-        for _ in 0..settings.pairs {
+        for k in 0..settings.pairs {
+            progress(&format!("editing pair {}/{}", k + 1, settings.pairs));
             let a = rng.random_range(0..tables.len());
             let mut b = rng.random_range(0..tables.len() - 1);
             if b >= a {
@@ -184,8 +471,9 @@ pub fn evaluate(
                 let (fa, fb) = (ta.lookup(h, d, p)?, tb.lookup(h, d, p)?);
                 Some([0, 1, 2].map(|c| (1.0 - t) * fa[c] + t * fb[c]))
             };
-            let metrics = compare(run, &z, &blend, settings, &fre, &device)?;
+            let metrics = compare(run, &Candidate::Latent(&z), &blend, settings, &fre, &device)?;
             editing.push(Row {
+                model: model.clone(),
                 name: format!("{}|{}", names[a], names[b]),
                 t,
                 metrics,
@@ -195,49 +483,111 @@ pub fn evaluate(
     Ok((reconstruction, editing))
 }
 
-/// Mean metrics of rows.
-pub fn mean(rows: &[Row]) -> Metrics {
-    let n = rows.len().max(1) as f64;
-    let sum = rows.iter().fold(Metrics::default(), |acc, r| Metrics {
-        rmse: acc.rmse + r.metrics.rmse,
-        rec: acc.rec + r.metrics.rec,
-        fre: acc.fre + r.metrics.fre,
-    });
-    Metrics {
-        rmse: sum.rmse / n,
-        rec: sum.rec / n,
-        fre: sum.fre / n,
-    }
+/// The renderer's BSDF of the run's decoder at z (the path a latent file takes).
+fn neural_bsdf(
+    run: &TrainedRun,
+    file: &LatentFile,
+    reference: &ReferenceValues,
+    name: &str,
+    z: &[f32],
+) -> Result<FrenbrdfBsdf> {
+    let net = renderer::target_net::TargetNet::new(&file.decode(z))?;
+    Ok(FrenbrdfBsdf::new(
+        name,
+        net,
+        reference.clone(),
+        run.sampler.mapping,
+        run.sampler.epsilon,
+        &TabulatedSamplerConfig::default(),
+    ))
 }
 
-/// Rows as CSV (`name,t,rmse,rec,fre`).
-pub fn to_csv(rows: &[Row]) -> String {
-    let mut out = String::from("name,t,rmse,rec,fre\n");
+/// Mean metrics of rows; the image metrics are the means over the rows that have them.
+pub fn mean(rows: &[Row]) -> Metrics {
+    let n = rows.len().max(1) as f64;
+    let mut m = Metrics::default();
+    let (mut images, mut count) = (ImageError { rmse: 0.0, psnr: 0.0, ssim: 0.0 }, 0usize);
     for r in rows {
+        m.rmse += r.metrics.rmse / n;
+        m.rec += r.metrics.rec / n;
+        m.fre += r.metrics.fre / n;
+        if let Some(e) = r.metrics.image {
+            images.rmse += e.rmse;
+            images.psnr += e.psnr;
+            images.ssim += e.ssim;
+            count += 1;
+        }
+    }
+    if count > 0 {
+        let c = count as f64;
+        m.image = Some(ImageError {
+            rmse: images.rmse / c,
+            psnr: images.psnr / c,
+            ssim: images.ssim / c,
+        });
+    }
+    m
+}
+
+/// The rows of one model.
+fn rows_of(rows: &[Row], model: &str) -> Vec<Row> {
+    rows.iter().filter(|r| r.model == model).cloned().collect()
+}
+
+/// Rows as CSV (`model,name,t,rmse,rec,fre,psnr,ssim,image_rmse`; the image columns are
+/// empty where no preview was rendered).
+pub fn to_csv(rows: &[Row]) -> String {
+    let mut out = String::from("model,name,t,rmse,rec,fre,psnr,ssim,image_rmse\n");
+    for r in rows {
+        let m = &r.metrics;
+        let image = m.image.map_or(",,".to_string(), |e| {
+            format!("{:.4},{:.6},{:.6e}", e.psnr, e.ssim, e.rmse)
+        });
         let _ = writeln!(
             out,
-            "{},{},{:.6e},{:.6e},{:.6e}",
-            r.name, r.t, r.metrics.rmse, r.metrics.rec, r.metrics.fre
+            "{},{},{},{:.6e},{:.6e},{:.6e},{image}",
+            r.model, r.name, r.t, m.rmse, m.rec, m.fre
         );
     }
     out
 }
 
-/// The two tables' means as markdown, with the talk's scalings.
-pub fn to_markdown(model: &str, reconstruction: &[Row], editing: &[Row]) -> String {
-    let (r, e) = (mean(reconstruction), mean(editing));
-    format!(
-        "| {model} | materials / pairs | RMSE×10² (cos-weighted f_r) | L_rec data ×10² | L_fre×10³ |\n\
-         | --- | --- | --- | --- | --- |\n\
-         | reconstruction | {} | {:.3} | {:.3} | {:.4} |\n\
-         | editing | {} | {:.3} | {:.3} | {:.4} |\n",
-        reconstruction.len(),
-        r.rmse * 1e2,
-        r.rec * 1e2,
-        r.fre * 1e3,
-        editing.len(),
-        e.rmse * 1e2,
-        e.rec * 1e2,
-        e.fre * 1e3,
-    )
+/// The means per model and table as markdown, with the talk's scalings; `images` describes
+/// the preview renders (or `None` when there were none).
+pub fn to_markdown(reconstruction: &[Row], editing: &[Row], images: Option<&str>) -> String {
+    let mut models: Vec<&str> = Vec::new();
+    for r in reconstruction.iter().chain(editing) {
+        if !models.contains(&r.model.as_str()) {
+            models.push(&r.model);
+        }
+    }
+    let mut out = String::from(
+        "| model | evaluation | materials / pairs | RMSE×10² (cos-weighted f_r) | L_rec data ×10² \
+         | L_fre×10³ | PSNR (dB) | SSIM×10 |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    for model in &models {
+        for (what, rows) in [("reconstruction", reconstruction), ("editing", editing)] {
+            let rows = rows_of(rows, model);
+            if rows.is_empty() && what == "editing" && *model == NBRDF_MODEL {
+                continue;
+            }
+            let m = mean(&rows);
+            let (psnr, ssim) = m.image.map_or(("–".to_string(), "–".to_string()), |e| {
+                (format!("{:.2}", e.psnr), format!("{:.3}", e.ssim * 10.0))
+            });
+            let _ = writeln!(
+                out,
+                "| {model} | {what} | {} | {:.3} | {:.3} | {:.4} | {psnr} | {ssim} |",
+                rows.len(),
+                m.rmse * 1e2,
+                m.rec * 1e2,
+                m.fre * 1e3,
+            );
+        }
+    }
+    if let Some(images) = images {
+        let _ = writeln!(out, "\n{images}");
+    }
+    out
 }

@@ -59,10 +59,11 @@ enum Command {
     ///   material-nn encode --run runs/frenbrdf --samples measured.csv --name mine --add-to latent.bin
     #[command(verbatim_doc_comment)]
     Encode(EncodeArgs),
-    /// BRDF-space evaluation of a run on its test split: reconstruction and editing
-    /// (RMSE of cos-weighted f_r, L_rec data term, L_fre); writes RUN/eval/*.csv and summary.md.
+    /// Evaluation of a run on its test split: reconstruction and editing (RMSE of cos-weighted
+    /// f_r, L_rec data term, L_fre) and PSNR / SSIM of material-preview renders against the
+    /// tables', optionally beside NBRDF networks; writes RUN/eval/*.csv, summary.md, images/.
     ///
-    ///   material-nn eval --run runs/frenbrdf [--pairs 200]
+    ///   material-nn eval --run runs/frenbrdf [--pairs 200] [--nbrdf runs/nbrdf] [--no-images]
     #[command(verbatim_doc_comment)]
     Eval(EvalArgs),
     /// Learning-rate search as in the talk: grid 1e-1, 1e-3, 1e-5, then random trials within a
@@ -153,9 +154,42 @@ struct EvalArgs {
     /// Random editing pairs (the talk used 2,000).
     #[arg(long, default_value_t = 50)]
     pairs: usize,
-    /// Seed of points, pairs and t.
+    /// Seed of points, pairs, t and the preview renders.
     #[arg(long, default_value_t = 7)]
     seed: u64,
+    /// Also evaluate the NBRDF baseline networks DIR/NAME (from nbrdf-fit) of the materials.
+    #[arg(long, value_name = "DIR")]
+    nbrdf: Option<PathBuf>,
+    /// Preview scene (a glTF file with a material named "preview").
+    #[arg(long, value_name = "PATH", default_value_os_t = default_preview_scene())]
+    scene: PathBuf,
+    /// Samples per pixel of the preview renders.
+    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..))]
+    spp: u32,
+    /// Size of the preview renders, WxH pixels.
+    #[arg(long, value_name = "WxH", default_value = "128x128", value_parser = parse_resolution)]
+    resolution: (u32, u32),
+    /// BRDF-space metrics only: render no previews (no PSNR / SSIM).
+    #[arg(long)]
+    no_images: bool,
+}
+
+/// scenes/material-preview/scene.gltf of the workspace this binary was built in.
+fn default_preview_scene() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map_or_else(PathBuf::new, PathBuf::from)
+        .join("scenes/material-preview/scene.gltf")
+}
+
+fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let parsed = s
+        .split_once(['x', 'X'])
+        .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)));
+    match parsed {
+        Some((w, h)) if w > 0 && h > 0 && w <= 16384 && h <= 16384 => Ok((w, h)),
+        _ => Err(format!("'{s}': expected WxH with 1 to 16384 pixels each, e.g. 128x128")),
+    }
 }
 
 #[derive(Args)]
@@ -539,16 +573,43 @@ fn eval(args: EvalArgs) -> anyhow::Result<()> {
         SplitName::Validation => run.split.validation.clone(),
         SplitName::Test => run.split.test.clone(),
     };
+    let out = args.run.join("eval");
+    let (width, height) = args.resolution;
+    let images = (!args.no_images).then(|| eval::ImageSettings {
+        scene: args.scene.clone(),
+        width,
+        height,
+        spp: args.spp,
+        out_dir: Some(out.join("images")),
+    });
     let settings = eval::EvalSettings {
         samples: args.samples,
         pairs: args.pairs,
         seed: args.seed,
+        nbrdf_dir: args.nbrdf.clone(),
+        images,
     };
-    let (reconstruction, editing) = eval::evaluate(&run, &data, &names, &settings)?;
-    let out = args.run.join("eval");
     std::fs::create_dir_all(&out).with_context(|| out.display().to_string())?;
-    let model = format!("{:?}", run.config.model).to_lowercase();
-    let summary = eval::to_markdown(&model, &reconstruction, &editing);
+    let bar = progress_bar(2 * names.len() + args.pairs, "eval");
+    let result = eval::evaluate(&run, &data, &names, &settings, &mut |what| {
+        bar.set_message(what.to_string());
+        bar.inc(1);
+    });
+    bar.finish_and_clear();
+    let (reconstruction, editing) = result?;
+    let note = (!args.no_images).then(|| {
+        format!(
+            "PSNR and SSIM: previews of {} ({width}x{height}, {} spp, seed {}, path depth {}) \
+             against the tabulated table's, 8-bit clamp-tone-mapped values (SSIM window {}); \
+             images in eval/images/.",
+            args.scene.display(),
+            args.spp,
+            args.seed,
+            eval::PREVIEW_MAX_DEPTH,
+            renderer::metrics::SSIM_WINDOW
+        )
+    });
+    let summary = eval::to_markdown(&reconstruction, &editing, note.as_deref());
     for (file, text) in [
         ("reconstruction.csv", eval::to_csv(&reconstruction)),
         ("editing.csv", eval::to_csv(&editing)),
