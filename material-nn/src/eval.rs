@@ -413,10 +413,17 @@ pub fn evaluate(
         progress(&format!("reconstruction {name}"));
         let truth = |a, b, c| table.lookup(a, b, c);
         let mut latent = compare(run, &Candidate::Latent(z), &truth, settings, &fre, &device)?;
-        let nbrdf = match &nbrdf_prefixes {
+        let mut nbrdf = match &nbrdf_prefixes {
             Some(prefixes) => {
                 let net = NbrdfNetwork::load(&prefixes[i])?;
-                let m = compare(run, &Candidate::Nbrdf(&net), &truth, settings, &fre, &device)?;
+                let m = compare(
+                    run,
+                    &Candidate::Nbrdf(&net),
+                    &truth,
+                    settings,
+                    &fre,
+                    &device,
+                )?;
                 Some((m, &prefixes[i]))
             }
             None => None,
@@ -506,7 +513,14 @@ fn neural_bsdf(
 pub fn mean(rows: &[Row]) -> Metrics {
     let n = rows.len().max(1) as f64;
     let mut m = Metrics::default();
-    let (mut images, mut count) = (ImageError { rmse: 0.0, psnr: 0.0, ssim: 0.0 }, 0usize);
+    let (mut images, mut count) = (
+        ImageError {
+            rmse: 0.0,
+            psnr: 0.0,
+            ssim: 0.0,
+        },
+        0usize,
+    );
     for r in rows {
         m.rmse += r.metrics.rmse / n;
         m.rec += r.metrics.rec / n;

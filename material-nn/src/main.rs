@@ -188,7 +188,9 @@ fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
         .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)));
     match parsed {
         Some((w, h)) if w > 0 && h > 0 && w <= 16384 && h <= 16384 => Ok((w, h)),
-        _ => Err(format!("'{s}': expected WxH with 1 to 16384 pixels each, e.g. 128x128")),
+        _ => Err(format!(
+            "'{s}': expected WxH with 1 to 16384 pixels each, e.g. 128x128"
+        )),
     }
 }
 
@@ -672,24 +674,30 @@ fn nbrdf_fit(args: NbrdfFitArgs) -> anyhow::Result<()> {
     let steps_per_epoch = config.steps_per_epoch as u64;
     let bar = progress_bar(tables.len() * config.epochs, "nbrdf-fit");
     let (mut base, mut current) = (0u64, String::new());
-    let report = nbrdf_fit::fit_all(&tables, &args.out, &config, &STOP, &mut |event| match event {
-        FitEvent::Material(name) => current = name.to_string(),
-        FitEvent::Step(step, loss) => {
-            bar.set_position(base + step / steps_per_epoch);
-            bar.set_message(format!("{current}: loss {loss:.4e}"));
-        }
-        FitEvent::Done(name, outcome) => {
-            base += epochs;
-            bar.set_position(base);
-            bar.suspend(|| match outcome {
-                FitOutcome::Fitted(f) => println!(
-                    "{name}: loss {:.4e} -> {:.4e} in {:.1} s",
-                    f.initial_loss, f.final_loss, f.seconds
-                ),
-                FitOutcome::Skipped => println!("{name}: already fitted, skipped"),
-            });
-        }
-    });
+    let report = nbrdf_fit::fit_all(
+        &tables,
+        &args.out,
+        &config,
+        &STOP,
+        &mut |event| match event {
+            FitEvent::Material(name) => current = name.to_string(),
+            FitEvent::Step(step, loss) => {
+                bar.set_position(base + step / steps_per_epoch);
+                bar.set_message(format!("{current}: loss {loss:.4e}"));
+            }
+            FitEvent::Done(name, outcome) => {
+                base += epochs;
+                bar.set_position(base);
+                bar.suspend(|| match outcome {
+                    FitOutcome::Fitted(f) => println!(
+                        "{name}: loss {:.4e} -> {:.4e} in {:.1} s",
+                        f.initial_loss, f.final_loss, f.seconds
+                    ),
+                    FitOutcome::Skipped => println!("{name}: already fitted, skipped"),
+                });
+            }
+        },
+    );
     bar.finish_and_clear();
     let report = report?;
     let fitted = report

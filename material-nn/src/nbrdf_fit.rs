@@ -100,7 +100,9 @@ impl FitConfig {
     /// Checks the settings; the reason names the offending field.
     pub fn check(&self) -> Result<()> {
         let bad = |field: &str, reason: &str| {
-            Err(Error::Invalid(format!("invalid value for {field}: {reason}")))
+            Err(Error::Invalid(format!(
+                "invalid value for {field}: {reason}"
+            )))
         };
         if self.epochs == 0 {
             return bad("--epochs", "must be at least 1");
@@ -172,9 +174,8 @@ impl FitSummary {
     /// Reads `fit.json` (an empty summary when the file does not exist).
     pub fn read(path: &Path) -> Result<Self> {
         match std::fs::read_to_string(path) {
-            Ok(text) => serde_json::from_str(&text).map_err(|e| {
-                Error::invalid_file(path, format!("not a fit summary: {e}"))
-            }),
+            Ok(text) => serde_json::from_str(&text)
+                .map_err(|e| Error::invalid_file(path, format!("not a fit summary: {e}"))),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(FitSummary::default()),
             Err(e) => Err(Error::io(path, e)),
         }
@@ -191,7 +192,7 @@ impl FitSummary {
 /// The weights of one network as row-major f32 tensors of the renderer's shapes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NbrdfTensors {
-    /// fc1 [6, 21], b1 [21], fc2 [21, 21], b2 [21], fc3 [21, 3], b3 [3], in file order.
+    /// fc1 6×21, b1 21, fc2 21×21, b2 21, fc3 21×3, b3 3 (row-major), in file order.
     pub tensors: [Vec<f32>; 6],
 }
 
@@ -267,12 +268,12 @@ pub fn material_seed(seed: u64, name: &str) -> u64 {
     h ^ seed.wrapping_mul(0x9e37_79b9_7f4a_7c15)
 }
 
-/// Training points of one material: inputs [n, 6], targets y = ln(1 + f) [n, 3], cos θi [n].
+/// Training points of one material: inputs n×6, targets y = ln(1 + f) n×3, cos θi (n values).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FitSamples {
-    /// Network inputs, row-major [n, 6].
+    /// Network inputs, row-major n×6.
     pub inputs: Vec<f32>,
-    /// Targets y, row-major [n, 3].
+    /// Targets y, row-major n×3.
     pub targets: Vec<f32>,
     /// cos θi per point.
     pub cos_i: Vec<f32>,
@@ -364,7 +365,10 @@ pub fn fit_material(
     let mut model = Nbrdf::init(&mut rng, &device);
     let mut validation_rng = rand_pcg::Pcg64::seed_from_u64(seed ^ 0x7a11_da7e);
     let validation = draw_samples(table, config.validation_samples, &mut validation_rng)?;
-    let initial_loss = plain_loss(&NbrdfTensors::from_model(&model.valid()).network(), &validation);
+    let initial_loss = plain_loss(
+        &NbrdfTensors::from_model(&model.valid()).network(),
+        &validation,
+    );
     let mut optim = optimizer();
     let total = config.total_steps();
     let (mut first_epoch, mut epoch_sum) = (f64::NAN, 0f64);
@@ -415,7 +419,10 @@ pub fn fit_material(
 /// The tables to fit: every `NAME.binary` of `data_dir`, or the `selected` names (each must
 /// have a table). Returns (name, path) sorted by name for the whole directory, in the given
 /// order for a selection.
-pub fn select_tables(data_dir: &Path, selected: Option<&[String]>) -> Result<Vec<(String, PathBuf)>> {
+pub fn select_tables(
+    data_dir: &Path,
+    selected: Option<&[String]>,
+) -> Result<Vec<(String, PathBuf)>> {
     let paths = list_tables(data_dir)?;
     let available = paths
         .iter()
@@ -554,7 +561,7 @@ mod tests {
             assert!(s.inputs[6 * i + 4] >= -1e-6);
             assert!((0.0..=1.0).contains(&s.cos_i[i]));
         }
-        assert!(s.cos_i.iter().any(|&c| c == 0.0) && s.cos_i.iter().any(|&c| c > 0.5));
+        assert!(s.cos_i.contains(&0.0) && s.cos_i.iter().any(|&c| c > 0.5));
     }
 
     #[test]
@@ -573,7 +580,10 @@ mod tests {
         let burn_y = predict(&model, &x, &device);
         let plain_y = loaded.forward(x);
         for c in 0..3 {
-            assert!((burn_y[c] - plain_y[c]).abs() < 1e-5, "{burn_y:?} {plain_y:?}");
+            assert!(
+                (burn_y[c] - plain_y[c]).abs() < 1e-5,
+                "{burn_y:?} {plain_y:?}"
+            );
         }
     }
 

@@ -160,7 +160,20 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         );
     }
 
-    // BRDF-space evaluation writes its tables.
+    // Evaluation beside a briefly fitted NBRDF baseline, with tiny preview renders.
+    let nbrdf = dir.path().join("nbrdf");
+    let out = material_nn(&[
+        "nbrdf-fit",
+        "--data",
+        path_str(&data),
+        "--out",
+        path_str(&nbrdf),
+        "--epochs",
+        "2",
+        "--steps-per-epoch",
+        "20",
+    ]);
+    assert!(out.status.success(), "{out:?}");
     let out = material_nn(&[
         "eval",
         "--run",
@@ -171,13 +184,66 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         "2000",
         "--pairs",
         "3",
+        "--nbrdf",
+        path_str(&nbrdf),
+        "--resolution",
+        "16x16",
+        "--spp",
+        "2",
     ]);
     assert!(out.status.success(), "{out:?}");
     let csv = std::fs::read_to_string(run.join("eval/editing.csv")).unwrap();
     assert_eq!(csv.lines().count(), 4, "{csv}");
-    assert!(std::fs::read_to_string(run.join("eval/summary.md"))
-        .unwrap()
-        .contains("| editing | 3 |"));
+    let csv = std::fs::read_to_string(run.join("eval/reconstruction.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let models: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(column("model")).unwrap())
+        .collect();
+    assert_eq!(models, ["frenbrdf", "nbrdf", "frenbrdf", "nbrdf"], "{csv}");
+    for line in csv.lines().skip(1) {
+        let fields: Vec<&str> = line.split(',').collect();
+        for c in ["rmse", "psnr", "ssim"] {
+            let v: f64 = fields[column(c)].parse().unwrap();
+            assert!(v.is_finite(), "{c} in {line}");
+        }
+    }
+    let split: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("split.json")).unwrap()).unwrap();
+    for name in split["train"].as_array().unwrap() {
+        for model in ["table", "frenbrdf", "nbrdf"] {
+            let png = run.join(format!(
+                "eval/images/{}-{model}.png",
+                name.as_str().unwrap()
+            ));
+            assert!(png.is_file(), "{}", png.display());
+        }
+    }
+    let summary = std::fs::read_to_string(run.join("eval/summary.md")).unwrap();
+    assert!(summary.contains("| frenbrdf | editing | 3 |"), "{summary}");
+    assert!(
+        summary.contains("| nbrdf | reconstruction | 2 |"),
+        "{summary}"
+    );
+
+    // BRDF space only: no image columns.
+    let out = material_nn(&[
+        "eval",
+        "--run",
+        path_str(&run),
+        "--split",
+        "train",
+        "--samples",
+        "500",
+        "--pairs",
+        "1",
+        "--no-images",
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let csv = std::fs::read_to_string(run.join("eval/reconstruction.csv")).unwrap();
+    assert!(csv.lines().skip(1).all(|l| l.ends_with(",,")), "{csv}");
 
     // Encode a sparse sample set and add it to the file.
     let csv = dir.path().join("sparse.csv");
