@@ -110,7 +110,8 @@ pub struct TrainConfig {
     pub epochs: usize,
     /// Adam learning rate.
     pub learning_rate: f64,
-    /// Form of L_rec.
+    /// Form of L_rec. Default: the code's; with the talk's form the summed penalties dwarf
+    /// the data term and the reconstruction does not improve (docs/training.md).
     pub rec_form: RecForm,
     /// λ1: weight of the target-net weights' penalty.
     pub lambda_weights: f32,
@@ -140,14 +141,14 @@ impl Default for TrainConfig {
             encoder_samples: 4_096,
             materials_per_step: 1,
             epochs: 100,
-            learning_rate: 5e-5,
-            rec_form: RecForm::Talk,
+            learning_rate: 5e-4,
+            rec_form: RecForm::Code,
             lambda_weights: 0.1,
             lambda_latent: 0.1,
             grad_clip_norm: Some(1.0),
             fre: FreConfig::default(),
             net: ModelConfig::default(),
-            patience: 10,
+            patience: 30,
             validation_samples: 16_384,
         }
     }

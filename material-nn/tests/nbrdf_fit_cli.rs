@@ -5,50 +5,38 @@
 
 mod common;
 
-use common::{error_line, path_str};
+use common::{error_line, make_tables, material_nn, path_str};
 use material_nn::nbrdf_fit::{self, FitConfig, FitOutcome, FitSummary};
 use renderer::analytic::AnalyticBrdf;
 use renderer::bsdf::MeasuredBsdf;
-use renderer::merl::MerlTable;
 use renderer::nbrdf::{tensor_paths, NbrdfNetwork};
 use renderer::Rgb;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use std::sync::atomic::AtomicBool;
 
-/// Two analytic materials as MERL tables in `dir/data` (35 MB each).
+/// Two analytic materials as MERL tables in `dir/data`.
 fn make_data(dir: &Path) -> PathBuf {
-    let data = dir.join("data");
-    std::fs::create_dir_all(&data).unwrap();
-    let materials = [
-        (
-            "red-plastic",
-            AnalyticBrdf::LambertGgx {
-                albedo: Rgb::new(0.6, 0.1, 0.1),
-                specular: Rgb::splat(0.04),
-                alpha: 0.3,
-            },
-        ),
-        (
-            "grey-clay",
-            AnalyticBrdf::OrenNayar {
-                albedo: Rgb::splat(0.4),
-                sigma: 0.5,
-            },
-        ),
-    ];
-    for (name, brdf) in materials {
-        let table = MerlTable::from_fn(|th, td, pd| brdf.eval_angles(th, td, pd));
-        table.write(data.join(format!("{name}.binary"))).unwrap();
-    }
-    data
-}
-
-fn material_nn(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_material-nn"))
-        .args(args)
-        .output()
-        .expect("material-nn runs")
+    make_tables(
+        dir,
+        &[
+            (
+                "red-plastic",
+                AnalyticBrdf::LambertGgx {
+                    albedo: Rgb::new(0.6, 0.1, 0.1),
+                    specular: Rgb::splat(0.04),
+                    alpha: 0.3,
+                },
+            ),
+            (
+                "grey-clay",
+                AnalyticBrdf::OrenNayar {
+                    albedo: Rgb::splat(0.4),
+                    sigma: 0.5,
+                },
+            ),
+        ],
+    )
 }
 
 /// A short fit: 4 epochs of 50 steps of 512 samples.

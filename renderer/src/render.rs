@@ -172,7 +172,14 @@ impl Renderer<'_> {
                 // At least 16 passes of at most 8 samples: smooth progress, and Ctrl-C is
                 // answered within one tile of 8 samples per pixel.
                 Budget::Spp(spp) => (spp - done).min(spp.div_ceil(16).clamp(1, 8)),
-                Budget::Time(_) => 1,
+                // One sample per pass at first (a fine error log), then passes of up to 8
+                // as long as one fits in the time left (less overhead per sample).
+                Budget::Time(t) => {
+                    let per_sample = start.elapsed().as_secs_f64() / done.max(1) as f64;
+                    let left = t.as_secs_f64() - start.elapsed().as_secs_f64();
+                    let fits = if done == 0 { 1 } else { (left / per_sample.max(1e-9)) as u32 };
+                    (done / 8).clamp(1, 8).min(fits.max(1))
+                }
             };
             if count == 0 {
                 break;

@@ -6,9 +6,14 @@
 //! `OUTPUT/error-vs-time.png`, and `OUTPUT/report.md` with a table at fixed budgets and each
 //! curve's floor.
 //!
+//! **Error**: the RMSE of the 8-bit sRGB display images (clamp tone mapping) in units of
+//! the display range, 10^(−PSNR/20): bounded per pixel, so rare very bright samples (a small
+//! light seen in a mirror) move it by little, unlike the RMSE of linear radiance (also in the
+//! CSV with PSNR and SSIM).
+//!
 //! **Floor**: the error more samples cannot remove (the representation's own error). Monte
 //! Carlo noise falls as 1/spp in squared error, so each curve's passes are fitted by least
-//! squares with RMSE² = floor² + c / spp (passes from 4 spp on); floor = √max(intercept, 0).
+//! squares with error² = floor² + c / spp (passes from 4 spp on); floor = √max(intercept, 0).
 //! The reference's own noise is part of every floor.
 //!
 //! The configuration (TOML; relative paths are relative to the working directory; `{name}`
@@ -127,6 +132,13 @@ pub struct Point {
     pub error: ImageError,
 }
 
+impl Point {
+    /// The report's error: RMSE of the display images as a fraction of their range.
+    pub fn display_rmse(&self) -> f64 {
+        10f64.powf(-self.error.psnr / 20.0)
+    }
+}
+
 /// The error curve of one representation on one material.
 #[derive(Clone, Debug)]
 pub struct Curve {
@@ -141,8 +153,8 @@ pub struct Curve {
 pub fn fit_floor(points: &[Point]) -> Option<f64> {
     let xy: Vec<(f64, f64)> = points
         .iter()
-        .filter(|p| p.spp >= 4.0 && p.error.rmse.is_finite())
-        .map(|p| (1.0 / p.spp, p.error.rmse * p.error.rmse))
+        .filter(|p| p.spp >= 4.0 && p.display_rmse().is_finite())
+        .map(|p| (1.0 / p.spp, p.display_rmse().powi(2)))
         .collect();
     if xy.len() < 2 {
         return None;
@@ -273,15 +285,23 @@ fn interrupted() -> Error {
     }
 }
 
-/// All points of all curves: material, representation, seconds, spp, rmse, psnr, ssim.
+/// All points of all curves: material, representation, seconds, spp, display RMSE, linear
+/// RMSE, PSNR, SSIM.
 pub fn csv(curves: &[Curve]) -> String {
-    let mut s = String::from("material,representation,seconds,spp,rmse,psnr,ssim\n");
+    let mut s = String::from("material,representation,seconds,spp,display_rmse,rmse,psnr,ssim\n");
     for c in curves {
         for p in &c.points {
             let _ = writeln!(
                 s,
-                "{},{},{:.4},{},{:.6e},{:.3},{:.5}",
-                c.material, c.representation, p.seconds, p.spp, p.error.rmse, p.error.psnr, p.error.ssim
+                "{},{},{:.4},{},{:.6e},{:.6e},{:.3},{:.5}",
+                c.material,
+                c.representation,
+                p.seconds,
+                p.spp,
+                p.display_rmse(),
+                p.error.rmse,
+                p.error.psnr,
+                p.error.ssim
             );
         }
     }
@@ -298,8 +318,9 @@ fn at_budget(curve: &Curve, budget: f64) -> Option<&Point> {
 pub fn markdown(config: &ReportConfig, curves: &[Curve]) -> String {
     let mut s = format!(
         "# Error against render time\n\nScene `{}` ({}x{}, max depth {}), material `{}` bound to each representation; \
-         reference: `{}` at {} spp. RMSE of linear radiance (PSNR and SSIM of the 8-bit sRGB images in the CSV); \
-         a dash: the first pass took longer than the budget.\n",
+         reference: `{}` at {} spp. Error: RMSE of the 8-bit sRGB display images as a fraction of their range \
+         (10^(−PSNR/20); linear-radiance RMSE, PSNR and SSIM are in errors.csv); floor: the error more samples \
+         cannot remove (least-squares fit of error² = floor² + c/spp); a dash: the first pass took longer than the budget.\n",
         config.scene.display(),
         config.resolution[0],
         config.resolution[1],
@@ -312,7 +333,7 @@ pub fn markdown(config: &ReportConfig, curves: &[Curve]) -> String {
         let mine: Vec<&Curve> = curves.iter().filter(|c| &c.material == name).collect();
         let _ = write!(s, "\n## {name}\n\n| representation |");
         for b in &config.table_budgets {
-            let _ = write!(s, " RMSE at {b} s |");
+            let _ = write!(s, " error at {b} s |");
         }
         s += " floor |\n|---|";
         for _ in 0..=config.table_budgets.len() {
@@ -324,14 +345,14 @@ pub fn markdown(config: &ReportConfig, curves: &[Curve]) -> String {
             for &b in &config.table_budgets {
                 match at_budget(c, b) {
                     Some(p) => {
-                        let _ = write!(s, " {:.4e} ({:.1} spp) |", p.error.rmse, p.spp);
+                        let _ = write!(s, " {:.4} ({} spp) |", p.display_rmse(), p.spp);
                     }
                     None => s += " – |",
                 }
             }
             match c.floor {
                 Some(f) => {
-                    let _ = writeln!(s, " {f:.4e} |");
+                    let _ = writeln!(s, " {f:.4} |");
                 }
                 None => s += " – |\n",
             }
@@ -340,10 +361,10 @@ pub fn markdown(config: &ReportConfig, curves: &[Curve]) -> String {
         for &b in &config.table_budgets {
             let best = mine
                 .iter()
-                .filter_map(|c| at_budget(c, b).map(|p| (c.representation.as_str(), p.error.rmse)))
+                .filter_map(|c| at_budget(c, b).map(|p| (c.representation.as_str(), p.display_rmse())))
                 .min_by(|a, b| a.1.total_cmp(&b.1));
             if let Some((label, rmse)) = best {
-                let _ = writeln!(s, "- at {b} s: **{label}** (RMSE {rmse:.4e})");
+                let _ = writeln!(s, "- at {b} s: **{label}** (error {rmse:.4})");
             }
         }
     }
@@ -401,11 +422,11 @@ pub fn plot(config: &ReportConfig, curves: &[Curve]) -> Result<(u32, u32, Vec<u8
             let mine: Vec<&Curve> = curves.iter().filter(|c| &c.material == name).collect();
             let points = mine.iter().flat_map(|c| c.points.iter());
             let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-            for p in points.clone().filter(|p| p.seconds > 0.0 && p.error.rmse > 0.0) {
+            for p in points.clone().filter(|p| p.seconds > 0.0 && p.display_rmse() > 0.0) {
                 x0 = x0.min(p.seconds);
                 x1 = x1.max(p.seconds);
-                y0 = y0.min(p.error.rmse);
-                y1 = y1.max(p.error.rmse);
+                y0 = y0.min(p.display_rmse());
+                y1 = y1.max(p.display_rmse());
             }
             for f in mine.iter().filter_map(|c| c.floor).filter(|f| *f > 0.0) {
                 y0 = y0.min(f);
@@ -416,14 +437,19 @@ pub fn plot(config: &ReportConfig, curves: &[Curve]) -> Result<(u32, u32, Vec<u8
             let mut builder = ChartBuilder::on(area);
             builder.margin(12);
             if have_font {
-                builder.caption(format!("{name}: RMSE vs render time"), ("sans-serif", 20)).x_label_area_size(40).y_label_area_size(70);
+                builder.caption(format!("{name}: error vs render time"), ("sans-serif", 20)).x_label_area_size(40).y_label_area_size(70);
             }
             let mut chart = builder
                 .build_cartesian_2d((x0 * 0.8..x1 * 1.25).log_scale(), (y0 * 0.7..y1 * 1.4).log_scale())
                 .map_err(|e| plot_error(&e))?;
             let mut mesh = chart.configure_mesh();
+            mesh.light_line_style(RGBColor(238, 238, 238));
             if have_font {
-                mesh.x_desc("seconds").y_desc("RMSE (linear radiance)").label_style(("sans-serif", 13));
+                mesh.x_desc("seconds")
+                    .y_desc("RMSE of the display image")
+                    .label_style(("sans-serif", 13))
+                    .x_label_formatter(&|v| format!("{v}"))
+                    .y_label_formatter(&|v| format!("{v:.3}"));
             } else {
                 mesh.x_labels(0).y_labels(0);
             }
@@ -434,7 +460,7 @@ pub fn plot(config: &ReportConfig, curves: &[Curve]) -> Result<(u32, u32, Vec<u8
                 let colour = RGBColor(r, g, b);
                 let series = chart
                     .draw_series(LineSeries::new(
-                        c.points.iter().filter(|p| p.seconds > 0.0 && p.error.rmse > 0.0).map(|p| (p.seconds, p.error.rmse)),
+                        c.points.iter().filter(|p| p.seconds > 0.0 && p.display_rmse() > 0.0).map(|p| (p.seconds, p.display_rmse())),
                         colour.stroke_width(2),
                     ))
                     .map_err(|e| plot_error(&e))?;
@@ -476,7 +502,11 @@ mod tests {
         Point {
             seconds: spp / 10.0,
             spp,
-            error: ImageError { rmse, psnr: 30.0, ssim: 0.9 },
+            error: ImageError {
+                rmse,
+                psnr: -20.0 * rmse.log10(),
+                ssim: 0.9,
+            },
         }
     }
 

@@ -1,7 +1,13 @@
 //! Helpers shared by the material-nn command-line tests.
 
-use std::path::Path;
-use std::process::Output;
+#![allow(dead_code)]
+
+use material_nn::checkpoint::Checkpoint;
+use material_nn::training::load_model;
+use renderer::analytic::AnalyticBrdf;
+use renderer::merl::MerlTable;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 /// A temporary path as a command-line argument.
 pub fn path_str(p: &Path) -> &str {
@@ -14,4 +20,41 @@ pub fn error_line(out: &Output) -> String {
     let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
     assert!(stderr.starts_with("error: ") && !stderr.contains('\n'), "{stderr}");
     stderr
+}
+
+/// Runs `material-nn` to completion.
+pub fn material_nn(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_material-nn"))
+        .args(args)
+        .output()
+        .expect("material-nn runs")
+}
+
+/// Analytic materials as MERL tables `dir/data/NAME.binary` (35 MB each; the temporary
+/// directory of each test removes them); returns the data directory.
+pub fn make_tables(dir: &Path, materials: &[(&str, AnalyticBrdf)]) -> PathBuf {
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    for (name, brdf) in materials {
+        let table = MerlTable::from_fn(|th, td, pd| brdf.eval_angles(th, td, pd));
+        table.write(data.join(format!("{name}.binary"))).unwrap();
+    }
+    data
+}
+
+/// Every weight and bias of a checkpoint's encoder and hypernetwork, in order (burnpack
+/// bytes carry per-run parameter ids, so runs are compared by their weights).
+pub fn model_weights(c: &Checkpoint) -> Vec<f32> {
+    let device = burn::tensor::Device::flex();
+    let m = load_model(&c.config, &c.model, &device, Path::new("checkpoint")).unwrap();
+    let mut all: Vec<f32> = m
+        .encoder
+        .to_dense()
+        .iter()
+        .flat_map(|l| l.weight.iter().chain(&l.bias).copied())
+        .collect();
+    for h in &m.heads {
+        all.extend(h.to_dense().iter().flat_map(|l| l.weight.iter().chain(&l.bias).copied()));
+    }
+    all
 }

@@ -400,13 +400,13 @@ fn run_report(args: ReportArgs) -> Result<()> {
     for c in &curves {
         let last = c.points.last();
         eprintln!(
-            "{} / {}: {:.1} spp in {:.1} s, RMSE {:.4e}, floor {}",
+            "{} / {}: {:.1} spp in {:.1} s, error {:.4}, floor {}",
             c.material,
             c.representation,
             last.map_or(0.0, |p| p.spp),
             last.map_or(0.0, |p| p.seconds),
-            last.map_or(f64::NAN, |p| p.error.rmse),
-            c.floor.map_or("–".to_string(), |f| format!("{f:.4e}"))
+            last.map_or(f64::NAN, |p| p.display_rmse()),
+            c.floor.map_or("–".to_string(), |f| format!("{f:.4}"))
         );
     }
     eprintln!("wrote errors.csv, error-vs-time.png and report.md to {}", config.output.display());
