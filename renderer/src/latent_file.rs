@@ -101,7 +101,9 @@ impl DenseLayer {
     pub fn forward(&self, x: &[f32], y: &mut [f32], relu: bool) {
         debug_assert!(x.len() == self.d_in && y.len() == self.d_out);
         y.copy_from_slice(&self.bias);
-        for (xi, row) in x.iter().zip(self.weight.chunks_exact(self.d_out)) {
+        // `max(1)`: a layer without outputs has no weights to walk (and `chunks_exact(0)`
+        // panics).
+        for (xi, row) in x.iter().zip(self.weight.chunks_exact(self.d_out.max(1))) {
             if *xi != 0.0 {
                 for (yo, w) in y.iter_mut().zip(row) {
                     *yo += xi * w;
@@ -227,10 +229,14 @@ impl LatentFile {
     /// Checks every invariant the renderer relies on; `path` names the file in errors.
     pub fn validate(&self, path: &Path) -> Result<()> {
         let bad = |reason: String| Err(Error::invalid_file(path, reason));
-        if self.latent_dim == 0 || self.target_widths.len() < 2 || self.target_widths.contains(&0) {
+        if self.latent_dim == 0
+            || self.target_widths.len() < 2
+            || self.target_widths.contains(&0)
+            || self.hyper_hidden.contains(&0)
+        {
             return bad(format!(
-                "bad shape: latent_dim {}, target widths {:?}",
-                self.latent_dim, self.target_widths
+                "bad shape: latent_dim {}, target widths {:?}, hypernetwork widths {:?}",
+                self.latent_dim, self.target_widths, self.hyper_hidden
             ));
         }
         if !(self.epsilon.is_finite() && self.epsilon > 0.0) {

@@ -191,6 +191,20 @@ impl MerlTable {
         Ok(MerlTable { raw })
     }
 
+    /// Parses and validates the contents of a `.binary` file (the checks of
+    /// [`MerlTable::read`]); `path` names the source in errors. The length is checked before
+    /// anything is allocated, so a short or oversized input costs nothing.
+    pub fn from_bytes(bytes: &[u8], path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let header: &[u8; HEADER_BYTES as usize] = bytes
+            .first_chunk()
+            .ok_or_else(|| truncated_header_error(path, bytes.len() as u64))?;
+        check_layout(header, bytes.len() as u64, path)?;
+        let mut raw = vec![0f64; 3 * BIN_COUNT];
+        decode_raw(&bytes[HEADER_BYTES as usize..], 0, &mut raw, path)?;
+        Ok(MerlTable { raw })
+    }
+
     /// Builds a table from raw values (channel-major, `3 * BIN_COUNT` finite entries; negative
     /// = unmeasured). `what` names the source in error messages.
     pub fn from_raw(raw: Vec<f64>, what: impl Into<PathBuf>) -> Result<Self> {
@@ -342,6 +356,58 @@ fn non_finite_message(raw_index: usize, value: f64) -> String {
     )
 }
 
+fn truncated_header_error(path: &Path, len: u64) -> Error {
+    Error::invalid_file(
+        path,
+        format!("truncated MERL file: {len} bytes, shorter than its {HEADER_BYTES}-byte header"),
+    )
+}
+
+/// Checks a `.binary` file's header dims (90 90 180) and its total length `len`.
+fn check_layout(header: &[u8; HEADER_BYTES as usize], len: u64, path: &Path) -> Result<()> {
+    let dims: Vec<i32> = header
+        .chunks_exact(4)
+        .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    if dims != [THETA_H_BINS as i32, THETA_D_BINS as i32, PHI_D_BINS as i32] {
+        return Err(Error::invalid_file(
+            path,
+            format!(
+                "MERL header dims {} {} {}, expected {THETA_H_BINS} {THETA_D_BINS} {PHI_D_BINS}",
+                dims[0], dims[1], dims[2]
+            ),
+        ));
+    }
+    if len != FILE_BYTES {
+        let what = if len < FILE_BYTES {
+            "truncated"
+        } else {
+            "oversized"
+        };
+        return Err(Error::invalid_file(
+            path,
+            format!(
+                "{what} MERL file: {len} bytes, expected {FILE_BYTES} (12-byte header + 90x90x180x3 float64)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Decodes little-endian `f64`s from `src` into `out` (`src` holds at least `8 · out.len()`
+/// bytes), checking that they are finite; `first` is the raw index of `out[0]`, for messages.
+fn decode_raw(src: &[u8], first: usize, out: &mut [f64], path: &Path) -> Result<()> {
+    debug_assert!(src.len() >= 8 * out.len());
+    for (k, (v, b)) in out.iter_mut().zip(src.chunks_exact(8)).enumerate() {
+        let x = f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
+        if !x.is_finite() {
+            return Err(Error::invalid_file(path, non_finite_message(first + k, x)));
+        }
+        *v = x;
+    }
+    Ok(())
+}
+
 /// A validated `.binary` file open for reading ranges of raw values, so that many tables can
 /// be streamed through together (e.g. for a per-bin median) without holding them in memory.
 #[derive(Debug)]
@@ -357,42 +423,12 @@ impl MerlReader {
         let mut file = File::open(&path).map_err(|e| Error::io(&path, e))?;
         let len = file.metadata().map_err(|e| Error::io(&path, e))?.len();
         if len < HEADER_BYTES {
-            return Err(Error::invalid_file(
-                &path,
-                format!(
-                    "truncated MERL file: {len} bytes, shorter than its {HEADER_BYTES}-byte header"
-                ),
-            ));
+            return Err(truncated_header_error(&path, len));
         }
         let mut header = [0u8; HEADER_BYTES as usize];
         file.read_exact(&mut header)
             .map_err(|e| Error::io(&path, e))?;
-        let dims: Vec<i32> = header
-            .chunks_exact(4)
-            .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect();
-        if dims != [THETA_H_BINS as i32, THETA_D_BINS as i32, PHI_D_BINS as i32] {
-            return Err(Error::invalid_file(
-                &path,
-                format!(
-                    "MERL header dims {} {} {}, expected {THETA_H_BINS} {THETA_D_BINS} {PHI_D_BINS}",
-                    dims[0], dims[1], dims[2]
-                ),
-            ));
-        }
-        if len != FILE_BYTES {
-            let what = if len < FILE_BYTES {
-                "truncated"
-            } else {
-                "oversized"
-            };
-            return Err(Error::invalid_file(
-                &path,
-                format!(
-                    "{what} MERL file: {len} bytes, expected {FILE_BYTES} (12-byte header + 90x90x180x3 float64)"
-                ),
-            ));
-        }
+        check_layout(&header, len, &path)?;
         Ok(MerlReader { path, file })
     }
 
@@ -404,12 +440,15 @@ impl MerlReader {
     /// Reads raw values `[first, first + out.len())` (channel-major order, unscaled) and checks
     /// that they are finite.
     pub fn read_raw(&mut self, first: usize, out: &mut [f64]) -> Result<()> {
-        if first + out.len() > 3 * BIN_COUNT {
+        if first
+            .checked_add(out.len())
+            .is_none_or(|end| end > 3 * BIN_COUNT)
+        {
             return Err(Error::InvalidArgument {
                 flag: format!("MERL range of {}", self.path.display()),
                 reason: format!(
                     "values {first}..{} exceed {}",
-                    first + out.len(),
+                    first.saturating_add(out.len()),
                     3 * BIN_COUNT
                 ),
             });
@@ -424,19 +463,7 @@ impl MerlReader {
             self.file
                 .read_exact(b)
                 .map_err(|e| Error::io(&self.path, e))?;
-            for (k, (v, src)) in chunk.iter_mut().zip(b.chunks_exact(8)).enumerate() {
-                let x = f64::from_le_bytes([
-                    src[0], src[1], src[2], src[3], src[4], src[5], src[6], src[7],
-                ]);
-                if !x.is_finite() {
-                    let raw_index = first + (chunk_index << 16) + k;
-                    return Err(Error::invalid_file(
-                        &self.path,
-                        non_finite_message(raw_index, x),
-                    ));
-                }
-                *v = x;
-            }
+            decode_raw(b, first + (chunk_index << 16), chunk, &self.path)?;
         }
         Ok(())
     }

@@ -71,13 +71,32 @@ pub const PATH_SPEC_KINDS: [&str; 2] = ["merl", "nbrdf"];
 /// Loads a `.gltf` or `.glb` file (see the module documentation for what is read).
 pub fn load(path: &Path) -> Result<SceneDescription> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let Gltf { document, blob } = Gltf::from_slice(&bytes)
-        .map_err(|e| Error::invalid_file(path, format!("not a valid glTF file: {e}")))?;
+    load_from_bytes(&bytes, path)
+}
+
+/// Loads a glTF scene from the contents of a `.gltf` or `.glb` file. `path` is where the
+/// bytes came from: errors name it, and buffers and images given by relative URIs are read
+/// from disk relative to its directory.
+pub fn load_from_bytes(bytes: &[u8], path: &Path) -> Result<SceneDescription> {
+    load_from_bytes_with(bytes, path, |file| std::fs::read(file))
+}
+
+/// Like [`load_from_bytes`], but the files the glTF file refers to (external buffers and
+/// images) are read by `read_file`, given their path (the glTF file's directory joined with
+/// the decoded URI), instead of from disk; an error it returns becomes [`Error::Io`] naming
+/// that path. Lets a scene and its files come from memory (tests, fuzzing).
+pub fn load_from_bytes_with(
+    bytes: &[u8],
+    path: &Path,
+    mut read_file: impl FnMut(&Path) -> std::io::Result<Vec<u8>>,
+) -> Result<SceneDescription> {
+    let Gltf { document, blob } = parse_and_validate(bytes, path)?;
     let base = path.parent().unwrap_or_else(|| Path::new(""));
-    let buffers = load_buffers(path, base, &document, blob)?;
+    let buffers = load_buffers(path, base, &document, blob, &mut read_file)?;
     let mut loader = Loader {
         path,
         base,
+        read_file: &mut read_file,
         buffers: &buffers,
         scene: SceneDescription {
             source: path.to_path_buf(),
@@ -111,6 +130,45 @@ pub fn load(path: &Path) -> Result<SceneDescription> {
     Ok(loader.scene)
 }
 
+/// Parses a `.gltf` or `.glb` file and runs the `gltf` crate's validation, which checks
+/// every index into the document's arrays. Two inputs that make the `gltf` crate (1.4)
+/// panic are turned into errors first: a GLB header whose total length is below the
+/// header's own 12 bytes (an overflowing subtraction in `binary.rs`), and a primitive whose
+/// POSITION names a missing accessor (the validation indexes the accessors with it
+/// unchecked, `gltf-json` `mesh.rs`).
+fn parse_and_validate(bytes: &[u8], path: &Path) -> Result<Gltf> {
+    let invalid = |e: &dyn std::fmt::Display| {
+        Error::invalid_file(path, format!("not a valid glTF file: {e}"))
+    };
+    if let Some(header) = bytes.first_chunk::<12>().filter(|h| h.starts_with(b"glTF")) {
+        let length = u32::from_le_bytes([header[8], header[9], header[10], header[11]]);
+        if length < 12 {
+            return Err(invalid(&format!(
+                "GLB header gives a total length of {length} bytes, less than the 12-byte header"
+            )));
+        }
+    }
+    let Gltf { document, blob } =
+        Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(&e))?;
+    let json = document.into_json();
+    let accessor_count = json.accessors.len();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = ::gltf::json::validation::Checked::Valid(::gltf::Semantic::Positions);
+            if let Some(index) = primitive.attributes.get(&position) {
+                if index.value() >= accessor_count {
+                    return Err(invalid(&format!(
+                        "meshes[{m}].primitives[{p}].attributes.POSITION: accessor {} does not exist ({accessor_count} accessors)",
+                        index.value()
+                    )));
+                }
+            }
+        }
+    }
+    let document = Document::from_json(json).map_err(|e| invalid(&e))?;
+    Ok(Gltf { document, blob })
+}
+
 /// Resolves a binding specification found in a glTF file whose directory is `base`: for the
 /// kinds in [`PATH_SPEC_KINDS`] (`merl:`, `nbrdf:`) a relative path after the prefix is
 /// joined to `base`; absolute paths, other kinds (e.g. `neural:NAME`) and strings without a
@@ -136,6 +194,7 @@ fn load_buffers(
     base: &Path,
     document: &Document,
     mut blob: Option<Vec<u8>>,
+    read_file: &mut dyn FnMut(&Path) -> std::io::Result<Vec<u8>>,
 ) -> Result<Vec<Vec<u8>>> {
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
@@ -151,7 +210,7 @@ fn load_buffers(
                 "the GLB binary chunk".to_string(),
             ),
             ::gltf::buffer::Source::Uri(uri) => (
-                read_uri(path, base, uri, &format!("buffer {i}"))?,
+                read_uri(path, base, uri, &format!("buffer {i}"), read_file)?,
                 describe_uri(uri),
             ),
         };
@@ -181,7 +240,13 @@ fn describe_uri(uri: &str) -> String {
 
 /// The bytes a URI refers to: a base64 `data:` URI, a `file:` URI, or a percent-encoded
 /// path relative to `base`. `what` names the referring object in error messages.
-fn read_uri(path: &Path, base: &Path, uri: &str, what: &str) -> Result<Vec<u8>> {
+fn read_uri(
+    path: &Path,
+    base: &Path,
+    uri: &str,
+    what: &str,
+    read_file: &mut dyn FnMut(&Path) -> std::io::Result<Vec<u8>>,
+) -> Result<Vec<u8>> {
     if uri.starts_with("data:") {
         let data = ::gltf::buffer::Data::from_source(::gltf::buffer::Source::Uri(uri), None)
             .map_err(|e| Error::invalid_file(path, format!("{what}: bad data URI: {e}")))?;
@@ -200,7 +265,7 @@ fn read_uri(path: &Path, base: &Path, uri: &str, what: &str) -> Result<Vec<u8>> 
     } else {
         base.join(percent_decode(uri, path, what)?)
     };
-    std::fs::read(&file_path).map_err(|e| Error::io(file_path, e))
+    read_file(&file_path).map_err(|e| Error::io(file_path, e))
 }
 
 /// Decodes `%XX` escapes of a URI path.
@@ -227,6 +292,8 @@ fn percent_decode(uri: &str, path: &Path, what: &str) -> Result<String> {
 struct Loader<'a> {
     path: &'a Path,
     base: &'a Path,
+    /// Reads the files the glTF file refers to (see [`load_from_bytes_with`]).
+    read_file: &'a mut dyn FnMut(&Path) -> std::io::Result<Vec<u8>>,
     buffers: &'a [Vec<u8>],
     scene: SceneDescription,
     /// glTF image index → index into `scene.textures`.
@@ -632,7 +699,9 @@ impl Loader<'_> {
                     ))
                 })?
                 .to_vec(),
-            ::gltf::image::Source::Uri { uri, .. } => read_uri(self.path, self.base, uri, &what)?,
+            ::gltf::image::Source::Uri { uri, .. } => {
+                read_uri(self.path, self.base, uri, &what, self.read_file)?
+            }
         };
         let texture = Texture::from_encoded_srgb(&bytes, self.path, &what)?;
         let t = self.scene.textures.len();
@@ -1610,7 +1679,8 @@ mod tests {
             .expect("preview material");
         assert_eq!(
             scene.materials[preview].model,
-            SurfaceModel::MetallicRoughness
+            SurfaceModel::Bound("neural:alum-bronze".to_string()),
+            "the preview binds the shipped latent code by its extras"
         );
         assert!(
             scene

@@ -31,6 +31,25 @@ use std::path::Path;
 /// Loads an OBJ file and the MTL libraries it names (see the module documentation).
 pub fn load(path: &Path) -> Result<SceneDescription> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    load_from_bytes(&bytes, path)
+}
+
+/// Loads an OBJ scene from the contents of an OBJ file. `path` is where the bytes came from:
+/// errors name it, and the MTL libraries and textures it names are read from disk relative
+/// to its directory.
+pub fn load_from_bytes(bytes: &[u8], path: &Path) -> Result<SceneDescription> {
+    load_from_bytes_with(bytes, path, |file| std::fs::read(file))
+}
+
+/// Like [`load_from_bytes`], but the files the OBJ file refers to (MTL libraries and their
+/// textures) are read by `read_file`, given their path (the OBJ file's directory joined with
+/// the name in the file), instead of from disk; an error it returns becomes [`Error::Io`]
+/// naming that path. Lets a scene and its files come from memory (tests, fuzzing).
+pub fn load_from_bytes_with(
+    bytes: &[u8],
+    path: &Path,
+    read_file: impl FnMut(&Path) -> std::io::Result<Vec<u8>>,
+) -> Result<SceneDescription> {
     let base = path.parent().unwrap_or_else(|| Path::new(""));
     let options = tobj::LoadOptions {
         triangulate: true,
@@ -38,12 +57,17 @@ pub fn load(path: &Path) -> Result<SceneDescription> {
         ignore_points: true,
         ignore_lines: true,
     };
+    check_face_indices(bytes, path)?;
     let mtl_error: RefCell<Option<Error>> = RefCell::new(None);
+    // tobj asks for a `Fn` material loader.
+    let read_cell = RefCell::new(read_file);
     let parsed = tobj::load_obj_buf(&mut Cursor::new(bytes), &options, |mtl: &Path| {
         let mtl_path = base.join(mtl);
-        let result = match std::fs::read(&mtl_path) {
-            Ok(mtl_bytes) => tobj::load_mtl_buf(&mut Cursor::new(mtl_bytes)).map_err(|e| {
-                Error::invalid_file(&mtl_path, format!("cannot parse material library: {e}"))
+        let result = match (read_cell.borrow_mut())(&mtl_path) {
+            Ok(mtl_bytes) => check_mtl_colours(&mtl_bytes, &mtl_path).and_then(|()| {
+                tobj::load_mtl_buf(&mut Cursor::new(mtl_bytes)).map_err(|e| {
+                    Error::invalid_file(&mtl_path, format!("cannot parse material library: {e}"))
+                })
             }),
             Err(e) => Err(Error::io(&mtl_path, e)),
         };
@@ -52,6 +76,7 @@ pub fn load(path: &Path) -> Result<SceneDescription> {
             tobj::LoadError::OpenFileFailed
         })
     });
+    let mut read_file = read_cell.into_inner();
     if let Some(error) = mtl_error.into_inner() {
         return Err(error);
     }
@@ -65,7 +90,7 @@ pub fn load(path: &Path) -> Result<SceneDescription> {
         ..SceneDescription::default()
     };
     for m in &obj_materials {
-        let material = convert_material(m, path, base, &mut scene.textures)?;
+        let material = convert_material(m, path, base, &mut scene.textures, &mut read_file)?;
         scene.materials.push(material);
     }
     let mut default_material = None;
@@ -92,6 +117,71 @@ pub fn load(path: &Path) -> Result<SceneDescription> {
     }
     scene.validate()?;
     Ok(scene)
+}
+
+/// Rejects face (`f`) and line (`l`) elements whose indices `tobj` 4.0 would turn into
+/// absurd `usize` values: a relative (negative) index reaching before the first vertex,
+/// texture coordinate or normal, and an index larger than the file could hold. `tobj`
+/// computes such indices with wrapping casts and then multiplies them (an overflow panic
+/// in debug builds, a wrong look-up or an out-of-bounds panic otherwise).
+fn check_face_indices(obj: &[u8], path: &Path) -> Result<()> {
+    const KINDS: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    let largest = obj.len() as i128;
+    let mut counts = [0i128; 3];
+    for (number, line) in obj.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f" | "l") => {
+                for element in words {
+                    for (k, part) in element.split('/').take(3).enumerate() {
+                        // Unparsable parts are left to tobj, which reports them.
+                        let Ok(index) = part.parse::<isize>() else {
+                            continue;
+                        };
+                        let index = index as i128;
+                        if index > largest || counts[k] + index < 0 {
+                            return Err(Error::invalid_file(
+                                path,
+                                format!(
+                                    "cannot parse OBJ: line {}: {} index {index} out of range ({} defined before it)",
+                                    number + 1,
+                                    KINDS[k],
+                                    counts[k]
+                                ),
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Rejects MTL colour lines (`Ka`, `Kd`, `Ks`, `Ke`) with fewer than three values, which
+/// make `tobj` 4.0 panic (an unwrap in its `parse_float3`) instead of returning an error.
+fn check_mtl_colours(mtl: &[u8], mtl_path: &Path) -> Result<()> {
+    for (number, line) in mtl.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_whitespace();
+        if let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() {
+            if words.count() < 3 {
+                return Err(Error::invalid_file(
+                    mtl_path,
+                    format!(
+                        "cannot parse material library: line {}: '{key}' needs three numbers",
+                        number + 1
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// One `tobj` mesh as geometry with its own vertex indices.
@@ -173,6 +263,7 @@ fn convert_material(
     path: &Path,
     base: &Path,
     textures: &mut Vec<Texture>,
+    read_file: &mut dyn FnMut(&Path) -> std::io::Result<Vec<u8>>,
 ) -> Result<Material> {
     let base_color = m.diffuse.map_or(Rgb::splat(0.8), Rgb::from_array);
     let specular = m.specular.is_some_and(|ks| ks.iter().any(|&c| c > 0.0));
@@ -188,7 +279,7 @@ fn convert_material(
     let base_color_texture = match m.diffuse_texture.as_deref() {
         Some(file) if !file.is_empty() => {
             let texture_path = base.join(file);
-            let bytes = std::fs::read(&texture_path).map_err(|e| Error::io(&texture_path, e))?;
+            let bytes = read_file(&texture_path).map_err(|e| Error::io(&texture_path, e))?;
             let what = format!("texture '{file}' of material '{}'", m.name);
             textures.push(Texture::from_encoded_srgb(&bytes, &texture_path, &what)?);
             Some(textures.len() - 1)

@@ -1,0 +1,319 @@
+//! Writes the seed corpora of the fuzz targets to `fuzz/corpus/<target>/seed-*` (small
+//! files, made from the repository's scenes and from code; nothing large is committed):
+//!
+//! ```text
+//! cargo run --manifest-path fuzz/Cargo.toml --example make_seeds [NBRDF_DIR]
+//! ```
+//!
+//! `NBRDF_DIR` (optional) is a directory of NBRDF `.npy` networks; its `alum-bronze_*.npy`
+//! tensors are added to the `npy` corpus.
+
+use renderer::latent_file::{DenseLayer, LatentFile, MappingForm, Mlp, NamedLatent, WeightType};
+use renderer::merl::BIN_COUNT;
+use renderer::nbrdf::TENSOR_NAMES;
+use renderer_fuzz::{
+    latent_mode2_input, merl_header, valid_npy_tensors, CORNELL_BIN, MTL_SEPARATOR,
+};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+fn main() {
+    let fuzz_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let repo = fuzz_dir.parent().expect("repository root");
+    let corpus = fuzz_dir.join("corpus");
+    let nbrdf_dir = std::env::args().nth(1).map(PathBuf::from);
+
+    let mut count = 0;
+    let mut write = |target: &str, name: &str, bytes: &[u8]| {
+        let dir = corpus.join(target);
+        std::fs::create_dir_all(&dir).expect("create corpus directory");
+        std::fs::write(dir.join(format!("seed-{name}")), bytes).expect("write seed");
+        count += 1;
+    };
+
+    // glTF: the Cornell box as it is (its scene.bin is served from memory), as a GLB, with a
+    // data: URI buffer, and a small textured strip scene with cameras, lights and extras.
+    let cornell = std::fs::read(repo.join("scenes/cornell-box/scene.gltf")).expect("cornell box");
+    write("gltf", "cornell.gltf", &cornell);
+    let mut doc: Value = serde_json::from_slice(&cornell).expect("cornell JSON");
+    doc["buffers"][0]
+        .as_object_mut()
+        .expect("buffer object")
+        .remove("uri");
+    write("gltf", "cornell.glb", &glb(&doc, CORNELL_BIN));
+    doc["buffers"][0]["uri"] = json!(format!(
+        "data:application/octet-stream;base64,{}",
+        base64(CORNELL_BIN)
+    ));
+    write("gltf", "cornell-data-uri.gltf", &to_json(&doc));
+    let (strip, strip_bin) = strip_scene();
+    write("gltf", "strip.glb", &glb(&strip, &strip_bin));
+
+    // OBJ (+ MTL after the separator line).
+    write(
+        "obj",
+        "triangle.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    );
+    let mut with_mtl = OBJ.as_bytes().to_vec();
+    with_mtl.extend_from_slice(MTL_SEPARATOR);
+    with_mtl.extend_from_slice(MTL.as_bytes());
+    write("obj", "materials.obj", &with_mtl);
+    write(
+        "obj",
+        "textured.obj",
+        b"mtllib t.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+          vn 0 0 1\nusemtl wood\nf 1/1/1 2/2/1 3/3/1 4/4/1\n#--mtl--\nnewmtl wood\n\
+          Kd 1 1 1\nmap_Kd wood.png\nKs 0.1 0.1 0.1\nNs 20\nKe 0 0 0\n",
+    );
+
+    // MERL: the valid header (stands for a full table of zeros), header + one value (tiled to
+    // a full table), a NaN value, wrong dims, a truncated header.
+    let header = merl_header();
+    write("merl", "header", &header);
+    let mut one = header.clone();
+    one.extend_from_slice(&(0.5f64).to_le_bytes());
+    write("merl", "header-value", &one);
+    let mut nan = header.clone();
+    nan.extend_from_slice(&[0; 64]);
+    nan.extend_from_slice(&f64::NAN.to_le_bytes());
+    write("merl", "header-nan", &nan);
+    let mut dims = header.clone();
+    dims[8..12].copy_from_slice(&90i32.to_le_bytes());
+    write("merl", "dims", &dims);
+    write("merl", "short", &header[..7]);
+
+    // .npy: the first byte picks the tensor (0 fc1 ... 5 b3).
+    for (i, bytes) in valid_npy_tensors().iter().enumerate() {
+        let mut input = vec![i as u8];
+        input.extend_from_slice(bytes);
+        write("npy", &format!("small_{}", TENSOR_NAMES[i]), &input);
+    }
+    if let Some(dir) = nbrdf_dir {
+        for (i, name) in TENSOR_NAMES.iter().enumerate() {
+            let path = dir.join(format!("alum-bronze_{name}.npy"));
+            let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let mut input = vec![i as u8];
+            input.extend_from_slice(&bytes);
+            write("npy", &format!("alum-bronze_{name}"), &input);
+        }
+    }
+
+    // latent.bin: small files with the f_ref table left to the target (mode 2), and the
+    // start of the shipped file, checksum fixed (mode 1) and as it is (mode 0).
+    for (weight_type, name) in [
+        (WeightType::F32, "small-f32"),
+        (WeightType::F16, "small-f16"),
+    ] {
+        write(
+            "latent",
+            name,
+            &latent_mode2_input(&small_latent_file(weight_type)),
+        );
+    }
+    if let Ok(shipped) = std::fs::read(repo.join("scenes/materials/latent.bin")) {
+        let mut input = vec![1];
+        input.extend_from_slice(&shipped[..shipped.len().min(4096)]);
+        write("latent", "shipped-head-fixed", &input);
+        let mut input = vec![0];
+        input.extend_from_slice(&shipped[..shipped.len().min(256)]);
+        write("latent", "shipped-head", &input);
+    }
+    println!("wrote {count} seeds under {}", corpus.display());
+}
+
+const OBJ: &str = "mtllib scene.mtl
+o plain
+v 0 0 5
+v 1 0 5
+v 0 1 5
+f 1 2 3
+o floor
+v -1 0 -1
+v 1 0 -1
+v 1 0 1
+v -1 0 1
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+usemtl matte
+f 7/4 6/3 5/2 4/1
+o lamp
+v 0 2 0
+v 1 2 0
+v 0 2 1
+vn 0 -1 0
+usemtl light
+f 8//1 10//1 9//1
+o shiny
+v 0 1 0
+v 1 1 0
+v 0 1.5 0
+usemtl glossy
+f 11 12 13
+";
+
+const MTL: &str = "newmtl matte
+Kd 0.5 0.25 0.125
+Ks 0 0 0
+newmtl light
+Kd 0 0 0
+Ke 10 9 8
+newmtl glossy
+Kd 0.1 0.2 0.3
+Ks 0.5 0.5 0.5
+Ns 98
+";
+
+/// A two-triangle strip with UVs, an external texture, a perspective camera, three punctual
+/// lights, material extras and a constant environment.
+fn strip_scene() -> (Value, Vec<u8>) {
+    let positions: [[f32; 3]; 4] = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [1., 1., 0.]];
+    let uvs: [[f32; 2]; 4] = [[0., 1.], [1., 1.], [0., 0.], [1., 0.]];
+    let mut bin: Vec<u8> = positions
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    bin.extend(uvs.iter().flatten().flat_map(|v| v.to_le_bytes()));
+    bin.extend([0u16, 1, 2, 3].iter().flat_map(|v| v.to_le_bytes()));
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2], "extras": {"environment": {"color": [0.1, 0.2, 0.3]}}}],
+        "nodes": [
+            {"mesh": 0, "rotation": [0.0, 0.0, 0.0, 1.0], "scale": [1.0, 1.0, -1.0]},
+            {"camera": 0, "translation": [0.5, 0.5, 3.0], "children": [3]},
+            {"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [0.0, 2.0, 0.0]},
+            {"extensions": {"KHR_lights_punctual": {"light": 1}},
+             "matrix": [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0]}
+        ],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.01, "aspectRatio": 1.5}}],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "point", "intensity": 5.0, "color": [1.0, 0.9, 0.8]},
+            {"type": "spot", "intensity": 2.0, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}}
+        ]}},
+        "meshes": [{"name": "strip", "primitives": [
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "mode": 5, "material": 0},
+            {"attributes": {"POSITION": 0}, "mode": 6}
+        ]}],
+        "materials": [{"name": "wood", "doubleSided": true,
+            "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0},
+            "emissiveFactor": [0.0, 0.0, 0.0],
+            "extras": {"brdf": "merl:materials/alum-bronze.binary"}}],
+        "textures": [{"source": 0}],
+        "images": [{"uri": "wood%20grain.png"}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 2, "componentType": 5123, "count": 4, "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+            {"buffer": 0, "byteOffset": 80, "byteLength": 8}
+        ],
+        "buffers": [{"byteLength": bin.len()}]
+    });
+    (doc, bin)
+}
+
+/// A small valid latent file: target net 6-4-3, latent size 2, one hidden layer of 5.
+fn small_latent_file(weight_type: WeightType) -> LatentFile {
+    let (widths, hidden, latent_dim) = (vec![6, 4, 3], vec![5], 2);
+    let mut seed = 1u32;
+    let mut next = || {
+        seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
+    };
+    let mut hypernetwork = Vec::new();
+    for w in widths.windows(2) {
+        for numel in [w[0] * w[1], w[1]] {
+            let dims = [latent_dim, hidden[0], numel];
+            let layers = dims
+                .windows(2)
+                .map(|d| DenseLayer {
+                    d_in: d[0],
+                    d_out: d[1],
+                    weight: (0..d[0] * d[1]).map(|_| next()).collect(),
+                    bias: (0..d[1]).map(|_| next()).collect(),
+                })
+                .collect();
+            hypernetwork.push(Mlp { layers });
+        }
+    }
+    LatentFile {
+        latent_dim,
+        target_widths: widths,
+        hyper_hidden: hidden,
+        mapping: MappingForm::Code,
+        epsilon: 0.002,
+        weight_type,
+        hypernetwork,
+        f_ref: vec![[half::f16::from_f32(renderer_fuzz::FREF_FILL); 3]; BIN_COUNT],
+        latents: vec![
+            NamedLatent {
+                name: "gold".into(),
+                z: vec![0.5, 1.0],
+            },
+            NamedLatent {
+                name: "blue-acrylic".into(),
+                z: vec![0.0, 2.0],
+            },
+        ],
+        training_materials: vec!["gold".into(), "silver".into()],
+    }
+}
+
+fn to_json(doc: &Value) -> Vec<u8> {
+    serde_json::to_vec_pretty(doc).expect("serialise JSON")
+}
+
+/// A binary glTF: header, JSON chunk, BIN chunk (both padded to 4 bytes).
+fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut json = serde_json::to_vec(doc).expect("serialise JSON");
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
+
+/// Standard base64 with padding.
+fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(ALPHABET[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
