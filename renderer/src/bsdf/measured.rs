@@ -247,6 +247,28 @@ pub(crate) mod tests {
         )
     }
 
+    /// Energy (pbrt-v4's test): the directional albedo of the tabulated, NBRDF and decoded
+    /// FreNBRDF BSDFs of the chi-square materials stays below 1.01 for θo from 0° to 85°
+    /// (Monte Carlo with importance sampling, 50 k samples per direction).
+    #[test]
+    fn measured_brdfs_do_not_create_energy() {
+        use crate::bsdf::merl::{Interpolation, MerlBsdf};
+        let latents = crate::bsdf::frenbrdf::tests::shipped_latents();
+        for name in CHI2_MATERIALS {
+            let table = MerlBsdf::new(&merl_fitted_table(name), Interpolation::Trilinear, &TabulatedSamplerConfig::default());
+            let network = nbrdf_bsdf(name);
+            let neural = latents.decode(name).unwrap();
+            let kinds: [(&str, &dyn Bxdf); 3] = [("table", &table), ("nbrdf", &network), ("frenbrdf", &neural)];
+            for (kind, bsdf) in kinds {
+                for degrees in [0.0f32, 30.0, 60.0, 80.0, 85.0] {
+                    let t = degrees.to_radians();
+                    let albedo = chi2::directional_albedo(bsdf, Vec3::new(t.sin(), 0.0, t.cos()), 50_000);
+                    assert!(albedo.max_element() < 1.01, "{kind} {name} at θo = {degrees}°: albedo {albedo}");
+                }
+            }
+        }
+    }
+
     /// No NaN, Inf or negative value or density anywhere, including grazing angles
     /// (θ → 90°), the mirror configuration (h = n), retro-reflection and below the horizon.
     pub(crate) fn check_stability(bxdf: &(impl Bxdf + ?Sized)) {
