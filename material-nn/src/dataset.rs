@@ -320,28 +320,41 @@ impl Sampler {
     /// `n` uniform samples of `table` (see the module documentation). Errors when the table
     /// is (almost) entirely unmeasured.
     pub fn draw(&self, table: &MaterialTable, n: usize, rng: &mut impl Rng) -> Result<SampleSet> {
-        let mut set = SampleSet::default();
-        let mut attempts = 0usize;
-        while set.len() < n {
-            attempts += 1;
-            if attempts > n.max(16) * MAX_ATTEMPTS_PER_SAMPLE {
-                return Err(Error::Invalid(format!(
-                    "material '{}': too few measured bins to draw {n} samples",
-                    table.name
-                )));
-            }
-            let theta_h = rng.random::<f32>() * FRAC_PI_2;
-            let theta_d = rng.random::<f32>() * FRAC_PI_2;
-            let phi_d = rng.random::<f32>() * TAU;
-            let Some(f) = table.lookup(theta_h, theta_d, phi_d) else {
-                continue;
-            };
-            if let Some((x, y, c)) = self.sample_at(theta_h, theta_d, phi_d, f) {
-                set.push(x, y, c);
-            }
-        }
-        Ok(set)
+        draw_uniform(table, n, rng, |theta_h, theta_d, phi_d, f| self.sample_at(theta_h, theta_d, phi_d, f))
     }
+}
+
+/// `n` samples of `table` at uniform (θh, θd ∈ [0, π/2], φd ∈ [0, 2π)) with f looked up
+/// trilinearly (points with no measured corner skipped); `to_sample(θh, θd, φd, f)` turns a
+/// point into (network input, value, cos θi) or rejects it. Errors when the table is (almost)
+/// entirely unmeasured.
+pub fn draw_uniform(
+    table: &MaterialTable,
+    n: usize,
+    rng: &mut impl Rng,
+    mut to_sample: impl FnMut(f32, f32, f32, [f32; 3]) -> Option<([f32; 6], [f32; 3], f32)>,
+) -> Result<SampleSet> {
+    let mut set = SampleSet::default();
+    let mut attempts = 0usize;
+    while set.len() < n {
+        attempts += 1;
+        if attempts > n.max(16) * MAX_ATTEMPTS_PER_SAMPLE {
+            return Err(Error::Invalid(format!(
+                "material '{}': too few measured bins to draw {n} samples",
+                table.name
+            )));
+        }
+        let theta_h = rng.random::<f32>() * FRAC_PI_2;
+        let theta_d = rng.random::<f32>() * FRAC_PI_2;
+        let phi_d = rng.random::<f32>() * TAU;
+        let Some(f) = table.lookup(theta_h, theta_d, phi_d) else {
+            continue;
+        };
+        if let Some((x, y, c)) = to_sample(theta_h, theta_d, phi_d, f) {
+            set.push(x, y, c);
+        }
+    }
+    Ok(set)
 }
 
 #[cfg(test)]

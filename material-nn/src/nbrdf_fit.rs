@@ -35,7 +35,7 @@
 //! fitted material's settings, losses and time ([`FitSummary`]).
 
 use crate::checkpoint::write_atomic;
-use crate::dataset::{list_tables, material_name, MaterialTable};
+use crate::dataset::{draw_uniform, list_tables, material_name, MaterialTable, SampleSet};
 use crate::error::{Error, Result};
 use crate::model::Nbrdf;
 use crate::training::{optimizer, training_device};
@@ -50,7 +50,6 @@ use renderer::brdf_coords::{
 use renderer::nbrdf::{tensor_paths, NbrdfNetwork, HIDDEN, INPUTS, OUTPUTS};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::f32::consts::{FRAC_PI_2, TAU};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -268,55 +267,11 @@ pub fn material_seed(seed: u64, name: &str) -> u64 {
     h ^ seed.wrapping_mul(0x9e37_79b9_7f4a_7c15)
 }
 
-/// Training points of one material: inputs n×6, targets y = ln(1 + f) n×3, cos θi (n values).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct FitSamples {
-    /// Network inputs, row-major n×6.
-    pub inputs: Vec<f32>,
-    /// Targets y, row-major n×3.
-    pub targets: Vec<f32>,
-    /// cos θi per point.
-    pub cos_i: Vec<f32>,
-}
-
-impl FitSamples {
-    /// Number of points.
-    pub fn len(&self) -> usize {
-        self.cos_i.len()
-    }
-
-    /// Whether there are none.
-    pub fn is_empty(&self) -> bool {
-        self.cos_i.is_empty()
-    }
-}
-
-/// Attempts per requested point before giving up on a (mostly unmeasured) table.
-const MAX_ATTEMPTS_PER_SAMPLE: usize = 64;
-
-/// `n` uniform points of `table` (see the module documentation). Errors when the table is
+/// `n` uniform points of `table` (see the module documentation) as a [`SampleSet`] whose
+/// values are the targets y = ln(1 + f), φd folded into [0, π). Errors when the table is
 /// (almost) entirely unmeasured.
-pub fn draw_samples(table: &MaterialTable, n: usize, rng: &mut impl Rng) -> Result<FitSamples> {
-    let mut s = FitSamples {
-        inputs: Vec::with_capacity(6 * n),
-        targets: Vec::with_capacity(3 * n),
-        cos_i: Vec::with_capacity(n),
-    };
-    let mut attempts = 0usize;
-    while s.len() < n {
-        attempts += 1;
-        if attempts > n.max(16) * MAX_ATTEMPTS_PER_SAMPLE {
-            return Err(Error::Invalid(format!(
-                "material '{}': too few measured bins to draw {n} samples",
-                table.name
-            )));
-        }
-        let theta_h = rng.random::<f32>() * FRAC_PI_2;
-        let theta_d = rng.random::<f32>() * FRAC_PI_2;
-        let phi_d = rng.random::<f32>() * TAU;
-        let Some(f) = table.lookup(theta_h, theta_d, phi_d) else {
-            continue;
-        };
+pub fn draw_samples(table: &MaterialTable, n: usize, rng: &mut impl Rng) -> Result<SampleSet> {
+    draw_uniform(table, n, rng, |theta_h, theta_d, phi_d, f| {
         let phi_d = fold_phi_d(phi_d);
         let (wi, _) = directions_from_angles(&HalfDiffAngles {
             theta_h,
@@ -324,16 +279,16 @@ pub fn draw_samples(table: &MaterialTable, n: usize, rng: &mut impl Rng) -> Resu
             theta_d,
             phi_d,
         });
-        s.inputs
-            .extend_from_slice(&network_input_from_angles(theta_h, theta_d, phi_d));
-        s.targets.extend(f.map(|v| v.max(0.0).ln_1p()));
-        s.cos_i.push(wi.z.clamp(0.0, 1.0));
-    }
-    Ok(s)
+        Some((
+            network_input_from_angles(theta_h, theta_d, phi_d),
+            f.map(|v| v.max(0.0).ln_1p()),
+            wi.z.clamp(0.0, 1.0),
+        ))
+    })
 }
 
 /// The loss (mean over points and RGB of cos θi · (y' − y)²) of a network on a point set.
-pub fn plain_loss(network: &NbrdfNetwork, samples: &FitSamples) -> f64 {
+pub fn plain_loss(network: &NbrdfNetwork, samples: &SampleSet) -> f64 {
     let mut sum = 0f64;
     for i in 0..samples.len() {
         let mut x = [0f32; INPUTS];
@@ -341,7 +296,7 @@ pub fn plain_loss(network: &NbrdfNetwork, samples: &FitSamples) -> f64 {
         let y = network.forward(x);
         let c = samples.cos_i[i] as f64;
         for (ch, &v) in y.iter().enumerate() {
-            sum += c * (v as f64 - samples.targets[3 * i + ch] as f64).powi(2);
+            sum += c * (v as f64 - samples.values[3 * i + ch] as f64).powi(2);
         }
     }
     sum / (3 * samples.len()).max(1) as f64
@@ -379,7 +334,7 @@ pub fn fit_material(
         let s = draw_samples(table, config.samples_per_step, &mut rng)?;
         let n = s.len();
         let x = Tensor::<2>::from_data(TensorData::new(s.inputs, [n, 6]), &device);
-        let y = Tensor::<2>::from_data(TensorData::new(s.targets, [n, 3]), &device);
+        let y = Tensor::<2>::from_data(TensorData::new(s.values, [n, 3]), &device);
         let c = Tensor::<2>::from_data(TensorData::new(s.cos_i, [n, 1]), &device);
         let loss = ((model.forward(x) - y).square() * c).mean();
         let grads = GradientsParams::from_grads(loss.backward(), &model);
@@ -555,8 +510,8 @@ mod tests {
         let s = draw_samples(&constant("c", 0.2), 500, &mut rng).unwrap();
         assert_eq!(s.len(), 500);
         for i in 0..s.len() {
-            assert!((s.targets[3 * i] - 0.2f32.ln_1p()).abs() < 1e-6);
-            assert!((s.targets[3 * i + 1] - 0.4f32.ln_1p()).abs() < 1e-6);
+            assert!((s.values[3 * i] - 0.2f32.ln_1p()).abs() < 1e-6);
+            assert!((s.values[3 * i + 1] - 0.4f32.ln_1p()).abs() < 1e-6);
             // d = (sin θd cos φd, sin θd sin φd, cos θd) with φd ∈ [0, π): dy ≥ 0.
             assert!(s.inputs[6 * i + 4] >= -1e-6);
             assert!((0.0..=1.0).contains(&s.cos_i[i]));
