@@ -8,8 +8,7 @@
 //! `NBRDF_DIR` (optional) is a directory of NBRDF `.npy` networks; its `alum-bronze_*.npy`
 //! tensors are added to the `npy` corpus.
 
-use renderer::latent_file::{DenseLayer, LatentFile, MappingForm, Mlp, NamedLatent, WeightType};
-use renderer::merl::BIN_COUNT;
+use renderer::latent_file::{LatentFile, MappingForm, WeightType};
 use renderer::nbrdf::TENSOR_NAMES;
 use renderer_fuzz::{
     latent_mode2_input, merl_header, valid_npy_tensors, CORNELL_BIN, MTL_SEPARATOR,
@@ -108,7 +107,11 @@ fn main() {
         write(
             "latent",
             name,
-            &latent_mode2_input(&small_latent_file(weight_type)),
+            &latent_mode2_input(&{
+                let mut file = LatentFile::synthetic(&[5], weight_type);
+                file.mapping = MappingForm::Code;
+                file
+            }),
         );
     }
     if let Ok(shipped) = std::fs::read(repo.join("scenes/materials/latent.bin")) {
@@ -221,52 +224,6 @@ fn strip_scene() -> (Value, Vec<u8>) {
     (doc, bin)
 }
 
-/// A small valid latent file: target net 6-4-3, latent size 2, one hidden layer of 5.
-fn small_latent_file(weight_type: WeightType) -> LatentFile {
-    let (widths, hidden, latent_dim) = (vec![6, 4, 3], vec![5], 2);
-    let mut seed = 1u32;
-    let mut next = || {
-        seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-        (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
-    };
-    let mut hypernetwork = Vec::new();
-    for w in widths.windows(2) {
-        for numel in [w[0] * w[1], w[1]] {
-            let dims = [latent_dim, hidden[0], numel];
-            let layers = dims
-                .windows(2)
-                .map(|d| DenseLayer {
-                    d_in: d[0],
-                    d_out: d[1],
-                    weight: (0..d[0] * d[1]).map(|_| next()).collect(),
-                    bias: (0..d[1]).map(|_| next()).collect(),
-                })
-                .collect();
-            hypernetwork.push(Mlp { layers });
-        }
-    }
-    LatentFile {
-        latent_dim,
-        target_widths: widths,
-        hyper_hidden: hidden,
-        mapping: MappingForm::Code,
-        epsilon: 0.002,
-        weight_type,
-        hypernetwork,
-        f_ref: vec![[half::f16::from_f32(renderer_fuzz::FREF_FILL); 3]; BIN_COUNT],
-        latents: vec![
-            NamedLatent {
-                name: "gold".into(),
-                z: vec![0.5, 1.0],
-            },
-            NamedLatent {
-                name: "blue-acrylic".into(),
-                z: vec![0.0, 2.0],
-            },
-        ],
-        training_materials: vec!["gold".into(), "silver".into()],
-    }
-}
 
 fn to_json(doc: &Value) -> Vec<u8> {
     serde_json::to_vec_pretty(doc).expect("serialise JSON")

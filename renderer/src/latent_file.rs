@@ -226,6 +226,60 @@ impl LatentFile {
         Mlp { layers }
     }
 
+    /// A tiny file for tests, fuzzing seeds and examples: target net 6-4-3, latent size 2,
+    /// hypernetwork heads with hidden widths `hyper_hidden` and fixed pseudo-random weights in
+    /// [−0.5, 0.5), talk mapping with ε = 0.002, f_ref 0.25 everywhere, codes "gold" (0.5, 1)
+    /// and "blue-acrylic" (0, 2), trained on "gold" and "silver". Valid unless a hidden width
+    /// is 0 (which [`LatentFile::validate`] rejects).
+    pub fn synthetic(hyper_hidden: &[usize], weight_type: WeightType) -> LatentFile {
+        let (widths, latent_dim) = (vec![6, 4, 3], 2);
+        let mut seed = 1u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
+        };
+        let mut hypernetwork = Vec::new();
+        for w in widths.windows(2) {
+            for numel in [w[0] * w[1], w[1]] {
+                let dims: Vec<usize> = std::iter::once(latent_dim)
+                    .chain(hyper_hidden.iter().copied())
+                    .chain(std::iter::once(numel))
+                    .collect();
+                let layers = dims
+                    .windows(2)
+                    .map(|d| DenseLayer {
+                        d_in: d[0],
+                        d_out: d[1],
+                        weight: (0..d[0] * d[1]).map(|_| next()).collect(),
+                        bias: (0..d[1]).map(|_| next()).collect(),
+                    })
+                    .collect();
+                hypernetwork.push(Mlp { layers });
+            }
+        }
+        LatentFile {
+            latent_dim,
+            target_widths: widths,
+            hyper_hidden: hyper_hidden.to_vec(),
+            mapping: MappingForm::Talk,
+            epsilon: 0.002,
+            weight_type,
+            hypernetwork,
+            f_ref: vec![[f16::from_f32(0.25); 3]; BIN_COUNT],
+            latents: vec![
+                NamedLatent {
+                    name: "gold".into(),
+                    z: vec![0.5, 1.0],
+                },
+                NamedLatent {
+                    name: "blue-acrylic".into(),
+                    z: vec![0.0, 2.0],
+                },
+            ],
+            training_materials: vec!["gold".into(), "silver".into()],
+        }
+    }
+
     /// Checks every invariant the renderer relies on; `path` names the file in errors.
     pub fn validate(&self, path: &Path) -> Result<()> {
         let bad = |reason: String| Err(Error::invalid_file(path, reason));
@@ -598,53 +652,9 @@ impl Cursor<'_> {
 pub(crate) mod tests {
     use super::*;
 
-    /// A tiny valid file: target net 6-4-3, latent size 2, codes "gold" and "blue-acrylic".
+    /// A tiny valid file (see [`LatentFile::synthetic`]) with one hidden layer of 5.
     pub(crate) fn small_file(weight_type: WeightType) -> LatentFile {
-        let widths = vec![6, 4, 3];
-        let hidden = vec![5];
-        let latent_dim = 2;
-        let mut hypernetwork = Vec::new();
-        let mut seed = 1u32;
-        let mut next = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
-        };
-        for w in widths.windows(2) {
-            for numel in [w[0] * w[1], w[1]] {
-                let dims = [latent_dim, hidden[0], numel];
-                let layers = dims
-                    .windows(2)
-                    .map(|d| DenseLayer {
-                        d_in: d[0],
-                        d_out: d[1],
-                        weight: (0..d[0] * d[1]).map(|_| next()).collect(),
-                        bias: (0..d[1]).map(|_| next()).collect(),
-                    })
-                    .collect();
-                hypernetwork.push(Mlp { layers });
-            }
-        }
-        LatentFile {
-            latent_dim,
-            target_widths: widths,
-            hyper_hidden: hidden,
-            mapping: MappingForm::Talk,
-            epsilon: 0.002,
-            weight_type,
-            hypernetwork,
-            f_ref: vec![[f16::from_f32(0.25); 3]; BIN_COUNT],
-            latents: vec![
-                NamedLatent {
-                    name: "gold".into(),
-                    z: vec![0.5, 1.0],
-                },
-                NamedLatent {
-                    name: "blue-acrylic".into(),
-                    z: vec![0.0, 2.0],
-                },
-            ],
-            training_materials: vec!["gold".into(), "silver".into()],
-        }
+        LatentFile::synthetic(&[5], weight_type)
     }
 
     #[test]

@@ -9,7 +9,7 @@
 
 use proptest::prelude::*;
 use proptest::test_runner::Config;
-use renderer::latent_file::{DenseLayer, LatentFile, MappingForm, Mlp, NamedLatent, WeightType};
+use renderer::latent_file::{LatentFile, WeightType};
 use renderer::merl::{MerlTable, BIN_COUNT, FILE_BYTES, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
 use renderer::nbrdf::{tensor_from_bytes, NbrdfNetwork, TENSOR_NAMES};
 use renderer::scene::{gltf, obj, SceneDescription};
@@ -751,63 +751,18 @@ fn fix_checksum(bytes: &mut Vec<u8>) {
     }
 }
 
-/// A small latent file: target net 6-4-3, latent size 2, hypernetwork hidden widths
-/// `hidden`.
-fn small_latent(hidden: Vec<usize>) -> LatentFile {
-    let (widths, latent_dim) = (vec![6, 4, 3], 2);
-    let mut seed = 7u32;
-    let mut next = || {
-        seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-        (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
-    };
-    let mut hypernetwork = Vec::new();
-    for w in widths.windows(2) {
-        for numel in [w[0] * w[1], w[1]] {
-            let mut dims = vec![latent_dim];
-            dims.extend(&hidden);
-            dims.push(numel);
-            let layers = dims
-                .windows(2)
-                .map(|d| DenseLayer {
-                    d_in: d[0],
-                    d_out: d[1],
-                    weight: (0..d[0] * d[1]).map(|_| next()).collect(),
-                    bias: (0..d[1]).map(|_| next()).collect(),
-                })
-                .collect();
-            hypernetwork.push(Mlp { layers });
-        }
-    }
-    LatentFile {
-        latent_dim,
-        target_widths: widths,
-        hyper_hidden: hidden,
-        mapping: MappingForm::Talk,
-        epsilon: 0.002,
-        weight_type: WeightType::F32,
-        hypernetwork,
-        f_ref: vec![[half::f16::from_f32(0.25); 3]; BIN_COUNT],
-        latents: vec![
-            NamedLatent {
-                name: "gold".into(),
-                z: vec![0.5, 1.0],
-            },
-            NamedLatent {
-                name: "blue-acrylic".into(),
-                z: vec![0.0, 2.0],
-            },
-        ],
-        training_materials: vec!["gold".into()],
-    }
-}
-
-/// The bytes of a small valid file ([`small_latent`] with one hidden layer of 5) and where
+/// The bytes of a small valid file ([`LatentFile::synthetic`] with one hidden layer of 5) and where
 /// its f_ref table starts and ends in them.
 fn latent_file() -> &'static (Vec<u8>, std::ops::Range<usize>) {
     static FILE: OnceLock<(Vec<u8>, std::ops::Range<usize>)> = OnceLock::new();
     FILE.get_or_init(|| {
-        let bytes = small_latent(vec![5]).to_bytes();
-        let tail = 4 + (4 + 4 + 8) + (4 + 12 + 8) + 4 + (4 + 4) + 8;
+        let file = LatentFile::synthetic(&[5], WeightType::F32);
+        let bytes = file.to_bytes();
+        // After f_ref: the codes (count, then name length, name, values each), the training
+        // names (count, then length and name each) and the checksum.
+        let codes: usize = file.latents.iter().map(|l| 4 + l.name.len() + 4 * l.z.len()).sum();
+        let names: usize = file.training_materials.iter().map(|n| 4 + n.len()).sum();
+        let tail = 4 + codes + 4 + names + 8;
         let end = bytes.len() - tail;
         (bytes, end - 6 * BIN_COUNT..end)
     })
@@ -1003,7 +958,7 @@ fn regression_npy_header_length_beyond_the_file() {
 /// width of 0 passed validation, and decoding such a file panicked (`chunks_exact(0)`).
 #[test]
 fn regression_latent_hidden_width_zero() {
-    let bytes = small_latent(vec![0]).to_bytes();
+    let bytes = LatentFile::synthetic(&[0], WeightType::F32).to_bytes();
     let message = LatentFile::from_bytes(&bytes, Path::new("props/latent.bin"))
         .expect_err("hidden width 0")
         .to_string();
