@@ -1,12 +1,18 @@
 //! Ray–triangle acceleration: an `obvhs` compressed-wide BVH (CWBVH) over every triangle
-//! of a scene, closest-hit and occlusion queries, and robust ray-origin offsets.
+//! of a scene, closest-hit and occlusion queries (eight children and up to eight leaf
+//! triangles per SIMD step), and robust ray-origin offsets.
+
+mod node;
+mod triangle_pack;
 
 use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::cwbvh::node::CwBvhNode;
+use triangle_pack::{PackHit, TrianglePack, LANES};
 use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
 use obvhs::ray::Ray as BvhRay;
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
+use std::mem::MaybeUninit;
 use std::time::Duration;
 
 /// A ray with a parametric interval.
@@ -51,124 +57,62 @@ pub struct Hit {
     pub barycentric: Vec2,
 }
 
-/// A triangle stored for intersection: one corner and the two edges from it.
-#[derive(Clone, Copy, Debug)]
-struct EdgeTriangle {
-    v0: Vec3A,
-    e1: Vec3A,
-    e2: Vec3A,
-}
-
-impl EdgeTriangle {
-    fn new(t: &Triangle) -> Self {
-        EdgeTriangle {
-            v0: t.v0,
-            e1: t.v1 - t.v0,
-            e2: t.v2 - t.v0,
-        }
-    }
-
-    /// Möller–Trumbore: the distance t ∈ (0, t_max) at which the ray crosses the triangle,
-    /// or ∞; also the barycentric coordinates (b1, b2).
-    #[inline(always)]
-    fn intersect(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> (f32, Vec2) {
-        let p = direction.cross(self.e2);
-        let det = self.e1.dot(p);
-        let inv_det = 1.0 / det;
-        let s = origin - self.v0;
-        let b1 = s.dot(p) * inv_det;
-        let q = s.cross(self.e1);
-        let b2 = direction.dot(q) * inv_det;
-        let t = self.e2.dot(q) * inv_det;
-        // NaN (det = 0) fails every comparison, so degenerate triangles never hit.
-        if b1 >= 0.0 && b2 >= 0.0 && b1 + b2 <= 1.0 && t > 0.0 && t < t_max {
-            (t, Vec2::new(b1, b2))
-        } else {
-            (f32::INFINITY, Vec2::ZERO)
-        }
-    }
-}
-
-/// Bounding volume hierarchy over a triangle soup.
+/// Bounding volume hierarchy over a triangle soup: an obvhs CWBVH whose leaf triangles are
+/// stored per node in packs of eight, so a node's leaves are tested in one SIMD pass.
 pub struct Bvh {
     bvh: CwBvh,
-    /// Triangles in BVH leaf order, so traversal reads them sequentially.
-    triangles: Vec<EdgeTriangle>,
-    /// Scene triangle index of each entry of `triangles`.
+    /// The triangles of each node's leaves, in obvhs primitive order, eight per pack.
+    packs: Vec<TrianglePack>,
+    /// First pack of each node.
+    node_packs: Vec<u32>,
+    /// Scene triangle index of each obvhs primitive slot.
     scene_index: Vec<u32>,
 }
 
-/// Intersects a ray with the eight children of a CWBVH node, eight lanes at once (AVX2 +
-/// FMA); returns the node hit mask in obvhs's encoding, as `CwBvhNode::intersect_ray` does.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-unsafe fn intersect_node_avx2(node: &CwBvhNode, ray: &BvhRay, oct_inv4: u32) -> u32 {
-    use std::arch::x86_64::*;
-    /// Box distances of SIMD node intersection are clamped below by this (as obvhs does).
-    const T_MIN: f32 = 1e-4;
-    let adj_dir_inv = node.compute_extent() * ray.inv_direction;
-    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-    let load = |v: &[u8; 8]| {
-        // SAFETY: reads exactly the 8 bytes of `v`.
-        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(unsafe { _mm_loadl_epi64(v.as_ptr().cast()) }))
-    };
-    let slab = |lo: &[u8; 8], hi: &[u8; 8], negative: bool, d: f32, o: f32| {
-        let (near, far) = if negative { (hi, lo) } else { (lo, hi) };
-        let (d, o) = (_mm256_set1_ps(d), _mm256_set1_ps(o));
-        (_mm256_fmadd_ps(load(near), d, o), _mm256_fmadd_ps(load(far), d, o))
-    };
-    let (x0, x1) = slab(&node.child_min_x, &node.child_max_x, ray.direction.x < 0.0, adj_dir_inv.x, adj_orig.x);
-    let (y0, y1) = slab(&node.child_min_y, &node.child_max_y, ray.direction.y < 0.0, adj_dir_inv.y, adj_orig.y);
-    let (z0, z1) = slab(&node.child_min_z, &node.child_max_z, ray.direction.z < 0.0, adj_dir_inv.z, adj_orig.z);
-    let t0 = _mm256_max_ps(_mm256_max_ps(x0, y0), _mm256_max_ps(z0, _mm256_set1_ps(T_MIN)));
-    let t1 = _mm256_min_ps(_mm256_min_ps(x1, y1), _mm256_min_ps(z1, _mm256_set1_ps(ray.tmax)));
-    let mut hits = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32;
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-    let mut hit_mask = 0u32;
-    while hits != 0 {
-        let j = hits.trailing_zeros() * 8;
-        hits &= hits - 1;
-        hit_mask |= (((child_bits8 >> j) & 0xff) as u32) << ((bit_index8 >> j) & 0xff);
-    }
-    hit_mask
+/// Traversal stack of node groups: 64 entries in place (left uninitialised until pushed);
+/// deeper trees spill to the heap.
+struct GroupStack {
+    inline: [MaybeUninit<UVec2>; 64],
+    len: usize,
+    spill: Vec<UVec2>,
 }
 
-/// Expands to a closest-hit or occlusion traversal of `$bvh` with the given node
-/// intersection; shared by the AVX2 and the portable paths so both stay identical.
-macro_rules! traverse_bvh {
-    (closest, $self:ident, $ray:ident, $node:ident, $state:ident, $intersect_node:expr) => {{
-        let mut t_max = $ray.tmax;
-        let mut best = (u32::MAX, Vec2::ZERO);
-        let mut $state = $self.bvh.new_traversal($ray.direction);
-        let mut $node;
-        obvhs::traverse!($self.bvh, $node, $state, $intersect_node, {
-            let slot = $state.primitive_id as usize;
-            let (t, b) = $self.triangles[slot].intersect($ray.origin, $ray.direction, t_max);
-            if t < t_max {
-                t_max = t;
-                best = (slot as u32, b);
-            }
-        });
-        (best.0 != u32::MAX).then(|| (t_max, best.0, best.1))
-    }};
-    (any, $self:ident, $ray:ident, $node:ident, $state:ident, $intersect_node:expr) => {{
-        let mut $state = $self.bvh.new_traversal($ray.direction);
-        let mut $node;
-        let mut hit = false;
-        obvhs::traverse!($self.bvh, $node, $state, $intersect_node, {
-            let slot = $state.primitive_id as usize;
-            if $self.triangles[slot].intersect($ray.origin, $ray.direction, $ray.tmax).0 < $ray.tmax {
-                hit = true;
-                break;
-            }
-        });
-        hit
-    }};
+impl GroupStack {
+    #[inline(always)]
+    fn new() -> Self {
+        GroupStack {
+            inline: [MaybeUninit::uninit(); 64],
+            len: 0,
+            spill: Vec::new(),
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, group: UVec2) {
+        if self.len < self.inline.len() {
+            self.inline[self.len].write(group);
+            self.len += 1;
+        } else {
+            self.spill.push(group);
+        }
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<UVec2> {
+        if let Some(group) = self.spill.pop() {
+            return Some(group);
+        }
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: entries below `len` were written by `push`.
+        Some(unsafe { self.inline[self.len].assume_init() })
+    }
 }
+
+/// A closest hit found in traversal: distance, primitive slot, barycentrics.
+type SlotHit = (f32, u32, Vec2);
 
 impl Bvh {
     /// Builds the BVH with obvhs's `medium_build` preset (a good trade between build time and
@@ -189,39 +133,58 @@ impl Bvh {
         if input.is_empty() {
             return Bvh {
                 bvh: CwBvh::default(),
-                triangles: Vec::new(),
+                packs: Vec::new(),
+                node_packs: Vec::new(),
                 scene_index: Vec::new(),
             };
         }
         let mut build_time = Duration::ZERO;
-        let mut bvh = build_cwbvh_from_tris(&input, params, &mut build_time);
-        // Reorder the triangles into leaf order and make primitive ids refer to the new slots.
-        let scene_index = bvh.primitive_indices.clone();
-        let triangles = scene_index.iter().map(|&i| EdgeTriangle::new(&input[i as usize])).collect();
-        for (slot, id) in bvh.primitive_indices.iter_mut().enumerate() {
-            *id = slot as u32;
+        let bvh = build_cwbvh_from_tris(&input, params, &mut build_time);
+        let mut packs = Vec::new();
+        let mut node_packs = Vec::with_capacity(bvh.nodes.len());
+        for node in &bvh.nodes {
+            node_packs.push(packs.len() as u32);
+            // A node's leaf primitives are the slots base .. base + count (count ≤ 24).
+            let count = (0..8)
+                .filter(|&c| node.is_leaf(c) && !node.is_child_empty(c))
+                .map(|c| {
+                    let (start, n) = node.child_primitives(c);
+                    start - node.primitive_base_idx + n
+                })
+                .max()
+                .unwrap_or(0) as usize;
+            for first in (0..count).step_by(LANES) {
+                let mut pack = TrianglePack::default();
+                for lane in 0..(count - first).min(LANES) {
+                    let slot = node.primitive_base_idx as usize + first + lane;
+                    let t = &input[bvh.primitive_indices[slot] as usize];
+                    pack.set(lane, [t.v0, t.v1, t.v2]);
+                }
+                packs.push(pack);
+            }
         }
         Bvh {
+            scene_index: bvh.primitive_indices.clone(),
             bvh,
-            triangles,
-            scene_index,
+            packs,
+            node_packs,
         }
     }
 
     /// Number of triangles (slots) in the hierarchy.
     pub fn len(&self) -> usize {
-        self.triangles.len()
+        self.scene_index.len()
     }
 
     /// True when the hierarchy holds no triangles.
     pub fn is_empty(&self) -> bool {
-        self.triangles.is_empty()
+        self.scene_index.is_empty()
     }
 
     /// Closest intersection with t in (0, ray.t_max), or `None`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        if self.triangles.is_empty() {
+        if self.is_empty() {
             return None;
         }
         let bvh_ray = to_bvh_ray(ray);
@@ -244,7 +207,7 @@ impl Bvh {
     /// True when anything blocks the ray within (0, ray.t_max).
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        if self.triangles.is_empty() {
+        if self.is_empty() {
             return false;
         }
         let bvh_ray = to_bvh_ray(ray);
@@ -256,24 +219,142 @@ impl Bvh {
         self.any_portable(&bvh_ray)
     }
 
-    fn closest_portable(&self, ray: &BvhRay) -> Option<(f32, u32, Vec2)> {
-        traverse_bvh!(closest, self, ray, node, state, node.intersect_ray(ray, state.oct_inv4))
+    /// Walks the CWBVH front to back by octant order (as obvhs's `traverse!`), culling
+    /// children beyond the current `t_max`. `intersect_node(node, t_max)` returns the hit mask
+    /// of a node; `leaves(node_index, primitive_mask, t_max)` tests the node's hit leaf
+    /// primitives (bits of slots from the node's primitive base), may lower `t_max`, and
+    /// returns true to stop.
+    #[inline(always)]
+    fn traverse(
+        &self,
+        oct_inv4: u32,
+        mut t_max: f32,
+        mut intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
+        mut leaves: impl FnMut(usize, u32, &mut f32) -> bool,
+    ) {
+        let nodes = &self.bvh.nodes;
+        let mut stack = GroupStack::new();
+        // (first child index, inner-child hit bits in the high byte | inner-child mask).
+        let mut group = UVec2::new(0, 0x8000_0000);
+        loop {
+            if group.y & 0xff00_0000 != 0 {
+                let hits = group.y;
+                let child_bit = 31 - hits.leading_zeros();
+                group.y &= !(1 << child_bit);
+                if group.y & 0xff00_0000 != 0 {
+                    stack.push(group);
+                }
+                let slot = (child_bit - 24) ^ (oct_inv4 & 0xff);
+                let index = (group.x + (hits & !(u32::MAX << slot)).count_ones()) as usize;
+                let node = &nodes[index];
+                let hit_mask = intersect_node(node, t_max);
+                group = UVec2::new(node.child_base_idx, (hit_mask & 0xff00_0000) | node.imask as u32);
+                let primitives = hit_mask & 0x00ff_ffff;
+                if primitives != 0 && leaves(index, primitives, &mut t_max) {
+                    return;
+                }
+            }
+            if group.y & 0xff00_0000 == 0 {
+                match stack.pop() {
+                    Some(g) => group = g,
+                    None => return,
+                }
+            }
+        }
+    }
+
+    /// Closest hit with the given node and pack kernels.
+    #[inline(always)]
+    fn closest_with(
+        &self,
+        ray: &BvhRay,
+        intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
+        mut pack_closest: impl FnMut(&TrianglePack, u32, f32) -> Option<PackHit>,
+    ) -> Option<SlotHit> {
+        let mut best: Option<SlotHit> = None;
+        self.traverse(node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, t_max| {
+            let mut pack = self.node_packs[index] as usize;
+            let mut slot_base = self.bvh.nodes[index].primitive_base_idx;
+            while lanes != 0 {
+                if lanes & 0xff != 0 {
+                    if let Some((t, lane, b)) = pack_closest(&self.packs[pack], lanes & 0xff, *t_max) {
+                        *t_max = t;
+                        best = Some((t, slot_base + lane, b));
+                    }
+                }
+                lanes >>= LANES;
+                pack += 1;
+                slot_base += LANES as u32;
+            }
+            false
+        });
+        best
+    }
+
+    /// Whether anything is hit, with the given node and pack kernels.
+    #[inline(always)]
+    fn any_with(
+        &self,
+        ray: &BvhRay,
+        intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
+        mut pack_any: impl FnMut(&TrianglePack, u32) -> bool,
+    ) -> bool {
+        let mut hit = false;
+        self.traverse(node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, _| {
+            let mut pack = self.node_packs[index] as usize;
+            while lanes != 0 {
+                if lanes & 0xff != 0 && pack_any(&self.packs[pack], lanes & 0xff) {
+                    hit = true;
+                    return true;
+                }
+                lanes >>= LANES;
+                pack += 1;
+            }
+            false
+        });
+        hit
+    }
+
+    fn closest_portable(&self, ray: &BvhRay) -> Option<SlotHit> {
+        let oct = node::octant_inv4(ray.direction);
+        self.closest_with(
+            ray,
+            |n, t_max| node::intersect_portable(n, ray, oct, t_max),
+            |p, lanes, t_max| p.closest_portable(ray.origin, ray.direction, lanes, t_max),
+        )
     }
 
     fn any_portable(&self, ray: &BvhRay) -> bool {
-        traverse_bvh!(any, self, ray, node, state, node.intersect_ray(ray, state.oct_inv4))
+        let oct = node::octant_inv4(ray.direction);
+        self.any_with(
+            ray,
+            |n, t_max| node::intersect_portable(n, ray, oct, t_max),
+            |p, lanes| p.any_portable(ray.origin, ray.direction, lanes, ray.tmax),
+        )
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn closest_avx2(&self, ray: &BvhRay) -> Option<(f32, u32, Vec2)> {
-        traverse_bvh!(closest, self, ray, node, state, intersect_node_avx2(node, ray, state.oct_inv4))
+    unsafe fn closest_avx2(&self, ray: &BvhRay) -> Option<SlotHit> {
+        let oct = node::octant_inv4(ray.direction);
+        self.closest_with(
+            ray,
+            // SAFETY (both kernels): this function runs only where AVX2 and FMA exist.
+            |n, t_max| unsafe { node::intersect_avx2(n, ray, oct, t_max) },
+            |p, lanes, t_max| unsafe { triangle_pack::avx2::closest(p, ray.origin, ray.direction, lanes, t_max) },
+        )
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn any_avx2(&self, ray: &BvhRay) -> bool {
-        traverse_bvh!(any, self, ray, node, state, intersect_node_avx2(node, ray, state.oct_inv4))
+        let oct = node::octant_inv4(ray.direction);
+        self.any_with(
+            ray,
+            // SAFETY (both kernels): this function runs only where AVX2 and FMA exist.
+            |n, t_max| unsafe { node::intersect_avx2(n, ray, oct, t_max) },
+            |p, lanes| unsafe { triangle_pack::avx2::any(p, ray.origin, ray.direction, lanes, ray.tmax) },
+        )
     }
 }
 
@@ -424,12 +505,49 @@ mod tests {
             if has_avx2_fma() {
                 // SAFETY: checked above.
                 let simd = unsafe { bvh.closest_avx2(&ray) };
-                assert_eq!(simd.map(|h| h.1), portable.map(|h| h.1));
+                let bits = |h: Option<SlotHit>| h.map(|(t, slot, b)| (t.to_bits(), slot, b.x.to_bits(), b.y.to_bits()));
+                assert_eq!(bits(simd), bits(portable));
                 let short = BvhRay { tmax: portable.map(|h| h.0 * 0.5).unwrap_or(1.0), ..ray };
                 // SAFETY: checked above.
                 assert_eq!(unsafe { bvh.any_avx2(&short) }, bvh.any_portable(&short));
             }
         }
+    }
+
+    #[test]
+    fn traversal_finds_the_brute_force_closest_hit() {
+        // Random triangles, enough for a multi-level tree and nodes with several packs.
+        let mut s = crate::sampler::Sampler::new(9, 8, 7);
+        let mut point = |scale: f32| Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) * scale;
+        let tris: Vec<[Vec3; 3]> = (0..3000)
+            .map(|_| {
+                let c = point(20.0) - Vec3::splat(10.0);
+                [c + point(1.5), c + point(1.5), c + point(1.5)]
+            })
+            .collect();
+        let bvh = Bvh::build(tris.clone().into_iter());
+        let mut s = crate::sampler::Sampler::new(1, 1, 1);
+        let mut hits = 0;
+        for i in 0..1000 {
+            let o = Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) * 24.0 - Vec3::splat(12.0);
+            let d = crate::sampling::sample_uniform_sphere(s.next_2d());
+            let t_max = if i % 4 == 0 { 5.0 } else { f32::MAX };
+            let ray = Ray { t_max, ..Ray::new(o, d) };
+            let brute = tris
+                .iter()
+                .enumerate()
+                .filter_map(|(k, &[a, b, c])| {
+                    let mut pack = TrianglePack::default();
+                    pack.set(0, [a.into(), b.into(), c.into()]);
+                    pack.closest_portable(o.into(), d.into(), 1, t_max).map(|h| (h.0, k as u32))
+                })
+                .min_by(|x, y| x.0.total_cmp(&y.0));
+            let found = bvh.intersect(&ray);
+            assert_eq!(found.map(|h| (h.t, h.triangle)), brute, "ray {i}");
+            assert_eq!(bvh.occluded(&ray), brute.is_some(), "ray {i}");
+            hits += brute.is_some() as u32;
+        }
+        assert!(hits > 200 && hits < 1000, "a mix of hits and misses: {hits}");
     }
 
     #[test]
