@@ -5,22 +5,29 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
-/// Uniform point on the unit disk, concentric mapping (Shirley–Chiu).
+/// Uniform point on the unit disk, concentric mapping (Shirley–Chiu), branch-free: the
+/// angle within the octant is at most π/4, where [`sin_cos_octant`] is exact to about
+/// one ulp.
 #[inline]
 pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
     let o = 2.0 * u - Vec2::ONE;
-    if o.x == 0.0 && o.y == 0.0 {
-        return Vec2::ZERO;
-    }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
-    } else {
-        (
-            o.y,
-            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
-        )
-    };
-    Vec2::new(theta.cos(), theta.sin()) * r
+    let x_major = o.x.abs() > o.y.abs();
+    let (r, minor) = if x_major { (o.x, o.y) } else { (o.y, o.x) };
+    // |minor| ≤ |r|; r = 0 only at the centre, which maps to the origin.
+    let ratio = if r != 0.0 { minor / r } else { 0.0 };
+    let (s, c) = sin_cos_octant(std::f32::consts::FRAC_PI_4 * ratio);
+    // x-major: θ = π/4 · y/x; y-major: θ = π/2 − π/4 · x/y, so cos θ and sin θ swap.
+    let (cos_theta, sin_theta) = if x_major { (c, s) } else { (s, c) };
+    Vec2::new(cos_theta, sin_theta) * r
+}
+
+/// (sin x, cos x) for |x| ≤ π/4 by the minimax polynomials of Cephes' `sinf`/`cosf`.
+#[inline]
+pub fn sin_cos_octant(x: f32) -> (f32, f32) {
+    let x2 = x * x;
+    let sin = x + x * x2 * (-1.666_665_5e-1 + x2 * (8.332_161e-3 + x2 * -1.951_529_6e-4));
+    let cos = 1.0 - 0.5 * x2 + x2 * x2 * (4.166_664_6e-2 + x2 * (-1.388_731_6e-3 + x2 * 2.443_315_7e-5));
+    (sin, cos)
 }
 
 /// Cosine-weighted direction on the upper (z ≥ 0) hemisphere.
@@ -70,14 +77,10 @@ pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
 /// Uniform barycentric coordinates (b1, b2) on a triangle (Heitz 2019, low distortion).
 #[inline]
 pub fn sample_uniform_triangle(u: Vec2) -> Vec2 {
-    let (b0, b1);
-    if u.x < u.y {
-        b0 = u.x / 2.0;
-        b1 = u.y - b0;
-    } else {
-        b1 = u.y / 2.0;
-        b0 = u.x - b1;
-    }
+    // Selects rather than branches: which half u falls in is a coin flip per sample.
+    let lower = u.x < u.y;
+    let b0 = if lower { u.x * 0.5 } else { u.x - u.y * 0.5 };
+    let b1 = if lower { u.y - u.x * 0.5 } else { u.y * 0.5 };
     Vec2::new(b1, 1.0 - b0 - b1)
 }
 
@@ -300,6 +303,48 @@ mod tests {
             let (p, pdf) = d.sample_continuous(u);
             assert!((d.pdf(p) - pdf).abs() < 1e-4 * pdf.max(1.0), "{p:?}");
         }
+    }
+
+    #[test]
+    fn concentric_disk_matches_the_trigonometric_mapping() {
+        for i in 0..=64 {
+            for j in 0..=64 {
+                let u = Vec2::new(i as f32 / 64.0, j as f32 / 64.0);
+                let o = 2.0 * u - Vec2::ONE;
+                let expected = if o == Vec2::ZERO {
+                    Vec2::ZERO
+                } else if o.x.abs() > o.y.abs() {
+                    let theta = std::f32::consts::FRAC_PI_4 * (o.y / o.x);
+                    Vec2::new(theta.cos(), theta.sin()) * o.x
+                } else {
+                    let theta = std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y);
+                    Vec2::new(theta.cos(), theta.sin()) * o.y
+                };
+                let d = sample_concentric_disk(u);
+                assert!((d - expected).length() < 2e-7, "{u}: {d} vs {expected}");
+                assert!(d.length() <= 1.0 + 1e-6);
+            }
+        }
+        for k in -100..=100 {
+            let x = k as f32 / 100.0 * std::f32::consts::FRAC_PI_4;
+            let (s, c) = sin_cos_octant(x);
+            assert!((s - x.sin()).abs() <= 1.2e-7 && (c - x.cos()).abs() <= 1.2e-7, "{x}");
+        }
+    }
+
+    #[test]
+    fn triangle_samples_stay_inside_and_cover_both_halves() {
+        let mut inside_lower = 0;
+        for i in 0..32 {
+            for j in 0..32 {
+                let u = Vec2::new((i as f32 + 0.5) / 32.0, (j as f32 + 0.5) / 32.0);
+                let b = sample_uniform_triangle(u);
+                assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0, "{u}: {b}");
+                inside_lower += (b.x > b.y) as u32;
+            }
+        }
+        // Uniform on the triangle: b1 > b2 on half the samples.
+        assert!((inside_lower as i32 - 512).abs() < 40, "{inside_lower}");
     }
 
     #[test]
