@@ -5,12 +5,13 @@
 //! counted when k ≤ max_depth, so 1 renders directly visible emitters, 2 adds direct
 //! lighting, and −1 is unlimited (Russian roulette ends paths).
 
-use crate::accel::{offset_ray_origin, Ray};
+use crate::accel::{offset_ray_origin, Hit, Ray};
 use crate::bsdf::Bxdf;
 use crate::render_scene::RenderScene;
 use crate::sampler::Sampler;
 use crate::sampling::power_heuristic;
 use crate::Rgb;
+use glam::Vec3;
 
 /// Which estimators gather light at each path vertex.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -56,6 +57,32 @@ pub struct PathCounters {
     pub shadow_rays: u64,
 }
 
+/// One path between vertices: its next ray, throughput, radiance gathered so far and
+/// random stream.
+#[derive(Clone, Debug)]
+pub struct PathState {
+    /// The ray to trace next.
+    pub ray: Ray,
+    /// Path throughput (product of BSDF weights and Russian-roulette factors).
+    pub beta: Rgb,
+    /// Radiance gathered so far.
+    pub l: Rgb,
+    /// Segments traced so far, including `ray`'s.
+    segments: u32,
+    /// Density of the BSDF sample that produced `ray` (None for the camera ray).
+    prev_bsdf_pdf: Option<f32>,
+    /// Origin of the vertex `ray` leaves.
+    prev_p: Vec3,
+    pub sampler: Sampler,
+}
+
+/// Light sampled at a vertex: its contribution counts when `ray` is unoccluded.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowTest {
+    pub ray: Ray,
+    pub contribution: Rgb,
+}
+
 /// Fraction of a shadow ray's length left out at the light end (beyond the offset of the
 /// light point by its error bound).
 const SHADOW_EPSILON: f32 = 1e-4;
@@ -78,104 +105,137 @@ impl PathTracer {
         }
     }
 
-    /// Radiance arriving along `ray` (a camera ray), estimated with one path.
-    pub fn radiance(&self, scene: &RenderScene, mut ray: Ray, sampler: &mut Sampler, counters: &mut PathCounters) -> Rgb {
-        let mut l = Rgb::ZERO;
-        let mut beta = Rgb::ONE;
-        // Segments traced so far, including the one being traced.
-        let mut segments = 1u32;
-        // Density of the BSDF sample that produced `ray` (None for the camera ray).
-        let mut prev_bsdf_pdf: Option<f32> = None;
-        let mut prev_p = ray.origin;
-        if !self.allows(1) {
-            return l;
+    /// The state of a path starting with camera ray `ray`, or `None` when `max_depth`
+    /// counts nothing (0).
+    #[inline]
+    pub fn start(&self, ray: Ray, sampler: Sampler) -> Option<PathState> {
+        self.allows(1).then_some(PathState {
+            ray,
+            beta: Rgb::ONE,
+            l: Rgb::ZERO,
+            segments: 1,
+            prev_bsdf_pdf: None,
+            prev_p: ray.origin,
+            sampler,
+        })
+    }
+
+    /// One path vertex: takes the closest hit `hit` of `path.ray` (or its miss), adds the
+    /// emission found, samples a light (returned as a shadow test whose contribution the
+    /// caller adds to `path.l` when the shadow ray is unoccluded) and the BSDF, and sets
+    /// `path.ray` to the continuation ray. Returns the shadow test and whether the path
+    /// goes on. Paths stepped in any interleaving give the same values as stepped alone.
+    #[inline(always)]
+    pub fn step(&self, scene: &RenderScene, path: &mut PathState, hit: Option<Hit>) -> (Option<ShadowTest>, bool) {
+        let ray = path.ray;
+        let Some(hit) = hit else {
+            if let Some(env) = scene.lights.environment() {
+                let le = env.radiance(ray.direction);
+                let w = self.hit_weight(path.prev_bsdf_pdf, || scene.lights.pdf_environment(ray.direction));
+                path.l += path.beta * le * w;
+            }
+            return (None, false);
+        };
+        let Some(sp) = scene.surface_point(&hit, ray.direction) else {
+            return (None, false);
+        };
+        let le = scene.emission(&sp);
+        if le.max_element() > 0.0 {
+            let w = self.hit_weight(path.prev_bsdf_pdf, || scene.lights.pdf_triangle(hit.triangle, path.prev_p, sp.p));
+            path.l += path.beta * le * w;
         }
+        if !self.allows(path.segments + 1) {
+            return (None, false);
+        }
+        let Some(bsdf) = scene.bsdf(&sp) else {
+            return (None, false);
+        };
+        let wo = sp.frame.to_local(-ray.direction);
+        if wo.z <= 0.0 {
+            return (None, false);
+        }
+
+        // Next-event estimation.
+        let sampler = &mut path.sampler;
+        let u_light = sampler.next_1d();
+        let u_light2 = sampler.next_2d();
+        let mut shadow_test = None;
+        let light = scene.lights.sample(sp.p, u_light, u_light2);
+        if let Some(ls) = light.filter(|l| l.is_delta || self.strategy != Strategy::BsdfOnly) {
+            if ls.direction.dot(sp.ng_facing) > 0.0 {
+                let wi = sp.frame.to_local(ls.direction);
+                let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
+                if wi.z > 0.0 && f.max_element() > 0.0 {
+                    let origin = offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, ls.direction);
+                    // Toward a point: an unnormalised direction and t in (0, 1 − ε).
+                    let shadow = match ls.shadow_target {
+                        Some(target) => Ray {
+                            origin,
+                            direction: target - origin,
+                            t_max: 1.0 - SHADOW_EPSILON,
+                        },
+                        None => Ray::new(origin, ls.direction),
+                    };
+                    let w = match (ls.is_delta, self.strategy) {
+                        (true, _) | (false, Strategy::LightOnly) => 1.0,
+                        (false, _) => power_heuristic(ls.pdf, bsdf_pdf),
+                    };
+                    shadow_test = Some(ShadowTest {
+                        ray: shadow,
+                        contribution: path.beta * f * ls.radiance * (wi.z * w / ls.pdf),
+                    });
+                }
+            }
+        }
+
+        // BSDF sampling.
+        let uc = sampler.next_1d();
+        let u = sampler.next_2d();
+        let Some(bs) = bsdf.sample(wo, u, uc) else {
+            return (shadow_test, false);
+        };
+        let wi_world = sp.frame.to_world(bs.wi);
+        if wi_world.dot(sp.ng_facing) <= 0.0 {
+            return (shadow_test, false);
+        }
+        path.beta *= bs.weight();
+        if !path.beta.is_finite() || path.beta.max_element() <= 0.0 {
+            return (shadow_test, false);
+        }
+        path.segments += 1;
+        if path.segments > self.rr_depth {
+            let q = path.beta.max_element().min(0.95);
+            if sampler.next_1d() >= q {
+                return (shadow_test, false);
+            }
+            path.beta /= q;
+        }
+        path.prev_bsdf_pdf = Some(bs.pdf);
+        path.prev_p = sp.p;
+        path.ray = Ray::new(offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, wi_world), wi_world);
+        (shadow_test, true)
+    }
+
+    /// Radiance arriving along `ray` (a camera ray), estimated with one path.
+    pub fn radiance(&self, scene: &RenderScene, ray: Ray, sampler: &mut Sampler, counters: &mut PathCounters) -> Rgb {
+        let Some(mut path) = self.start(ray, sampler.clone()) else {
+            return Rgb::ZERO;
+        };
         loop {
             counters.rays += 1;
-            let Some(hit) = scene.bvh.intersect(&ray) else {
-                if let Some(env) = scene.lights.environment() {
-                    let le = env.radiance(ray.direction);
-                    let w = self.hit_weight(prev_bsdf_pdf, || scene.lights.pdf_environment(ray.direction));
-                    l += beta * le * w;
-                }
-                break;
-            };
-            let Some(sp) = scene.surface_point(&hit, ray.direction) else {
-                break;
-            };
-            let le = scene.emission(&sp);
-            if le.max_element() > 0.0 {
-                let w = self.hit_weight(prev_bsdf_pdf, || scene.lights.pdf_triangle(hit.triangle, prev_p, sp.p));
-                l += beta * le * w;
-            }
-            if !self.allows(segments + 1) {
-                break;
-            }
-            let Some(bsdf) = scene.bsdf(&sp) else {
-                break;
-            };
-            let wo = sp.frame.to_local(-ray.direction);
-            if wo.z <= 0.0 {
-                break;
-            }
-
-            // Next-event estimation.
-            let u_light = sampler.next_1d();
-            let u_light2 = sampler.next_2d();
-            let light = scene.lights.sample(sp.p, u_light, u_light2);
-            if let Some(ls) = light.filter(|l| l.is_delta || self.strategy != Strategy::BsdfOnly) {
-                if ls.direction.dot(sp.ng_facing) > 0.0 {
-                    let wi = sp.frame.to_local(ls.direction);
-                    let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
-                    if wi.z > 0.0 && f.max_element() > 0.0 {
-                        let origin = offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, ls.direction);
-                        // Toward a point: an unnormalised direction and t in (0, 1 − ε).
-                        let shadow = match ls.shadow_target {
-                            Some(target) => Ray {
-                                origin,
-                                direction: target - origin,
-                                t_max: 1.0 - SHADOW_EPSILON,
-                            },
-                            None => Ray::new(origin, ls.direction),
-                        };
-                        counters.shadow_rays += 1;
-                        if !scene.bvh.occluded(&shadow) {
-                            let w = match (ls.is_delta, self.strategy) {
-                                (true, _) | (false, Strategy::LightOnly) => 1.0,
-                                (false, _) => power_heuristic(ls.pdf, bsdf_pdf),
-                            };
-                            l += beta * f * ls.radiance * (wi.z * w / ls.pdf);
-                        }
-                    }
+            let hit = scene.bvh.intersect(&path.ray);
+            let (shadow, alive) = self.step(scene, &mut path, hit);
+            if let Some(test) = shadow {
+                counters.shadow_rays += 1;
+                if !scene.bvh.occluded(&test.ray) {
+                    path.l += test.contribution;
                 }
             }
-
-            // BSDF sampling.
-            let uc = sampler.next_1d();
-            let u = sampler.next_2d();
-            let Some(bs) = bsdf.sample(wo, u, uc) else {
-                break;
-            };
-            let wi_world = sp.frame.to_world(bs.wi);
-            if wi_world.dot(sp.ng_facing) <= 0.0 {
+            if !alive {
                 break;
             }
-            beta *= bs.weight();
-            if !beta.is_finite() || beta.max_element() <= 0.0 {
-                break;
-            }
-            segments += 1;
-            if segments > self.rr_depth {
-                let q = beta.max_element().min(0.95);
-                if sampler.next_1d() >= q {
-                    break;
-                }
-                beta /= q;
-            }
-            prev_bsdf_pdf = Some(bs.pdf);
-            prev_p = sp.p;
-            ray = Ray::new(offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, wi_world), wi_world);
         }
-        l
+        *sampler = path.sampler;
+        path.l
     }
 }

@@ -35,13 +35,23 @@ pub struct RenderScene {
     /// latent name); they render with their glTF parameters.
     unbound_neural: Vec<(String, String)>,
     pub bvh: Bvh,
-    /// Corners and unit geometric normal (zero for degenerate triangles) per triangle,
-    /// gathered once so a hit reads one record.
-    hit_records: Vec<([Vec3; 3], Vec3)>,
+    /// What a hit reads of its triangle, gathered once per triangle.
+    hit_records: Vec<HitRecord>,
     pub lights: LightSet,
     /// Centre and radius of a sphere bounding the geometry.
     pub bounds_centre: Vec3,
     pub bounds_radius: f32,
+}
+
+/// The per-triangle data a hit needs, in one record.
+#[derive(Clone, Copy, Debug)]
+struct HitRecord {
+    corners: [Vec3; 3],
+    /// Unit geometric normal from the winding; zero for a degenerate triangle.
+    ng: Vec3,
+    /// The unit shading normal where all three vertex normals are equal (flat shading: no
+    /// interpolation needed); zero where it varies over the triangle.
+    flat_normal: Vec3,
 }
 
 /// The local description of a surface hit.
@@ -119,8 +129,19 @@ impl RenderScene {
         let bvh = Bvh::build((0..geometry.triangle_count()).map(|i| geometry.triangle_positions(i)));
         let hit_records = (0..geometry.triangle_count())
             .map(|i| {
-                let c = geometry.triangle_positions(i);
-                (c, (c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero())
+                let corners = geometry.triangle_positions(i);
+                let ng = (corners[1] - corners[0]).cross(corners[2] - corners[0]).normalize_or_zero();
+                let n = geometry.triangles[i].map(|v| geometry.normals[v as usize]);
+                let flat_normal = if n[0] == n[1] && n[1] == n[2] {
+                    n[0].try_normalize().unwrap_or(ng)
+                } else {
+                    Vec3::ZERO
+                };
+                HitRecord {
+                    corners,
+                    ng,
+                    flat_normal,
+                }
             })
             .collect();
         let (bounds_centre, bounds_radius) = bounding_sphere(&geometry);
@@ -201,7 +222,7 @@ impl RenderScene {
         let g = &self.geometry;
         let tri = hit.triangle as usize;
         let [i0, i1, i2] = g.triangles[tri];
-        let (corners, ng) = self.hit_records[tri];
+        let HitRecord { corners, ng, flat_normal } = self.hit_records[tri];
         if ng == Vec3::ZERO {
             return None;
         }
@@ -210,8 +231,12 @@ impl RenderScene {
         let ng_facing = if front_face { ng } else { -ng };
         let b = hit.barycentric;
         let b0 = 1.0 - b.x - b.y;
-        let ns = g.normals[i0 as usize] * b0 + g.normals[i1 as usize] * b.x + g.normals[i2 as usize] * b.y;
-        let mut ns = ns.try_normalize().unwrap_or(ng);
+        let mut ns = if flat_normal != Vec3::ZERO {
+            flat_normal
+        } else {
+            let ns = g.normals[i0 as usize] * b0 + g.normals[i1 as usize] * b.x + g.normals[i2 as usize] * b.y;
+            ns.try_normalize().unwrap_or(ng)
+        };
         if ns.dot(ng_facing) < 0.0 {
             ns = -ns;
         }

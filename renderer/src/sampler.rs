@@ -7,6 +7,7 @@ use rand::RngCore;
 use rand_pcg::Pcg32;
 
 /// Independent uniform samples in [0, 1) for one camera path.
+#[derive(Clone, Debug)]
 pub struct Sampler {
     rng: Pcg32,
 }
