@@ -5,7 +5,7 @@
 
 use crate::camera::PinholeCamera;
 use crate::film::{Film, PixelAccumulator};
-use crate::accel::Hit;
+use crate::accel::{Hit, Ray};
 use crate::integrator::{PathState, PathTracer, ShadowTest};
 use crate::render_scene::RenderScene;
 use crate::sampler::Sampler;
@@ -124,68 +124,75 @@ impl Renderer<'_> {
         total
     }
 
-    /// Renders samples `first_sample .. first_sample + count` of a tile's pixels, one sample
-    /// of every pixel at a time as a batch of paths advanced together vertex by vertex:
-    /// all closest hits, then all shading steps, then all shadow rays. Neighbouring
-    /// iterations are independent paths, which the CPU overlaps, where one path alone is a
-    /// chain of dependent latencies. Each path consumes its random stream exactly as
-    /// [`PathTracer::radiance`] does, so the image is the same.
+    /// Renders samples `first_sample .. first_sample + count` of a tile's pixels as one batch
+    /// of paths advanced together vertex by vertex: all closest hits (in packets where
+    /// [`crate::accel::Bvh::packets_pay`]), then all shading steps, then all shadow rays.
+    /// Neighbouring iterations are independent paths, which the CPU overlaps, where one path
+    /// alone is a chain of dependent latencies. Each path consumes its random stream exactly
+    /// as [`PathTracer::radiance`] does, so the image is the same.
     fn render_tile(&self, tile: u32, tiles_x: u32, w: u32, h: u32, first_sample: u32, count: u32) -> (Vec<PixelAccumulator>, PassCounters) {
         let (x0, y0, x1, y1) = tile_bounds(tile, tiles_x, w, h);
         let tile_w = x1 - x0;
         let n = (tile_w * (y1 - y0)) as usize;
-        let mut pixels = vec![PixelAccumulator::default(); n];
+        // Every sample of the pass in one batch (sample-major): late in the paths, when most
+        // have ended, the survivors still fill packets.
+        let batch = n * count as usize;
         let mut counters = PassCounters::default();
-        let mut paths: Vec<PathState> = Vec::with_capacity(n);
-        let mut owners: Vec<u32> = Vec::with_capacity(n);
-        let mut active: Vec<u32> = Vec::with_capacity(n);
-        let mut next: Vec<u32> = Vec::with_capacity(n);
-        let mut hits: Vec<Option<Hit>> = Vec::with_capacity(n);
-        let mut shadows: Vec<(u32, ShadowTest)> = Vec::with_capacity(n);
-        let mut radiance = vec![Rgb::ZERO; n];
+        let mut paths: Vec<PathState> = Vec::with_capacity(batch);
+        let mut owners: Vec<u32> = Vec::with_capacity(batch);
+        let mut active: Vec<u32> = Vec::with_capacity(batch);
+        let mut next: Vec<u32> = Vec::with_capacity(batch);
+        let mut rays: Vec<Ray> = Vec::with_capacity(batch);
+        let mut hits: Vec<Option<Hit>> = Vec::with_capacity(batch);
+        let mut shadows: Vec<(u32, ShadowTest)> = Vec::with_capacity(batch);
+        let mut blocked: Vec<bool> = Vec::with_capacity(batch);
         let scene = self.scene;
-        for s in first_sample..first_sample + count {
-            paths.clear();
-            owners.clear();
-            radiance.fill(Rgb::ZERO);
-            for k in 0..n as u32 {
-                let (x, y) = (x0 + k % tile_w, y0 + k / tile_w);
-                let mut sampler = Sampler::new(self.seed, (x + y * w) as u64, s as u64);
-                let film_pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                if let Some(path) = self.integrator.start(self.camera.generate_ray(film_pos), sampler) {
-                    paths.push(path);
-                    owners.push(k);
+        for j in 0..batch as u32 {
+            let (s, k) = (first_sample + j / n as u32, j % n as u32);
+            let (x, y) = (x0 + k % tile_w, y0 + k / tile_w);
+            let mut sampler = Sampler::new(self.seed, (x + y * w) as u64, s as u64);
+            let film_pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+            if let Some(path) = self.integrator.start(self.camera.generate_ray(film_pos), sampler) {
+                paths.push(path);
+                owners.push(j);
+            }
+        }
+        active.extend(0..paths.len() as u32);
+        while !active.is_empty() {
+            counters.rays += active.len() as u64;
+            rays.clear();
+            rays.extend(active.iter().map(|&i| paths[i as usize].ray));
+            scene.bvh.intersect_all(&rays, &mut hits);
+            shadows.clear();
+            next.clear();
+            for (&i, &hit) in active.iter().zip(&hits) {
+                let (shadow, alive) = self.integrator.step(scene, &mut paths[i as usize], hit);
+                if let Some(test) = shadow {
+                    shadows.push((i, test));
+                }
+                if alive {
+                    next.push(i);
                 }
             }
-            active.clear();
-            active.extend(0..paths.len() as u32);
-            while !active.is_empty() {
-                counters.rays += active.len() as u64;
-                hits.clear();
-                hits.extend(active.iter().map(|&i| scene.bvh.intersect(&paths[i as usize].ray)));
-                shadows.clear();
-                next.clear();
-                for (&i, &hit) in active.iter().zip(&hits) {
-                    let (shadow, alive) = self.integrator.step(scene, &mut paths[i as usize], hit);
-                    if let Some(test) = shadow {
-                        shadows.push((i, test));
-                    }
-                    if alive {
-                        next.push(i);
-                    }
+            counters.shadow_rays += shadows.len() as u64;
+            rays.clear();
+            rays.extend(shadows.iter().map(|(_, test)| test.ray));
+            scene.bvh.occluded_all(&rays, &mut blocked);
+            for ((i, test), &blocked) in shadows.iter().zip(&blocked) {
+                if !blocked {
+                    paths[*i as usize].l += test.contribution;
                 }
-                counters.shadow_rays += shadows.len() as u64;
-                for (i, test) in &shadows {
-                    if !scene.bvh.occluded(&test.ray) {
-                        paths[*i as usize].l += test.contribution;
-                    }
-                }
-                std::mem::swap(&mut active, &mut next);
             }
-            for (path, &k) in paths.iter().zip(&owners) {
-                radiance[k as usize] = path.l;
-            }
-            for (acc, &l) in pixels.iter_mut().zip(&radiance) {
+            std::mem::swap(&mut active, &mut next);
+        }
+        let mut radiance = vec![Rgb::ZERO; batch];
+        for (path, &j) in paths.iter().zip(&owners) {
+            radiance[j as usize] = path.l;
+        }
+        // Samples of a pixel are accumulated in sample order, as one path at a time would.
+        let mut pixels = vec![PixelAccumulator::default(); n];
+        for sample in radiance.chunks(n) {
+            for (acc, &l) in pixels.iter_mut().zip(sample) {
                 counters.samples += 1;
                 if l.is_finite() && l.min_element() >= 0.0 {
                     acc.add(l);

@@ -3,6 +3,8 @@
 //! triangles per SIMD step), and robust ray-origin offsets.
 
 mod node;
+#[cfg(target_arch = "x86_64")]
+mod packet;
 mod triangle_pack;
 
 use glam::{UVec2, Vec2, Vec3, Vec3A};
@@ -69,18 +71,18 @@ pub struct Bvh {
     scene_index: Vec<u32>,
 }
 
-/// Traversal stack of node groups: 64 entries in place (left uninitialised until pushed);
-/// deeper trees spill to the heap.
-struct GroupStack {
-    inline: [MaybeUninit<UVec2>; 64],
+/// A traversal stack: 64 entries in place (left uninitialised until pushed); deeper trees
+/// spill to the heap.
+struct Stack<T: Copy> {
+    inline: [MaybeUninit<T>; 64],
     len: usize,
-    spill: Vec<UVec2>,
+    spill: Vec<T>,
 }
 
-impl GroupStack {
+impl<T: Copy> Stack<T> {
     #[inline(always)]
     fn new() -> Self {
-        GroupStack {
+        Stack {
             inline: [MaybeUninit::uninit(); 64],
             len: 0,
             spill: Vec::new(),
@@ -88,19 +90,19 @@ impl GroupStack {
     }
 
     #[inline(always)]
-    fn push(&mut self, group: UVec2) {
+    fn push(&mut self, entry: T) {
         if self.len < self.inline.len() {
-            self.inline[self.len].write(group);
+            self.inline[self.len].write(entry);
             self.len += 1;
         } else {
-            self.spill.push(group);
+            self.spill.push(entry);
         }
     }
 
     #[inline(always)]
-    fn pop(&mut self) -> Option<UVec2> {
-        if let Some(group) = self.spill.pop() {
-            return Some(group);
+    fn pop(&mut self) -> Option<T> {
+        if let Some(entry) = self.spill.pop() {
+            return Some(entry);
         }
         if self.len == 0 {
             return None;
@@ -110,6 +112,10 @@ impl GroupStack {
         Some(unsafe { self.inline[self.len].assume_init() })
     }
 }
+
+/// Largest tree (in CWBVH nodes) traced in packets: beyond it a packet's incoherent rays
+/// share too few nodes for sixteen-wide tests to pay.
+const PACKET_MAX_NODES: usize = 64;
 
 /// A closest hit found in traversal: distance, primitive slot, barycentrics.
 type SlotHit = (f32, u32, Vec2);
@@ -204,6 +210,55 @@ impl Bvh {
         })
     }
 
+    /// Whether tracing rays in packets beats tracing them one by one: on CPUs with AVX-512,
+    /// for trees small enough that a packet's rays share most nodes.
+    pub fn packets_pay(&self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.bvh.nodes.len() <= PACKET_MAX_NODES && std::arch::is_x86_feature_detected!("avx512f")
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    }
+
+    /// Closest hits of many rays: `out[i]` = [`Bvh::intersect`] of `rays[i]`, traced in
+    /// packets where [`Bvh::packets_pay`].
+    pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>) {
+        out.clear();
+        out.resize(rays.len(), None);
+        #[cfg(target_arch = "x86_64")]
+        if !self.is_empty() && self.packets_pay() {
+            for (r, o) in rays.chunks(packet::PACKET).zip(out.chunks_mut(packet::PACKET)) {
+                // SAFETY: AVX-512F is present (packets_pay); chunks hold 1 to 16 rays.
+                unsafe { self.closest_packet(r, o) };
+            }
+            return;
+        }
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.intersect(r);
+        }
+    }
+
+    /// Occlusion of many rays: `out[i]` = [`Bvh::occluded`] of `rays[i]`, traced in packets
+    /// where [`Bvh::packets_pay`].
+    pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>) {
+        out.clear();
+        out.resize(rays.len(), false);
+        #[cfg(target_arch = "x86_64")]
+        if !self.is_empty() && self.packets_pay() {
+            for (r, o) in rays.chunks(packet::PACKET).zip(out.chunks_mut(packet::PACKET)) {
+                // SAFETY: AVX-512F is present (packets_pay); chunks hold 1 to 16 rays.
+                unsafe { self.occluded_packet(r, o) };
+            }
+            return;
+        }
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.occluded(r);
+        }
+    }
+
     /// True when anything blocks the ray within (0, ray.t_max).
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
@@ -233,7 +288,7 @@ impl Bvh {
         mut leaves: impl FnMut(usize, u32, &mut f32) -> bool,
     ) {
         let nodes = &self.bvh.nodes;
-        let mut stack = GroupStack::new();
+        let mut stack = Stack::<UVec2>::new();
         // (first child index, inner-child hit bits in the high byte | inner-child mask).
         let mut group = UVec2::new(0, 0x8000_0000);
         loop {
@@ -548,6 +603,67 @@ mod tests {
             hits += brute.is_some() as u32;
         }
         assert!(hits > 200 && hits < 1000, "a mix of hits and misses: {hits}");
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn packets_find_the_single_ray_hits_bit_for_bit() {
+        if !std::arch::is_x86_feature_detected!("avx512f") {
+            return;
+        }
+        let mut s = crate::sampler::Sampler::new(3, 1, 4);
+        let mut point = |scale: f32| Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) * scale;
+        // A deep random tree and a closed box with rays from inside.
+        let random: Vec<[Vec3; 3]> = (0..2000)
+            .map(|_| {
+                let c = point(20.0) - Vec3::splat(10.0);
+                [c + point(2.0), c + point(2.0), c + point(2.0)]
+            })
+            .collect();
+        let mut boxed = Vec::new();
+        for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)] {
+            boxed.extend(quad(Vec3::ZERO).into_iter().map(|t| {
+                t.map(|v| {
+                    let v = Vec3::new(v.x, sign, v.z);
+                    match axis {
+                        0 => Vec3::new(v.y, v.x, v.z),
+                        1 => v,
+                        _ => Vec3::new(v.x, v.z, v.y),
+                    }
+                })
+            }));
+        }
+        let mut s = crate::sampler::Sampler::new(8, 8, 8);
+        for (tris, scale) in [(random, 24.0), (boxed, 1.8)] {
+            let bvh = Bvh::build(tris.into_iter());
+            let mut hits = 0;
+            for chunk in 0..200 {
+                let n = if chunk % 5 == 0 { 1 + chunk % 16 } else { 16 };
+                let rays: Vec<Ray> = (0..n)
+                    .map(|i| {
+                        let o = (Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) - Vec3::splat(0.5)) * scale;
+                        let d = crate::sampling::sample_uniform_sphere(s.next_2d());
+                        let t_max = if i % 3 == 0 { scale * 0.2 } else { f32::MAX };
+                        Ray { t_max, ..Ray::new(o, d) }
+                    })
+                    .collect();
+                let mut closest = vec![None; n];
+                let mut blocked = vec![false; n];
+                // SAFETY: AVX-512F checked above; 1 to 16 rays.
+                unsafe {
+                    bvh.closest_packet(&rays, &mut closest);
+                    bvh.occluded_packet(&rays, &mut blocked);
+                }
+                for (i, ray) in rays.iter().enumerate() {
+                    let single = bvh.intersect(ray);
+                    let bits = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.triangle, h.barycentric.x.to_bits(), h.barycentric.y.to_bits()));
+                    assert_eq!(bits(closest[i]), bits(single), "chunk {chunk} ray {i}");
+                    assert_eq!(blocked[i], bvh.occluded(ray), "chunk {chunk} ray {i}");
+                    hits += single.is_some() as u32;
+                }
+            }
+            assert!(hits > 300, "the rays hit something: {hits}");
+        }
     }
 
     #[test]

@@ -12,9 +12,9 @@ pub const LANES: usize = 8;
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C, align(32))]
 pub struct TrianglePack {
-    v0: [[f32; LANES]; 3],
-    e1: [[f32; LANES]; 3],
-    e2: [[f32; LANES]; 3],
+    pub(super) v0: [[f32; LANES]; 3],
+    pub(super) e1: [[f32; LANES]; 3],
+    pub(super) e2: [[f32; LANES]; 3],
 }
 
 /// A hit within a pack: distance, lane and barycentric coordinates (b1, b2).
