@@ -43,6 +43,17 @@ fn bench(c: &mut Criterion) {
             ("slow", BvhBuildParams::slow_build()),
             ("very slow", BvhBuildParams::very_slow_build()),
         ];
+        // Sixteen-ray packets (AVX-512) against single rays, on the default build.
+        let bvh = Bvh::build(corners());
+        let (mut hits, mut blocked) = (Vec::new(), Vec::new());
+        for (mode, packets) in [("single rays", false), ("packets of 16", true)] {
+            group.bench_function(format!("closest hit, {} nodes, {mode}", bvh.node_count()), |b| {
+                b.iter(|| bvh.intersect_all_with(&rays, &mut hits, packets))
+            });
+            group.bench_function(format!("occlusion, {} nodes, {mode}", bvh.node_count()), |b| {
+                b.iter(|| bvh.occluded_all_with(&rays, &mut blocked, packets))
+            });
+        }
         for (preset, params) in presets {
             let bvh = Bvh::build_with(corners(), params);
             group.bench_function(format!("closest hit, {preset} build"), |b| {

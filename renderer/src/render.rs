@@ -70,6 +70,10 @@ pub struct RenderStats {
     pub seed: u64,
     /// True when the render was interrupted (Ctrl-C) before its budget was spent.
     pub interrupted: bool,
+    /// How closest-hit and occlusion rays were traced: "packets", "single rays", or
+    /// "measuring" when the render ended before the choice was made.
+    pub closest_traversal: &'static str,
+    pub occlusion_traversal: &'static str,
 }
 
 /// What renders one image: scene, camera, integrator and seed.
@@ -125,8 +129,8 @@ impl Renderer<'_> {
     }
 
     /// Renders samples `first_sample .. first_sample + count` of a tile's pixels as one batch
-    /// of paths advanced together vertex by vertex: all closest hits (in packets where
-    /// [`crate::accel::Bvh::packets_pay`]), then all shading steps, then all shadow rays.
+    /// of paths advanced together vertex by vertex: all closest hits (in packets or one by
+    /// one, see [`crate::accel::TracePolicy`]), then all shading steps, then all shadow rays.
     /// Neighbouring iterations are independent paths, which the CPU overlaps, where one path
     /// alone is a chain of dependent latencies. Each path consumes its random stream exactly
     /// as [`PathTracer::radiance`] does, so the image is the same.
@@ -266,12 +270,22 @@ impl Renderer<'_> {
             max_depth: self.integrator.max_depth,
             seed: self.seed,
             interrupted: cancel.load(Ordering::Relaxed),
+            closest_traversal: traversal_name(self.scene.bvh.trace_modes().0),
+            occlusion_traversal: traversal_name(self.scene.bvh.trace_modes().1),
         };
         (film, stats)
     }
 }
 
 /// Pixel bounds [x0, x1) × [y0, y1) of a tile.
+fn traversal_name(mode: Option<bool>) -> &'static str {
+    match mode {
+        Some(true) => "packets",
+        Some(false) => "single rays",
+        None => "measuring",
+    }
+}
+
 fn tile_bounds(tile: u32, tiles_x: u32, w: u32, h: u32) -> (u32, u32, u32, u32) {
     let (tx, ty) = (tile % tiles_x, tile / tiles_x);
     let (x0, y0) = (tx * TILE_SIZE, ty * TILE_SIZE);

@@ -5,7 +5,10 @@
 mod node;
 #[cfg(target_arch = "x86_64")]
 mod packet;
+mod policy;
 mod triangle_pack;
+
+pub use policy::TracePolicy;
 
 use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::cwbvh::node::CwBvhNode;
@@ -69,6 +72,9 @@ pub struct Bvh {
     node_packs: Vec<u32>,
     /// Scene triangle index of each obvhs primitive slot.
     scene_index: Vec<u32>,
+    /// How batches of closest-hit and of occlusion queries are traced.
+    closest_policy: TracePolicy,
+    occluded_policy: TracePolicy,
 }
 
 /// A traversal stack: 64 entries in place (left uninitialised until pushed); deeper trees
@@ -113,10 +119,6 @@ impl<T: Copy> Stack<T> {
     }
 }
 
-/// Largest tree (in CWBVH nodes) traced in packets: beyond it a packet's incoherent rays
-/// share too few nodes for sixteen-wide tests to pay.
-const PACKET_MAX_NODES: usize = 64;
-
 /// A closest hit found in traversal: distance, primitive slot, barycentrics.
 type SlotHit = (f32, u32, Vec2);
 
@@ -142,6 +144,8 @@ impl Bvh {
                 packs: Vec::new(),
                 node_packs: Vec::new(),
                 scene_index: Vec::new(),
+                closest_policy: TracePolicy::new(false),
+                occluded_policy: TracePolicy::new(false),
             };
         }
         let mut build_time = Duration::ZERO;
@@ -170,6 +174,8 @@ impl Bvh {
             }
         }
         Bvh {
+            closest_policy: TracePolicy::new(packets_available()),
+            occluded_policy: TracePolicy::new(packets_available()),
             scene_index: bvh.primitive_indices.clone(),
             bvh,
             packs,
@@ -210,28 +216,25 @@ impl Bvh {
         })
     }
 
-    /// Whether tracing rays in packets beats tracing them one by one: on CPUs with AVX-512,
-    /// for trees small enough that a packet's rays share most nodes.
-    pub fn packets_pay(&self) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        {
-            self.bvh.nodes.len() <= PACKET_MAX_NODES && std::arch::is_x86_feature_detected!("avx512f")
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            false
+    /// Closest hits of many rays: `out[i]` = [`Bvh::intersect`] of `rays[i]`, traced in
+    /// packets or one by one as the closest-hit [`TracePolicy`] has found faster.
+    pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>) {
+        let (packets, trial) = self.closest_policy.pick();
+        self.intersect_all_with(rays, out, packets);
+        if let Some(start) = trial {
+            self.closest_policy.report(packets, start, rays.len());
         }
     }
 
-    /// Closest hits of many rays: `out[i]` = [`Bvh::intersect`] of `rays[i]`, traced in
-    /// packets where [`Bvh::packets_pay`].
-    pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>) {
+    /// As [`Bvh::intersect_all`], in packets whenever the CPU has AVX-512 (`packets`) or
+    /// one ray at a time: for benchmarks comparing the two.
+    pub fn intersect_all_with(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, packets: bool) {
         out.clear();
         out.resize(rays.len(), None);
         #[cfg(target_arch = "x86_64")]
-        if !self.is_empty() && self.packets_pay() {
+        if packets && !self.is_empty() && packets_available() {
             for (r, o) in rays.chunks(packet::PACKET).zip(out.chunks_mut(packet::PACKET)) {
-                // SAFETY: AVX-512F is present (packets_pay); chunks hold 1 to 16 rays.
+                // SAFETY: AVX-512F is present; chunks hold 1 to 16 rays.
                 unsafe { self.closest_packet(r, o) };
             }
             return;
@@ -242,14 +245,30 @@ impl Bvh {
     }
 
     /// Occlusion of many rays: `out[i]` = [`Bvh::occluded`] of `rays[i]`, traced in packets
-    /// where [`Bvh::packets_pay`].
+    /// or one by one as the occlusion [`TracePolicy`] has found faster.
     pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>) {
+        let (packets, trial) = self.occluded_policy.pick();
+        self.occluded_all_with(rays, out, packets);
+        if let Some(start) = trial {
+            self.occluded_policy.report(packets, start, rays.len());
+        }
+    }
+
+    /// The settled traversal modes of closest-hit and occlusion batches (true: packets), or
+    /// `None` while still being measured.
+    pub fn trace_modes(&self) -> (Option<bool>, Option<bool>) {
+        (self.closest_policy.choice(), self.occluded_policy.choice())
+    }
+
+    /// As [`Bvh::occluded_all`], in packets whenever the CPU has AVX-512 (`packets`) or one
+    /// ray at a time.
+    pub fn occluded_all_with(&self, rays: &[Ray], out: &mut Vec<bool>, packets: bool) {
         out.clear();
         out.resize(rays.len(), false);
         #[cfg(target_arch = "x86_64")]
-        if !self.is_empty() && self.packets_pay() {
+        if packets && !self.is_empty() && packets_available() {
             for (r, o) in rays.chunks(packet::PACKET).zip(out.chunks_mut(packet::PACKET)) {
-                // SAFETY: AVX-512F is present (packets_pay); chunks hold 1 to 16 rays.
+                // SAFETY: AVX-512F is present; chunks hold 1 to 16 rays.
                 unsafe { self.occluded_packet(r, o) };
             }
             return;
@@ -257,6 +276,11 @@ impl Bvh {
         for (r, o) in rays.iter().zip(out.iter_mut()) {
             *o = self.occluded(r);
         }
+    }
+
+    /// Number of CWBVH nodes.
+    pub fn node_count(&self) -> usize {
+        self.bvh.nodes.len()
     }
 
     /// True when anything blocks the ray within (0, ray.t_max).
@@ -274,7 +298,7 @@ impl Bvh {
         self.any_portable(&bvh_ray)
     }
 
-    /// Walks the CWBVH front to back by octant order (as obvhs's `traverse!`), culling
+    /// Walks the CWBVH below node `root` front to back by octant order (as obvhs's `traverse!`), culling
     /// children beyond the current `t_max`. `intersect_node(node, t_max)` returns the hit mask
     /// of a node; `leaves(node_index, primitive_mask, t_max)` tests the node's hit leaf
     /// primitives (bits of slots from the node's primitive base), may lower `t_max`, and
@@ -282,6 +306,7 @@ impl Bvh {
     #[inline(always)]
     fn traverse(
         &self,
+        root: u32,
         oct_inv4: u32,
         mut t_max: f32,
         mut intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
@@ -290,7 +315,7 @@ impl Bvh {
         let nodes = &self.bvh.nodes;
         let mut stack = Stack::<UVec2>::new();
         // (first child index, inner-child hit bits in the high byte | inner-child mask).
-        let mut group = UVec2::new(0, 0x8000_0000);
+        let mut group = UVec2::new(root, 0x8000_0000);
         loop {
             if group.y & 0xff00_0000 != 0 {
                 let hits = group.y;
@@ -322,12 +347,13 @@ impl Bvh {
     #[inline(always)]
     fn closest_with(
         &self,
+        root: u32,
         ray: &BvhRay,
         intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
         mut pack_closest: impl FnMut(&TrianglePack, u32, f32) -> Option<PackHit>,
     ) -> Option<SlotHit> {
         let mut best: Option<SlotHit> = None;
-        self.traverse(node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, t_max| {
+        self.traverse(root, node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, t_max| {
             let mut pack = self.node_packs[index] as usize;
             let mut slot_base = self.bvh.nodes[index].primitive_base_idx;
             while lanes != 0 {
@@ -350,12 +376,13 @@ impl Bvh {
     #[inline(always)]
     fn any_with(
         &self,
+        root: u32,
         ray: &BvhRay,
         intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
         mut pack_any: impl FnMut(&TrianglePack, u32) -> bool,
     ) -> bool {
         let mut hit = false;
-        self.traverse(node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, _| {
+        self.traverse(root, node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, _| {
             let mut pack = self.node_packs[index] as usize;
             while lanes != 0 {
                 if lanes & 0xff != 0 && pack_any(&self.packs[pack], lanes & 0xff) {
@@ -373,6 +400,7 @@ impl Bvh {
     fn closest_portable(&self, ray: &BvhRay) -> Option<SlotHit> {
         let oct = node::octant_inv4(ray.direction);
         self.closest_with(
+            0,
             ray,
             |n, t_max| node::intersect_portable(n, ray, oct, t_max),
             |p, lanes, t_max| p.closest_portable(ray.origin, ray.direction, lanes, t_max),
@@ -382,6 +410,7 @@ impl Bvh {
     fn any_portable(&self, ray: &BvhRay) -> bool {
         let oct = node::octant_inv4(ray.direction);
         self.any_with(
+            0,
             ray,
             |n, t_max| node::intersect_portable(n, ray, oct, t_max),
             |p, lanes| p.any_portable(ray.origin, ray.direction, lanes, ray.tmax),
@@ -391,8 +420,17 @@ impl Bvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn closest_avx2(&self, ray: &BvhRay) -> Option<SlotHit> {
+        // SAFETY: this function runs only where AVX2 and FMA exist.
+        unsafe { self.closest_below_avx2(0, ray) }
+    }
+
+    /// The closest hit below node `root` with t < ray.tmax.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn closest_below_avx2(&self, root: u32, ray: &BvhRay) -> Option<SlotHit> {
         let oct = node::octant_inv4(ray.direction);
         self.closest_with(
+            root,
             ray,
             // SAFETY (both kernels): this function runs only where AVX2 and FMA exist.
             |n, t_max| unsafe { node::intersect_avx2(n, ray, oct, t_max) },
@@ -403,13 +441,35 @@ impl Bvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn any_avx2(&self, ray: &BvhRay) -> bool {
+        // SAFETY: this function runs only where AVX2 and FMA exist.
+        unsafe { self.any_below_avx2(0, ray) }
+    }
+
+    /// Whether anything below node `root` blocks the ray.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn any_below_avx2(&self, root: u32, ray: &BvhRay) -> bool {
         let oct = node::octant_inv4(ray.direction);
         self.any_with(
+            root,
             ray,
             // SAFETY (both kernels): this function runs only where AVX2 and FMA exist.
             |n, t_max| unsafe { node::intersect_avx2(n, ray, oct, t_max) },
             |p, lanes| unsafe { triangle_pack::avx2::any(p, ray.origin, ray.direction, lanes, ray.tmax) },
         )
+    }
+}
+
+/// Whether this CPU traces packets (AVX-512F).
+#[inline]
+fn packets_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 

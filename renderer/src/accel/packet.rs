@@ -1,8 +1,8 @@
 //! Packets of up to 16 rays traced together through the CWBVH with AVX-512: each child box
 //! and each leaf triangle is tested against all rays of the packet in one SIMD step, the
 //! way Embree's packet kernels do. In a small scene every ray of a packet visits nearly the
-//! same nodes, so a node or triangle costs a sixteenth of a single-ray test per ray; in a
-//! large scene incoherent rays diverge and single rays are faster ([`Bvh::packets_pay`]).
+//! same nodes, so a node or triangle costs a sixteenth of a single-ray test per ray. Where
+//! rays diverge, subtrees entered by few of them are walked one ray at a time.
 //!
 //! The per-ray arithmetic is that of the single-ray kernels (box distances by the same
 //! fused multiply-adds, triangles by the same Möller–Trumbore sequence without fused
@@ -10,6 +10,7 @@
 
 use super::{to_bvh_ray, Bvh, Hit, Ray, Stack, LANES};
 use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::ray::Ray as BvhRay;
 use std::arch::x86_64::*;
 
 /// Rays per packet.
@@ -32,12 +33,13 @@ struct Closest {
     b2: __m512,
 }
 
-/// Lanes of `rays` (the first lane repeated into unused lanes, which are masked off).
+/// Lanes of `rays` (the first lane repeated into unused lanes, which are masked off), their
+/// bounds, and the rays as single-ray traversal takes them.
 #[target_feature(enable = "avx512f")]
-fn load(rays: &[Ray]) -> (Rays, __m512) {
+fn load(rays: &[Ray]) -> (Rays, __m512, [BvhRay; PACKET]) {
     let mut a = [[0.0f32; PACKET]; 10];
-    for lane in 0..PACKET {
-        let r = to_bvh_ray(&rays[lane.min(rays.len() - 1)]);
+    let singles = std::array::from_fn(|lane| to_bvh_ray(&rays[lane.min(rays.len() - 1)]));
+    for (lane, r) in singles.iter().enumerate() {
         for axis in 0..3 {
             a[axis][lane] = r.origin[axis];
             a[3 + axis][lane] = r.direction[axis];
@@ -54,7 +56,7 @@ fn load(rays: &[Ray]) -> (Rays, __m512) {
         inv: [v[6], v[7], v[8]],
         negative: [3, 4, 5].map(|i| _mm512_cmp_ps_mask::<_CMP_LT_OQ>(v[i], zero)),
     };
-    (rays, v[9])
+    (rays, v[9], singles)
 }
 
 /// The lanes in `active` whose ray crosses child `c` of `node` within (T_MIN, t_max):
@@ -116,18 +118,45 @@ fn triangle_hits(bvh: &Bvh, pack: usize, lane: usize, rays: &Rays, t_max: __m512
     (t, b1, b2, hit)
 }
 
-/// Walks the tree for the lanes in `active`. `leaf(pack, lane, slot, lanes)` tests one
-/// triangle for the lanes given and returns the lanes still to be traced; `t_max()` gives
-/// the current per-lane bound.
+/// Subtrees entered by fewer rays of a packet than this are traced one ray at a time
+/// (Embree's hybrid traversal): a sixteen-wide test that serves one or two rays costs more
+/// than their single-ray walks.
+const SINGLE_BELOW: u32 = 4;
+
+/// Walks the tree for the lanes in `active`, whose bounds are `t_max`.
+/// `leaf(pack, lane, slot, lanes, t_max)` tests one triangle for the lanes given and returns
+/// the lanes still to be traced; `single(node, lane, t_max)` walks the subtree of `node`
+/// for one lane alone and returns whether that lane is finished.
 #[inline]
 #[target_feature(enable = "avx512f")]
-fn walk(bvh: &Bvh, rays: &Rays, mut active: __mmask16, t_max: &mut __m512, mut leaf: impl FnMut(usize, usize, u32, __mmask16, &mut __m512) -> __mmask16) {
+fn walk(
+    bvh: &Bvh,
+    rays: &Rays,
+    mut active: __mmask16,
+    t_max: &mut __m512,
+    mut leaf: impl FnMut(usize, usize, u32, __mmask16, &mut __m512) -> __mmask16,
+    mut single: impl FnMut(u32, usize, &mut __m512) -> bool,
+) {
     let nodes = &bvh.bvh.nodes;
     let mut stack = Stack::new();
     stack.push((0, active));
     while let Some((index, mask)) = stack.pop() {
         let lanes = mask & active;
         if lanes == 0 {
+            continue;
+        }
+        if lanes.count_ones() < SINGLE_BELOW {
+            let mut rest = lanes;
+            while rest != 0 {
+                let lane = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                if single(index, lane, t_max) {
+                    active &= !(1 << lane);
+                }
+            }
+            if active == 0 {
+                return;
+            }
             continue;
         }
         let node = &nodes[index as usize];
@@ -167,23 +196,49 @@ impl Bvh {
     /// The CPU must support AVX-512F; `rays` holds 1 to [`PACKET`] rays and `out` as many.
     #[target_feature(enable = "avx512f")]
     pub(super) unsafe fn closest_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        let (r, mut t_max) = load(rays);
+        let (r, mut t_max, singles) = load(rays);
         let active = (((1u32 << rays.len()) - 1) & 0xffff) as __mmask16;
-        let mut best = Closest {
+        let best = Closest {
             t: t_max,
             slot: _mm512_set1_epi32(-1),
             b1: _mm512_setzero_ps(),
             b2: _mm512_setzero_ps(),
         };
-        walk(self, &r, active, &mut t_max, |pack, lane, slot, lanes, t_max| {
-            let (t, b1, b2, hit) = triangle_hits(self, pack, lane, &r, *t_max, lanes);
-            best.t = _mm512_mask_blend_ps(hit, best.t, t);
-            best.b1 = _mm512_mask_blend_ps(hit, best.b1, b1);
-            best.b2 = _mm512_mask_blend_ps(hit, best.b2, b2);
-            best.slot = _mm512_mask_blend_epi32(hit, best.slot, _mm512_set1_epi32(slot as i32));
-            *t_max = best.t;
-            lanes
-        });
+        let best = std::cell::RefCell::new(best);
+        walk(
+            self,
+            &r,
+            active,
+            &mut t_max,
+            |pack, lane, slot, lanes, t_max| {
+                let (t, b1, b2, hit) = triangle_hits(self, pack, lane, &r, *t_max, lanes);
+                let mut best = best.borrow_mut();
+                best.t = _mm512_mask_blend_ps(hit, best.t, t);
+                best.b1 = _mm512_mask_blend_ps(hit, best.b1, b1);
+                best.b2 = _mm512_mask_blend_ps(hit, best.b2, b2);
+                best.slot = _mm512_mask_blend_epi32(hit, best.slot, _mm512_set1_epi32(slot as i32));
+                *t_max = best.t;
+                lanes
+            },
+            |node, lane, t_max| {
+                let mut lanes = [0.0f32; PACKET];
+                // SAFETY: writes 16 lanes into a 16-lane array.
+                unsafe { _mm512_storeu_ps(lanes.as_mut_ptr(), *t_max) };
+                let ray = BvhRay { tmax: lanes[lane], ..singles[lane] };
+                // SAFETY: AVX-512F implies AVX2 and FMA.
+                if let Some((t, slot, b)) = unsafe { self.closest_below_avx2(node, &ray) } {
+                    let mut best = best.borrow_mut();
+                    let one = 1 << lane;
+                    best.t = _mm512_mask_mov_ps(best.t, one, _mm512_set1_ps(t));
+                    best.b1 = _mm512_mask_mov_ps(best.b1, one, _mm512_set1_ps(b.x));
+                    best.b2 = _mm512_mask_mov_ps(best.b2, one, _mm512_set1_ps(b.y));
+                    best.slot = _mm512_mask_mov_epi32(best.slot, one, _mm512_set1_epi32(slot as i32));
+                    *t_max = best.t;
+                }
+                false
+            },
+        );
+        let best = best.into_inner();
         let mut t = [0.0f32; PACKET];
         let mut b1 = [0.0f32; PACKET];
         let mut b2 = [0.0f32; PACKET];
@@ -211,14 +266,29 @@ impl Bvh {
     /// The CPU must support AVX-512F; `rays` holds 1 to [`PACKET`] rays and `out` as many.
     #[target_feature(enable = "avx512f")]
     pub(super) unsafe fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
-        let (r, mut t_max) = load(rays);
+        let (r, mut t_max, singles) = load(rays);
         let active = (((1u32 << rays.len()) - 1) & 0xffff) as __mmask16;
-        let mut blocked: __mmask16 = 0;
-        walk(self, &r, active, &mut t_max, |pack, lane, _, lanes, t_max| {
-            let hit = triangle_hits(self, pack, lane, &r, *t_max, lanes).3;
-            blocked |= hit;
-            lanes & !hit
-        });
+        let blocked = std::cell::Cell::new(0 as __mmask16);
+        walk(
+            self,
+            &r,
+            active,
+            &mut t_max,
+            |pack, lane, _, lanes, t_max| {
+                let hit = triangle_hits(self, pack, lane, &r, *t_max, lanes).3;
+                blocked.set(blocked.get() | hit);
+                lanes & !hit
+            },
+            |node, lane, _| {
+                // SAFETY: AVX-512F implies AVX2 and FMA.
+                let hit = unsafe { self.any_below_avx2(node, &singles[lane]) };
+                if hit {
+                    blocked.set(blocked.get() | 1 << lane);
+                }
+                hit
+            },
+        );
+        let blocked = blocked.get();
         for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
             *o = blocked & (1 << i) != 0;
         }
