@@ -119,9 +119,9 @@ fn triangle_hits(bvh: &Bvh, pack: usize, lane: usize, rays: &Rays, t_max: __m512
 }
 
 /// Subtrees entered by fewer rays of a packet than this are traced one ray at a time
-/// (Embree's hybrid traversal): a sixteen-wide test that serves one or two rays costs more
-/// than their single-ray walks.
-const SINGLE_BELOW: u32 = 4;
+/// (Embree's hybrid traversal): a sixteen-wide test that serves a single ray costs more than
+/// its single-ray walk. 2 measured best of 1, 2 and 4 on the shipped scenes.
+const SINGLE_BELOW: u32 = 2;
 
 /// Walks the tree for the lanes in `active`, whose bounds are `t_max`.
 /// `leaf(pack, lane, slot, lanes, t_max)` tests one triangle for the lanes given and returns
