@@ -219,11 +219,7 @@ impl Bvh {
     /// Closest hits of many rays: `out[i]` = [`Bvh::intersect`] of `rays[i]`, traced in
     /// packets or one by one as the closest-hit [`TracePolicy`] has found faster.
     pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>) {
-        let (packets, trial) = self.closest_policy.pick();
-        self.intersect_all_with(rays, out, packets);
-        if let Some(start) = trial {
-            self.closest_policy.report(packets, start, rays.len());
-        }
+        self.closest_policy.trace(|packets| self.intersect_all_with(rays, out, packets));
     }
 
     /// As [`Bvh::intersect_all`], in packets whenever the CPU has AVX-512 (`packets`) or
@@ -247,15 +243,11 @@ impl Bvh {
     /// Occlusion of many rays: `out[i]` = [`Bvh::occluded`] of `rays[i]`, traced in packets
     /// or one by one as the occlusion [`TracePolicy`] has found faster.
     pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>) {
-        let (packets, trial) = self.occluded_policy.pick();
-        self.occluded_all_with(rays, out, packets);
-        if let Some(start) = trial {
-            self.occluded_policy.report(packets, start, rays.len());
-        }
+        self.occluded_policy.trace(|packets| self.occluded_all_with(rays, out, packets));
     }
 
-    /// The settled traversal modes of closest-hit and occlusion batches (true: packets), or
-    /// `None` while still being measured.
+    /// The traversal modes closest-hit and occlusion batches use now (true: packets), or
+    /// `None` before the first measurement.
     pub fn trace_modes(&self) -> (Option<bool>, Option<bool>) {
         (self.closest_policy.choice(), self.occluded_policy.choice())
     }
