@@ -42,7 +42,7 @@ impl TracePolicy {
             return trace(false);
         }
         let n = self.batches.fetch_add(1, Ordering::Relaxed);
-        if n < SAMPLE_EVERY || n % SAMPLE_EVERY == 0 {
+        if n < SAMPLE_EVERY || n.is_multiple_of(SAMPLE_EVERY) {
             let first = (n / if n < SAMPLE_EVERY { 1 } else { SAMPLE_EVERY }) % 2 == 1;
             for packets in [first, !first] {
                 let start = Instant::now();
