@@ -123,20 +123,21 @@ fn triangle_hits(bvh: &Bvh, pack: usize, lane: usize, rays: &Rays, t_max: __m512
 /// its single-ray walk. 2 measured best of 1, 2 and 4 on the shipped scenes.
 const SINGLE_BELOW: u32 = 2;
 
+/// What a packet walk looks for: closest hits or occlusion.
+trait PacketQuery {
+    /// Tests one triangle (lane `lane` of pack `pack`, primitive slot `slot`) for the rays
+    /// in `lanes`, may lower their bounds `t_max`, and returns which of `lanes` still need
+    /// tracing.
+    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, pack: usize, lane: usize, slot: u32, lanes: __mmask16, t_max: &mut __m512) -> __mmask16;
+
+    /// Walks the subtree of `node` for ray `lane` alone; returns whether that ray is done.
+    fn single(&mut self, bvh: &Bvh, node: u32, lane: usize, t_max: &mut __m512) -> bool;
+}
+
 /// Walks the tree for the lanes in `active`, whose bounds are `t_max`.
-/// `leaf(pack, lane, slot, lanes, t_max)` tests one triangle for the lanes given and returns
-/// the lanes still to be traced; `single(node, lane, t_max)` walks the subtree of `node`
-/// for one lane alone and returns whether that lane is finished.
 #[inline]
 #[target_feature(enable = "avx512f")]
-fn walk(
-    bvh: &Bvh,
-    rays: &Rays,
-    mut active: __mmask16,
-    t_max: &mut __m512,
-    mut leaf: impl FnMut(usize, usize, u32, __mmask16, &mut __m512) -> __mmask16,
-    mut single: impl FnMut(u32, usize, &mut __m512) -> bool,
-) {
+fn walk(bvh: &Bvh, rays: &Rays, mut active: __mmask16, t_max: &mut __m512, query: &mut impl PacketQuery) {
     let nodes = &bvh.bvh.nodes;
     let mut stack = Stack::new();
     stack.push((0, active));
@@ -150,7 +151,7 @@ fn walk(
             while rest != 0 {
                 let lane = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
-                if single(index, lane, t_max) {
+                if query.single(bvh, index, lane, t_max) {
                     active &= !(1 << lane);
                 }
             }
@@ -176,7 +177,8 @@ fn walk(
                 let first = (meta & 0b1_1111) as usize;
                 for local in first..first + (meta & 0b1110_0000).count_ones() as usize {
                     let pack = bvh.node_packs[index as usize] as usize + local / LANES;
-                    active = leaf(pack, local % LANES, node.primitive_base_idx + local as u32, hits & active, t_max) | (active & !hits);
+                    let slot = node.primitive_base_idx + local as u32;
+                    active = query.leaf(bvh, rays, pack, local % LANES, slot, hits & active, t_max) | (active & !hits);
                 }
             } else {
                 stack.push((node.child_node_index(c), hits));
@@ -188,57 +190,101 @@ fn walk(
     }
 }
 
+/// Closest hits: the per-lane best so far, and the rays for single-ray subtrees.
+struct ClosestQuery {
+    best: Closest,
+    singles: [BvhRay; PACKET],
+}
+
+impl PacketQuery for ClosestQuery {
+    #[inline(always)]
+    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, pack: usize, lane: usize, slot: u32, lanes: __mmask16, t_max: &mut __m512) -> __mmask16 {
+        // SAFETY: only called from `walk`, which runs where AVX-512F exists.
+        unsafe {
+            let (t, b1, b2, hit) = triangle_hits(bvh, pack, lane, rays, *t_max, lanes);
+            self.best.take(hit, t, b1, b2, slot);
+        }
+        *t_max = self.best.t;
+        lanes
+    }
+
+    #[inline(always)]
+    fn single(&mut self, bvh: &Bvh, node: u32, lane: usize, t_max: &mut __m512) -> bool {
+        let mut bounds = [0.0f32; PACKET];
+        // SAFETY: only called from `walk`, which runs where AVX-512F (and, as checked by
+        // `packets_available`, AVX2 and FMA) exist; the store writes 16 lanes into 16.
+        unsafe {
+            _mm512_storeu_ps(bounds.as_mut_ptr(), *t_max);
+            let ray = BvhRay { tmax: bounds[lane], ..self.singles[lane] };
+            if let Some((t, slot, b)) = bvh.closest_below_avx2(node, &ray) {
+                let splat = |x| _mm512_set1_ps(x);
+                self.best.take(1 << lane, splat(t), splat(b.x), splat(b.y), slot);
+            }
+        }
+        *t_max = self.best.t;
+        false
+    }
+}
+
+impl Closest {
+    /// Takes the hits of `lanes`.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn take(&mut self, lanes: __mmask16, t: __m512, b1: __m512, b2: __m512, slot: u32) {
+        self.t = _mm512_mask_mov_ps(self.t, lanes, t);
+        self.b1 = _mm512_mask_mov_ps(self.b1, lanes, b1);
+        self.b2 = _mm512_mask_mov_ps(self.b2, lanes, b2);
+        self.slot = _mm512_mask_mov_epi32(self.slot, lanes, _mm512_set1_epi32(slot as i32));
+    }
+}
+
+/// Occlusion: the lanes found blocked, and the rays for single-ray subtrees.
+struct OcclusionQuery {
+    blocked: __mmask16,
+    singles: [BvhRay; PACKET],
+}
+
+impl PacketQuery for OcclusionQuery {
+    #[inline(always)]
+    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, pack: usize, lane: usize, _slot: u32, lanes: __mmask16, t_max: &mut __m512) -> __mmask16 {
+        // SAFETY: only called from `walk`, which runs where AVX-512F exists.
+        let hit = unsafe { triangle_hits(bvh, pack, lane, rays, *t_max, lanes) }.3;
+        self.blocked |= hit;
+        lanes & !hit
+    }
+
+    #[inline(always)]
+    fn single(&mut self, bvh: &Bvh, node: u32, lane: usize, _t_max: &mut __m512) -> bool {
+        // SAFETY: only called from `walk`, which runs where AVX2 and FMA exist
+        // (`packets_available`).
+        let hit = unsafe { bvh.any_below_avx2(node, &self.singles[lane]) };
+        self.blocked |= (hit as __mmask16) << lane;
+        hit
+    }
+}
+
 impl Bvh {
     /// Closest hits of up to [`PACKET`] rays traced as one packet; `out[i]` as
     /// [`Bvh::intersect`] of `rays[i]`.
     ///
     /// # Safety
-    /// The CPU must support AVX-512F; `rays` holds 1 to [`PACKET`] rays and `out` as many.
+    /// The CPU must support AVX-512F, AVX2 and FMA; `rays` holds 1 to [`PACKET`] rays and
+    /// `out` as many.
     #[target_feature(enable = "avx512f")]
     pub(super) unsafe fn closest_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         let (r, mut t_max, singles) = load(rays);
         let active = (((1u32 << rays.len()) - 1) & 0xffff) as __mmask16;
-        let best = Closest {
-            t: t_max,
-            slot: _mm512_set1_epi32(-1),
-            b1: _mm512_setzero_ps(),
-            b2: _mm512_setzero_ps(),
+        let mut query = ClosestQuery {
+            best: Closest {
+                t: t_max,
+                slot: _mm512_set1_epi32(-1),
+                b1: _mm512_setzero_ps(),
+                b2: _mm512_setzero_ps(),
+            },
+            singles,
         };
-        let best = std::cell::RefCell::new(best);
-        walk(
-            self,
-            &r,
-            active,
-            &mut t_max,
-            |pack, lane, slot, lanes, t_max| {
-                let (t, b1, b2, hit) = triangle_hits(self, pack, lane, &r, *t_max, lanes);
-                let mut best = best.borrow_mut();
-                best.t = _mm512_mask_blend_ps(hit, best.t, t);
-                best.b1 = _mm512_mask_blend_ps(hit, best.b1, b1);
-                best.b2 = _mm512_mask_blend_ps(hit, best.b2, b2);
-                best.slot = _mm512_mask_blend_epi32(hit, best.slot, _mm512_set1_epi32(slot as i32));
-                *t_max = best.t;
-                lanes
-            },
-            |node, lane, t_max| {
-                let mut lanes = [0.0f32; PACKET];
-                // SAFETY: writes 16 lanes into a 16-lane array.
-                unsafe { _mm512_storeu_ps(lanes.as_mut_ptr(), *t_max) };
-                let ray = BvhRay { tmax: lanes[lane], ..singles[lane] };
-                // SAFETY: AVX-512F implies AVX2 and FMA.
-                if let Some((t, slot, b)) = unsafe { self.closest_below_avx2(node, &ray) } {
-                    let mut best = best.borrow_mut();
-                    let one = 1 << lane;
-                    best.t = _mm512_mask_mov_ps(best.t, one, _mm512_set1_ps(t));
-                    best.b1 = _mm512_mask_mov_ps(best.b1, one, _mm512_set1_ps(b.x));
-                    best.b2 = _mm512_mask_mov_ps(best.b2, one, _mm512_set1_ps(b.y));
-                    best.slot = _mm512_mask_mov_epi32(best.slot, one, _mm512_set1_epi32(slot as i32));
-                    *t_max = best.t;
-                }
-                false
-            },
-        );
-        let best = best.into_inner();
+        walk(self, &r, active, &mut t_max, &mut query);
+        let best = query.best;
         let mut t = [0.0f32; PACKET];
         let mut b1 = [0.0f32; PACKET];
         let mut b2 = [0.0f32; PACKET];
@@ -263,32 +309,15 @@ impl Bvh {
     /// [`Bvh::occluded`] of `rays[i]`.
     ///
     /// # Safety
-    /// The CPU must support AVX-512F; `rays` holds 1 to [`PACKET`] rays and `out` as many.
+    /// The CPU must support AVX-512F, AVX2 and FMA; `rays` holds 1 to [`PACKET`] rays and
+    /// `out` as many.
     #[target_feature(enable = "avx512f")]
     pub(super) unsafe fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
         let (r, mut t_max, singles) = load(rays);
         let active = (((1u32 << rays.len()) - 1) & 0xffff) as __mmask16;
-        let blocked = std::cell::Cell::new(0 as __mmask16);
-        walk(
-            self,
-            &r,
-            active,
-            &mut t_max,
-            |pack, lane, _, lanes, t_max| {
-                let hit = triangle_hits(self, pack, lane, &r, *t_max, lanes).3;
-                blocked.set(blocked.get() | hit);
-                lanes & !hit
-            },
-            |node, lane, _| {
-                // SAFETY: AVX-512F implies AVX2 and FMA.
-                let hit = unsafe { self.any_below_avx2(node, &singles[lane]) };
-                if hit {
-                    blocked.set(blocked.get() | 1 << lane);
-                }
-                hit
-            },
-        );
-        let blocked = blocked.get();
+        let mut query = OcclusionQuery { blocked: 0, singles };
+        walk(self, &r, active, &mut t_max, &mut query);
+        let blocked = query.blocked;
         for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
             *o = blocked & (1 << i) != 0;
         }
