@@ -123,12 +123,19 @@ fn triangle_hits(bvh: &Bvh, pack: usize, lane: usize, rays: &Rays, t_max: __m512
 /// its single-ray walk. 2 measured best of 1, 2 and 4 on the shipped scenes.
 const SINGLE_BELOW: u32 = 2;
 
+/// A leaf triangle: lane `lane` of pack `pack`, obvhs primitive slot `slot`.
+#[derive(Clone, Copy)]
+struct LeafTriangle {
+    pack: usize,
+    lane: usize,
+    slot: u32,
+}
+
 /// What a packet walk looks for: closest hits or occlusion.
 trait PacketQuery {
-    /// Tests one triangle (lane `lane` of pack `pack`, primitive slot `slot`) for the rays
-    /// in `lanes`, may lower their bounds `t_max`, and returns which of `lanes` still need
-    /// tracing.
-    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, pack: usize, lane: usize, slot: u32, lanes: __mmask16, t_max: &mut __m512) -> __mmask16;
+    /// Tests one triangle for the rays in `lanes`, may lower their bounds `t_max`, and
+    /// returns which of `lanes` still need tracing.
+    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, triangle: LeafTriangle, lanes: __mmask16, t_max: &mut __m512) -> __mmask16;
 
     /// Walks the subtree of `node` for ray `lane` alone; returns whether that ray is done.
     fn single(&mut self, bvh: &Bvh, node: u32, lane: usize, t_max: &mut __m512) -> bool;
@@ -176,9 +183,12 @@ fn walk(bvh: &Bvh, rays: &Rays, mut active: __mmask16, t_max: &mut __m512, query
             if node.is_leaf(c) {
                 let first = (meta & 0b1_1111) as usize;
                 for local in first..first + (meta & 0b1110_0000).count_ones() as usize {
-                    let pack = bvh.node_packs[index as usize] as usize + local / LANES;
-                    let slot = node.primitive_base_idx + local as u32;
-                    active = query.leaf(bvh, rays, pack, local % LANES, slot, hits & active, t_max) | (active & !hits);
+                    let triangle = LeafTriangle {
+                        pack: bvh.node_packs[index as usize] as usize + local / LANES,
+                        lane: local % LANES,
+                        slot: node.primitive_base_idx + local as u32,
+                    };
+                    active = query.leaf(bvh, rays, triangle, hits & active, t_max) | (active & !hits);
                 }
             } else {
                 stack.push((node.child_node_index(c), hits));
@@ -198,11 +208,11 @@ struct ClosestQuery {
 
 impl PacketQuery for ClosestQuery {
     #[inline(always)]
-    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, pack: usize, lane: usize, slot: u32, lanes: __mmask16, t_max: &mut __m512) -> __mmask16 {
+    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, triangle: LeafTriangle, lanes: __mmask16, t_max: &mut __m512) -> __mmask16 {
         // SAFETY: only called from `walk`, which runs where AVX-512F exists.
         unsafe {
-            let (t, b1, b2, hit) = triangle_hits(bvh, pack, lane, rays, *t_max, lanes);
-            self.best.take(hit, t, b1, b2, slot);
+            let (t, b1, b2, hit) = triangle_hits(bvh, triangle.pack, triangle.lane, rays, *t_max, lanes);
+            self.best.take(hit, t, b1, b2, triangle.slot);
         }
         *t_max = self.best.t;
         lanes
@@ -246,9 +256,9 @@ struct OcclusionQuery {
 
 impl PacketQuery for OcclusionQuery {
     #[inline(always)]
-    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, pack: usize, lane: usize, _slot: u32, lanes: __mmask16, t_max: &mut __m512) -> __mmask16 {
+    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, triangle: LeafTriangle, lanes: __mmask16, t_max: &mut __m512) -> __mmask16 {
         // SAFETY: only called from `walk`, which runs where AVX-512F exists.
-        let hit = unsafe { triangle_hits(bvh, pack, lane, rays, *t_max, lanes) }.3;
+        let hit = unsafe { triangle_hits(bvh, triangle.pack, triangle.lane, rays, *t_max, lanes) }.3;
         self.blocked |= hit;
         lanes & !hit
     }
