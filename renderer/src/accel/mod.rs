@@ -119,6 +119,9 @@ impl<T: Copy> Stack<T> {
     }
 }
 
+/// A packet query: answers for 1 to 16 rays (AVX-512F, AVX2 and FMA required).
+type PacketFn<T> = unsafe fn(&Bvh, &[Ray], &mut [T]);
+
 /// A closest hit found in traversal: distance, primitive slot, barycentrics.
 type SlotHit = (f32, u32, Vec2);
 
@@ -225,18 +228,31 @@ impl Bvh {
     /// As [`Bvh::intersect_all`], in packets whenever the CPU has AVX-512 (`packets`) or
     /// one ray at a time: for benchmarks comparing the two.
     pub fn intersect_all_with(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, packets: bool) {
-        out.clear();
-        out.resize(rays.len(), None);
         #[cfg(target_arch = "x86_64")]
-        if packets && !self.is_empty() && packets_available() {
+        let packet = packets.then_some(Self::closest_packet as PacketFn<Option<Hit>>);
+        #[cfg(not(target_arch = "x86_64"))]
+        let packet = packets.then_some(()).and(None::<PacketFn<Option<Hit>>>);
+        self.trace_all(rays, out, packet, |r| self.intersect(r));
+    }
+
+    /// Fills `out[i]` with the answer for `rays[i]`: through `packet` in packets of 16 where
+    /// given and the CPU has AVX-512, else through `single` one ray at a time.
+    #[inline]
+    fn trace_all<T: Clone + Default>(&self, rays: &[Ray], out: &mut Vec<T>, packet: Option<PacketFn<T>>, single: impl Fn(&Ray) -> T) {
+        out.clear();
+        out.resize(rays.len(), T::default());
+        #[cfg(target_arch = "x86_64")]
+        if let Some(packet) = packet.filter(|_| !self.is_empty() && packets_available()) {
             for (r, o) in rays.chunks(packet::PACKET).zip(out.chunks_mut(packet::PACKET)) {
                 // SAFETY: AVX-512F, AVX2 and FMA are present; chunks hold 1 to 16 rays.
-                unsafe { self.closest_packet(r, o) };
+                unsafe { packet(self, r, o) };
             }
             return;
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = packet;
         for (r, o) in rays.iter().zip(out.iter_mut()) {
-            *o = self.intersect(r);
+            *o = single(r);
         }
     }
 
@@ -255,19 +271,11 @@ impl Bvh {
     /// As [`Bvh::occluded_all`], in packets whenever the CPU has AVX-512 (`packets`) or one
     /// ray at a time.
     pub fn occluded_all_with(&self, rays: &[Ray], out: &mut Vec<bool>, packets: bool) {
-        out.clear();
-        out.resize(rays.len(), false);
         #[cfg(target_arch = "x86_64")]
-        if packets && !self.is_empty() && packets_available() {
-            for (r, o) in rays.chunks(packet::PACKET).zip(out.chunks_mut(packet::PACKET)) {
-                // SAFETY: AVX-512F, AVX2 and FMA are present; chunks hold 1 to 16 rays.
-                unsafe { self.occluded_packet(r, o) };
-            }
-            return;
-        }
-        for (r, o) in rays.iter().zip(out.iter_mut()) {
-            *o = self.occluded(r);
-        }
+        let packet = packets.then_some(Self::occluded_packet as PacketFn<bool>);
+        #[cfg(not(target_arch = "x86_64"))]
+        let packet = packets.then_some(()).and(None::<PacketFn<bool>>);
+        self.trace_all(rays, out, packet, |r| self.occluded(r));
     }
 
     /// Number of CWBVH nodes.
