@@ -37,7 +37,18 @@ impl TracePolicy {
     /// Traces a batch with `trace(packets)`: in the faster mode so far, or on a sampled
     /// batch in both.
     #[inline]
-    pub fn trace(&self, mut trace: impl FnMut(bool)) {
+    pub fn trace(&self, trace: impl FnMut(bool)) {
+        self.trace_timed(trace, |packets, trace| {
+            let start = Instant::now();
+            trace(packets);
+            start.elapsed().as_nanos() as u64
+        });
+    }
+
+    /// As [`TracePolicy::trace`], with `time(packets, trace)` running `trace(packets)` and
+    /// returning the nanoseconds it took.
+    #[inline]
+    fn trace_timed(&self, mut trace: impl FnMut(bool), mut time: impl FnMut(bool, &mut dyn FnMut(bool)) -> u64) {
         if !self.packets_available {
             return trace(false);
         }
@@ -45,9 +56,8 @@ impl TracePolicy {
         if n < SAMPLE_EVERY || n.is_multiple_of(SAMPLE_EVERY) {
             let first = (n / if n < SAMPLE_EVERY { 1 } else { SAMPLE_EVERY }) % 2 == 1;
             for packets in [first, !first] {
-                let start = Instant::now();
-                trace(packets);
-                self.nanos[packets as usize].fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+                let nanos = time(packets, &mut trace);
+                self.nanos[packets as usize].fetch_add(nanos, Ordering::Relaxed);
             }
         } else {
             trace(self.choice() != Some(false));
@@ -67,7 +77,6 @@ impl TracePolicy {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::time::Duration;
 
     #[test]
     fn settles_on_the_faster_mode_and_only_tries_what_exists() {
@@ -76,11 +85,15 @@ mod tests {
         let mut traced = [0u64; 2];
         let batches = 4 * SAMPLE_EVERY;
         for _ in 0..batches {
-            // Packets take 100 µs per batch here, single rays 200 µs.
-            policy.trace(|packets| {
-                traced[packets as usize] += 1;
-                std::thread::sleep(Duration::from_micros(if packets { 100 } else { 200 }));
-            });
+            // Packets take 100 µs per batch here, single rays 200 µs (a fixed clock: sleeps
+            // overshoot by more than that on a loaded machine).
+            policy.trace_timed(
+                |packets| traced[packets as usize] += 1,
+                |packets, trace| {
+                    trace(packets);
+                    if packets { 100_000 } else { 200_000 }
+                },
+            );
         }
         assert_eq!(policy.choice(), Some(true));
         let sampled = SAMPLE_EVERY + 3;
