@@ -70,8 +70,6 @@ pub struct Bvh {
     packs: Vec<TrianglePack>,
     /// First pack of each node.
     node_packs: Vec<u32>,
-    /// Scene triangle index of each obvhs primitive slot.
-    scene_index: Vec<u32>,
     /// How batches of closest-hit and of occlusion queries are traced.
     closest_policy: TracePolicy,
     occluded_policy: TracePolicy,
@@ -146,7 +144,6 @@ impl Bvh {
                 bvh: CwBvh::default(),
                 packs: Vec::new(),
                 node_packs: Vec::new(),
-                scene_index: Vec::new(),
                 closest_policy: TracePolicy::new(false),
                 occluded_policy: TracePolicy::new(false),
             };
@@ -179,7 +176,6 @@ impl Bvh {
         Bvh {
             closest_policy: TracePolicy::new(packets_available()),
             occluded_policy: TracePolicy::new(packets_available()),
-            scene_index: bvh.primitive_indices.clone(),
             bvh,
             packs,
             node_packs,
@@ -188,12 +184,18 @@ impl Bvh {
 
     /// Number of triangles (slots) in the hierarchy.
     pub fn len(&self) -> usize {
-        self.scene_index.len()
+        self.bvh.primitive_indices.len()
     }
 
     /// True when the hierarchy holds no triangles.
     pub fn is_empty(&self) -> bool {
-        self.scene_index.is_empty()
+        self.bvh.primitive_indices.is_empty()
+    }
+
+    /// The scene triangle index of obvhs primitive slot `slot`.
+    #[inline]
+    fn scene_triangle(&self, slot: u32) -> u32 {
+        self.bvh.primitive_indices[slot as usize]
     }
 
     /// Closest intersection with t in (0, ray.t_max), or `None`.
@@ -214,7 +216,7 @@ impl Bvh {
         let found = self.closest_portable(&bvh_ray);
         found.map(|(t, slot, barycentric)| Hit {
             t,
-            triangle: self.scene_index[slot as usize],
+            triangle: self.scene_triangle(slot),
             barycentric,
         })
     }
@@ -231,7 +233,10 @@ impl Bvh {
         #[cfg(target_arch = "x86_64")]
         let packet = packets.then_some(Self::closest_packet as PacketFn<Option<Hit>>);
         #[cfg(not(target_arch = "x86_64"))]
-        let packet = packets.then_some(()).and(None::<PacketFn<Option<Hit>>>);
+        let packet: Option<PacketFn<Option<Hit>>> = {
+            let _ = packets; // no packet kernels off x86-64
+            None
+        };
         self.trace_all(rays, out, packet, |r| self.intersect(r));
     }
 
@@ -274,7 +279,10 @@ impl Bvh {
         #[cfg(target_arch = "x86_64")]
         let packet = packets.then_some(Self::occluded_packet as PacketFn<bool>);
         #[cfg(not(target_arch = "x86_64"))]
-        let packet = packets.then_some(()).and(None::<PacketFn<bool>>);
+        let packet: Option<PacketFn<bool>> = {
+            let _ = packets; // no packet kernels off x86-64
+            None
+        };
         self.trace_all(rays, out, packet, |r| self.occluded(r));
     }
 
@@ -298,8 +306,8 @@ impl Bvh {
         self.any_portable(&bvh_ray)
     }
 
-    /// Walks the CWBVH below node `root` front to back by octant order (as obvhs's `traverse!`), culling
-    /// children beyond the current `t_max`. `intersect_node(node, t_max)` returns the hit mask
+    /// Walks the CWBVH below node `root` front to back by octant order (as obvhs's
+    /// `traverse!`), culling children beyond the current `t_max`. `intersect_node(node, t_max)` returns the hit mask
     /// of a node; `leaves(node_index, primitive_mask, t_max)` tests the node's hit leaf
     /// primitives (bits of slots from the node's primitive base), may lower `t_max`, and
     /// returns true to stop.
@@ -547,6 +555,36 @@ mod tests {
         vec![[a, c, b], [a, d, c]]
     }
 
+    /// The six faces of the cube [−1, 1]³ as quads.
+    fn closed_box() -> Vec<[Vec3; 3]> {
+        let mut tris = Vec::new();
+        for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)] {
+            tris.extend(quad(Vec3::ZERO).into_iter().map(|t| {
+                t.map(|v| {
+                    let v = Vec3::new(v.x, sign, v.z);
+                    match axis {
+                        0 => Vec3::new(v.y, v.x, v.z),
+                        1 => v,
+                        _ => Vec3::new(v.x, v.z, v.y),
+                    }
+                })
+            }));
+        }
+        tris
+    }
+
+    /// `n` random triangles with corners spread over `size` around centres in [−10, 10]³.
+    fn random_soup(seed: u64, n: usize, size: f32) -> Vec<[Vec3; 3]> {
+        let mut s = crate::sampler::Sampler::new(seed, 0, 0);
+        let mut point = |scale: f32| Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) * scale;
+        (0..n)
+            .map(|_| {
+                let c = point(20.0) - Vec3::splat(10.0);
+                [c + point(size), c + point(size), c + point(size)]
+            })
+            .collect()
+    }
+
     #[test]
     fn closest_hit_reports_scene_triangle_and_barycentrics() {
         let mut tris = quad(Vec3::ZERO);
@@ -593,20 +631,7 @@ mod tests {
     #[test]
     fn simd_and_portable_traversals_agree() {
         // A box of quads plus a tilted one, rays from inside in many directions.
-        let mut tris = Vec::new();
-        for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)] {
-            let q = quad(Vec3::ZERO).into_iter().map(|t| {
-                t.map(|v| {
-                    let v = Vec3::new(v.x, sign, v.z);
-                    match axis {
-                        0 => Vec3::new(v.y, v.x, v.z),
-                        1 => v,
-                        _ => Vec3::new(v.x, v.z, v.y),
-                    }
-                })
-            });
-            tris.extend(q);
-        }
+        let mut tris = closed_box();
         tris.push([Vec3::new(-0.5, -0.2, 0.1), Vec3::new(0.4, 0.3, -0.2), Vec3::new(0.0, 0.5, 0.5)]);
         let bvh = Bvh::build(tris.into_iter());
         let mut s = crate::sampler::Sampler::new(4, 5, 6);
@@ -632,14 +657,7 @@ mod tests {
     #[test]
     fn traversal_finds_the_brute_force_closest_hit() {
         // Random triangles, enough for a multi-level tree and nodes with several packs.
-        let mut s = crate::sampler::Sampler::new(9, 8, 7);
-        let mut point = |scale: f32| Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) * scale;
-        let tris: Vec<[Vec3; 3]> = (0..3000)
-            .map(|_| {
-                let c = point(20.0) - Vec3::splat(10.0);
-                [c + point(1.5), c + point(1.5), c + point(1.5)]
-            })
-            .collect();
+        let tris = random_soup(9, 3000, 1.5);
         let bvh = Bvh::build(tris.clone().into_iter());
         let mut s = crate::sampler::Sampler::new(1, 1, 1);
         let mut hits = 0;
@@ -671,28 +689,8 @@ mod tests {
         if !packets_available() {
             return;
         }
-        let mut s = crate::sampler::Sampler::new(3, 1, 4);
-        let mut point = |scale: f32| Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) * scale;
         // A deep random tree and a closed box with rays from inside.
-        let random: Vec<[Vec3; 3]> = (0..2000)
-            .map(|_| {
-                let c = point(20.0) - Vec3::splat(10.0);
-                [c + point(2.0), c + point(2.0), c + point(2.0)]
-            })
-            .collect();
-        let mut boxed = Vec::new();
-        for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)] {
-            boxed.extend(quad(Vec3::ZERO).into_iter().map(|t| {
-                t.map(|v| {
-                    let v = Vec3::new(v.x, sign, v.z);
-                    match axis {
-                        0 => Vec3::new(v.y, v.x, v.z),
-                        1 => v,
-                        _ => Vec3::new(v.x, v.z, v.y),
-                    }
-                })
-            }));
-        }
+        let (random, boxed) = (random_soup(3, 2000, 2.0), closed_box());
         let mut s = crate::sampler::Sampler::new(8, 8, 8);
         for (tris, scale) in [(random, 24.0), (boxed, 1.8)] {
             let bvh = Bvh::build(tris.into_iter());

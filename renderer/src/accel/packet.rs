@@ -309,7 +309,7 @@ impl Bvh {
         for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
             *o = (slot[i] >= 0).then(|| Hit {
                 t: t[i],
-                triangle: self.scene_index[slot[i] as usize],
+                triangle: self.scene_triangle(slot[i] as u32),
                 barycentric: glam::Vec2::new(b1[i], b2[i]),
             });
         }
