@@ -21,6 +21,7 @@ pub mod film;
 pub mod frame;
 pub mod image_io;
 pub mod integrator;
+pub mod lanes;
 pub mod latent_file;
 pub mod latent_library;
 pub mod lights;

@@ -6,7 +6,7 @@
 use crate::camera::PinholeCamera;
 use crate::film::{Film, PixelAccumulator};
 use crate::accel::{Hit, Ray};
-use crate::integrator::{PathState, PathTracer, ShadowTest};
+use crate::integrator::{BatchBuffers, PathState, PathTracer, ShadowTest};
 use crate::render_scene::RenderScene;
 use crate::sampler::Sampler;
 use crate::Rgb;
@@ -150,6 +150,7 @@ impl Renderer<'_> {
         let mut hits: Vec<Option<Hit>> = Vec::with_capacity(batch);
         let mut shadows: Vec<(u32, ShadowTest)> = Vec::with_capacity(batch);
         let mut blocked: Vec<bool> = Vec::with_capacity(batch);
+        let mut buffers = BatchBuffers::default();
         let scene = self.scene;
         for j in 0..batch as u32 {
             let (s, k) = (first_sample + j / n as u32, j % n as u32);
@@ -169,15 +170,8 @@ impl Renderer<'_> {
             scene.bvh.intersect_all(&rays, &mut hits);
             shadows.clear();
             next.clear();
-            for (&i, &hit) in active.iter().zip(&hits) {
-                let (shadow, alive) = self.integrator.step(scene, &mut paths[i as usize], hit);
-                if let Some(test) = shadow {
-                    shadows.push((i, test));
-                }
-                if alive {
-                    next.push(i);
-                }
-            }
+            self.integrator
+                .step_batch(scene, &mut paths, &active, &hits, &mut buffers, &mut shadows, &mut next);
             counters.shadow_rays += shadows.len() as u64;
             rays.clear();
             rays.extend(shadows.iter().map(|(_, test)| test.ray));

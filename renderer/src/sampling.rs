@@ -3,6 +3,7 @@
 //! heuristic.
 
 use glam::{Vec2, Vec3};
+use std::ops::{Add, Mul, Sub};
 use std::f32::consts::{FRAC_1_PI, PI};
 
 /// Uniform point on the unit disk, concentric mapping (Shirley–Chiu), branch-free: the
@@ -21,9 +22,14 @@ pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
     Vec2::new(cos_theta, sin_theta) * r
 }
 
-/// (sin x, cos x) for |x| ≤ π/4 by the minimax polynomials of Cephes' `sinf`/`cosf`.
-#[inline]
-pub fn sin_cos_octant(x: f32) -> (f32, f32) {
+/// (sin x, cos x) for |x| ≤ π/4 by the minimax polynomials of Cephes' `sinf`/`cosf`; for
+/// `f32` or, with the same operations per lane, [`crate::lanes::F32s`].
+#[inline(always)]
+pub fn sin_cos_octant<T>(x: T) -> (T, T)
+where
+    T: Copy + Add<Output = T> + Mul<Output = T> + Mul<f32, Output = T>,
+    f32: Add<T, Output = T> + Sub<T, Output = T> + Mul<T, Output = T>,
+{
     let x2 = x * x;
     let sin = x + x * x2 * (-1.666_665_5e-1 + x2 * (8.332_161e-3 + x2 * -1.951_529_6e-4));
     let cos = 1.0 - 0.5 * x2 + x2 * x2 * (4.166_664_6e-2 + x2 * (-1.388_731_6e-3 + x2 * 2.443_315_7e-5));

@@ -510,7 +510,7 @@ fn to_bvh_ray(ray: &Ray) -> BvhRay {
 /// γ(n) of Higham's floating-point error analysis: a bound on the relative error of n
 /// successive roundings.
 #[inline]
-fn gamma(n: f32) -> f32 {
+pub(crate) fn gamma(n: f32) -> f32 {
     let e = f32::EPSILON * 0.5;
     n * e / (1.0 - n * e)
 }

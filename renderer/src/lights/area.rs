@@ -1,5 +1,6 @@
 //! Emissive triangles: one-sided area lights sampled uniformly by area.
 
+use super::LightSample;
 use crate::accel::{interpolate_point, offset_ray_origin};
 use crate::sampling::sample_uniform_triangle;
 use crate::Rgb;
@@ -30,6 +31,21 @@ pub struct AreaSample {
     /// The light point moved off the light toward the shading point by its rounding-error
     /// bound: where a shadow ray must stop so it cannot hit the light itself.
     pub shadow_target: Vec3,
+}
+
+impl AreaSample {
+    /// The sample as a [`LightSample`] of a light chosen with probability `select_pdf`.
+    #[inline]
+    pub fn with_selection(self, select_pdf: f32) -> LightSample {
+        LightSample {
+            direction: self.direction,
+            distance: self.distance,
+            radiance: self.radiance,
+            pdf: self.pdf * select_pdf,
+            is_delta: false,
+            shadow_target: Some(self.shadow_target),
+        }
+    }
 }
 
 impl TriangleLight {

@@ -126,20 +126,33 @@ impl LightSet {
     /// Chooses a light with `u_select` and samples it from shading point `p`.
     #[inline]
     pub fn sample(&self, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
-        let selection = self.selection.as_ref()?;
-        let (index, select_pdf, _) = selection.sample_discrete(u_select);
-        if select_pdf <= 0.0 {
-            return None;
+        let (index, select_pdf) = self.choose(u_select)?;
+        self.sample_chosen(index, select_pdf, p, u)
+    }
+
+    /// Chooses a light with `u_select`: its index and selection probability (> 0); `None`
+    /// when the scene has no emitter.
+    #[inline]
+    pub fn choose(&self, u_select: f32) -> Option<(u32, f32)> {
+        let (index, select_pdf, _) = self.selection.as_ref()?.sample_discrete(u_select);
+        (select_pdf > 0.0).then_some((index as u32, select_pdf))
+    }
+
+    /// The emissive triangle that light `index` is, if it is one.
+    #[inline]
+    pub fn triangle(&self, index: u32) -> Option<&TriangleLight> {
+        match &self.lights[index as usize] {
+            Light::Triangle(t) => Some(t),
+            _ => None,
         }
-        match &self.lights[index] {
-            Light::Triangle(t) => t.sample(p, u).map(|s| LightSample {
-                direction: s.direction,
-                distance: s.distance,
-                radiance: s.radiance,
-                pdf: s.pdf * select_pdf,
-                is_delta: false,
-                shadow_target: Some(s.shadow_target),
-            }),
+    }
+
+    /// Samples light `index`, chosen with probability `select_pdf` by [`Self::choose`], from
+    /// shading point `p`.
+    #[inline]
+    pub fn sample_chosen(&self, index: u32, select_pdf: f32, p: Vec3, u: Vec2) -> Option<LightSample> {
+        match &self.lights[index as usize] {
+            Light::Triangle(t) => t.sample(p, u).map(|s| s.with_selection(select_pdf)),
             Light::Punctual(l) => punctual::illuminate(l, p).map(|s| LightSample {
                 direction: s.direction,
                 distance: s.distance,

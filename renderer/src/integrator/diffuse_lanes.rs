@@ -1,0 +1,247 @@
+//! [`PathTracer::scatter`] for [`LANES`] vertices at once, for the most common vertex: a
+//! Lambertian surface whose chosen light is an emissive triangle.
+//!
+//! The kernel evaluates the very formulas of the scalar path — [`TriangleLight::sample`],
+//! [`Lambert`]'s `eval_pdf` and `sample`, the power heuristic, [`offset_ray_origin`], the
+//! frame conversions — in the same order, with masks where the scalar code returns early,
+//! so each lane's result is bit for bit what `scatter` gives (the batched render test checks
+//! this against paths traced one by one). Compiled for AVX-512 or AVX2 where the CPU has them.
+//!
+//! [`PathTracer::scatter`]: super::PathTracer
+//! [`TriangleLight::sample`]: crate::lights::area::TriangleLight::sample
+//! [`Lambert`]: crate::bsdf::Lambert
+//! [`offset_ray_origin`]: crate::accel::offset_ray_origin
+
+use super::{Continuation, Scattered, ShadowTest, Vertex, SHADOW_EPSILON};
+use crate::accel::{gamma, Ray};
+use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
+use crate::sampling::sin_cos_octant;
+use crate::lights::area::TriangleLight;
+use crate::Rgb;
+use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
+
+/// Up to [`LANES`] diffuse vertices lit by a triangle light, in structure-of-arrays form.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct DiffuseLanes {
+    len: usize,
+    p: Vec3s,
+    p_error: Vec3s,
+    /// Geometric normal on the side of the arriving ray.
+    ng: Vec3s,
+    /// Shading frame.
+    s: Vec3s,
+    t: Vec3s,
+    n: Vec3s,
+    albedo: Vec3s,
+    beta: Vec3s,
+    corners: [Vec3s; 3],
+    light_normal: Vec3s,
+    light_area: F32s,
+    light_radiance: Vec3s,
+    select_pdf: F32s,
+    u_light: Vec2s,
+    u: Vec2s,
+}
+
+/// What [`DiffuseLanes::scatter`] gives for each lane.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct DiffuseScattered {
+    shadow_ok: [bool; LANES],
+    shadow_origin: Vec3s,
+    shadow_direction: Vec3s,
+    contribution: Vec3s,
+    next_ok: [bool; LANES],
+    next_origin: Vec3s,
+    next_direction: Vec3s,
+    next_beta: Vec3s,
+    next_pdf: F32s,
+}
+
+impl DiffuseLanes {
+    /// Number of lanes filled.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when all lanes are filled.
+    pub fn is_full(&self) -> bool {
+        self.len == LANES
+    }
+
+    /// Empties the lanes (their old values stay, unused).
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// Appends a vertex with Lambertian albedo `albedo`, throughput `beta`, whose chosen
+    /// light is `light` (selected with probability `select_pdf`).
+    ///
+    /// # Panics
+    /// When all lanes are filled.
+    #[inline]
+    pub fn push(&mut self, vertex: &Vertex, albedo: Rgb, beta: Rgb, light: &TriangleLight, select_pdf: f32) {
+        let i = self.len;
+        assert!(i < LANES, "diffuse lanes are full");
+        let sp = &vertex.sp;
+        self.p.set(i, sp.p);
+        self.p_error.set(i, sp.p_error);
+        self.ng.set(i, sp.ng_facing);
+        self.s.set(i, sp.frame.s);
+        self.t.set(i, sp.frame.t);
+        self.n.set(i, sp.frame.n);
+        self.albedo.set(i, albedo);
+        self.beta.set(i, beta);
+        for (c, &corner) in self.corners.iter_mut().zip(&light.corners) {
+            c.set(i, corner);
+        }
+        self.light_normal.set(i, light.normal);
+        self.light_area.0[i] = light.area;
+        self.light_radiance.set(i, light.radiance);
+        self.select_pdf.0[i] = select_pdf;
+        self.u_light.set(i, vertex.u_light);
+        self.u.set(i, vertex.u);
+        self.len += 1;
+    }
+
+    /// Scatters all lanes (the filled ones matter): next-event estimation toward the
+    /// triangle light, weighted by the power heuristic or, with `light_only`, by 1; and a
+    /// cosine-weighted continuation.
+    pub fn scatter(&self, light_only: bool, out: &mut DiffuseScattered) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F.
+                return unsafe { self.scatter_avx512(light_only, out) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2.
+                return unsafe { self.scatter_avx2(light_only, out) };
+            }
+        }
+        self.scatter_lanes(light_only, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn scatter_avx512(&self, light_only: bool, out: &mut DiffuseScattered) {
+        self.scatter_lanes(light_only, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn scatter_avx2(&self, light_only: bool, out: &mut DiffuseScattered) {
+        self.scatter_lanes(light_only, out)
+    }
+
+    #[inline(always)]
+    fn scatter_lanes(&self, light_only: bool, out: &mut DiffuseScattered) {
+        let zero = F32s::splat(0.0);
+        let (p, p_error, ng, beta) = (self.p, self.p_error, self.ng, self.beta);
+
+        // The light point: TriangleLight::sample (uniform by area, Heitz's mapping).
+        let (ux, uy) = (self.u_light.x, self.u_light.y);
+        let lower = ux.lt(uy);
+        let b0 = lower.select(ux * 0.5, ux - uy * 0.5);
+        let b1 = lower.select(uy - ux * 0.5, uy * 0.5);
+        let (bx, by) = (b1, 1.0 - b0 - b1);
+        let w0 = 1.0 - bx - by;
+        let [v0, v1, v2] = self.corners;
+        let q = v0 * w0 + v1 * bx + v2 * by;
+        let q_error = ((v0 * w0).abs() + (v1 * bx).abs() + (v2 * by).abs()) * gamma(7.0);
+        let to = q - p;
+        let d2 = to.dot(to);
+        let distance = d2.sqrt();
+        let direction = to / distance;
+        let cos_light = -direction.dot(self.light_normal);
+        let area_pdf = d2 / (cos_light * self.light_area);
+        let light_ok = !d2.le(zero) & !cos_light.le(zero) & area_pdf.is_finite();
+        let shadow_target = offset_ray_origin(q, q_error, self.light_normal, -direction);
+        let light_pdf = area_pdf * self.select_pdf;
+
+        // Next-event estimation (PathTracer::light_term with Lambert::eval_pdf).
+        let wi_z = direction.dot(self.n);
+        let f = self.albedo * FRAC_1_PI;
+        let bsdf_pdf = wi_z.max(zero) * FRAC_1_PI;
+        let shadow_ok = light_ok & direction.dot(ng).gt(zero) & wi_z.gt(zero) & f.max_element().gt(zero);
+        let origin = offset_ray_origin(p, p_error, ng, direction);
+        let w = if light_only {
+            F32s::splat(1.0)
+        } else {
+            power_heuristic(light_pdf, bsdf_pdf)
+        };
+        out.shadow_ok = shadow_ok.0;
+        out.shadow_origin = origin;
+        out.shadow_direction = shadow_target - origin;
+        out.contribution = beta * f * self.light_radiance * (wi_z * w / light_pdf);
+
+        // BSDF sampling (Lambert::sample: cosine-weighted, concentric disk).
+        let ox = 2.0 * self.u.x - 1.0;
+        let oy = 2.0 * self.u.y - 1.0;
+        let x_major = ox.abs().gt(oy.abs());
+        let r = x_major.select(ox, oy);
+        let minor = x_major.select(oy, ox);
+        let ratio = r.eq(zero).select(zero, minor / r);
+        let (sin, cos) = sin_cos_octant(FRAC_PI_4 * ratio);
+        let dx = x_major.select(cos, sin) * r;
+        let dy = x_major.select(sin, cos) * r;
+        let dz = (1.0 - (dx * dx + dy * dy)).max(zero).sqrt();
+        let pdf = dz.max(zero) * FRAC_1_PI;
+        // continuation(): world direction, throughput, offset origin.
+        let wi_world = self.s * dx + self.t * dy + self.n * dz;
+        let next_beta = beta * (f * (dz / pdf));
+        let next_ok =
+            !dz.le(zero) & !wi_world.dot(ng).le(zero) & next_beta.is_finite() & !next_beta.max_element().le(zero);
+        out.next_ok = next_ok.0;
+        out.next_origin = offset_ray_origin(p, p_error, ng, wi_world);
+        out.next_direction = wi_world;
+        out.next_beta = next_beta;
+        out.next_pdf = pdf;
+    }
+}
+
+impl DiffuseScattered {
+    /// The result of lane `i`.
+    #[inline]
+    pub fn get(&self, i: usize) -> Scattered {
+        Scattered {
+            shadow: self.shadow_ok[i].then(|| ShadowTest {
+                ray: Ray {
+                    origin: self.shadow_origin.get(i),
+                    direction: self.shadow_direction.get(i),
+                    t_max: 1.0 - SHADOW_EPSILON,
+                },
+                contribution: self.contribution.get(i),
+            }),
+            next: self.next_ok[i].then(|| Continuation {
+                ray: Ray::new(self.next_origin.get(i), self.next_direction.get(i)),
+                beta: self.next_beta.get(i),
+                pdf: self.next_pdf.0[i],
+            }),
+        }
+    }
+}
+
+/// [`crate::accel::offset_ray_origin`] per lane.
+#[inline(always)]
+fn offset_ray_origin(p: Vec3s, p_error: Vec3s, n: Vec3s, w: Vec3s) -> Vec3s {
+    let zero = F32s::splat(0.0);
+    let d = n.abs().dot(p_error);
+    let offset = w.dot(n).lt(zero).select3(-n * d, n * d);
+    let po = p + offset;
+    let away = |o: F32s| o.eq(zero).select(zero, o.signum());
+    let away = Vec3s {
+        x: away(offset.x),
+        y: away(offset.y),
+        z: away(offset.z),
+    };
+    po + away * (po.abs() * f32::EPSILON + f32::MIN_POSITIVE)
+}
+
+/// [`crate::sampling::power_heuristic`] per lane.
+#[inline(always)]
+fn power_heuristic(f: F32s, g: F32s) -> F32s {
+    let (f2, g2) = (f * f, g * g);
+    let sum = f2 + g2;
+    let ratio = sum.eq(F32s::splat(0.0)).select(F32s::splat(0.0), f2 / sum);
+    f2.is_infinite().select(F32s::splat(1.0), ratio)
+}

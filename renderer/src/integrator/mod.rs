@@ -1,0 +1,351 @@
+//! Unidirectional path tracing with next-event estimation and multiple importance sampling
+//! (power heuristic) between BSDF sampling and light sampling, and Russian roulette.
+//!
+//! Depth follows Mitsuba 3's `max_depth`: a path of k segments (camera → … → emitter) is
+//! counted when k ≤ max_depth, so 1 renders directly visible emitters, 2 adds direct
+//! lighting, and −1 is unlimited (Russian roulette ends paths).
+
+mod batch;
+mod diffuse_lanes;
+
+pub use batch::BatchBuffers;
+
+use crate::accel::{offset_ray_origin, Hit, Ray};
+use crate::bsdf::{Bsdf, BsdfSample, Bxdf};
+use crate::lights::LightSample;
+use crate::render_scene::{RenderScene, SurfacePoint};
+use crate::sampler::Sampler;
+use crate::sampling::power_heuristic;
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+
+/// Which estimators gather light at each path vertex.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Strategy {
+    /// Light sampling and BSDF sampling combined by MIS (power heuristic).
+    #[default]
+    Mis,
+    /// BSDF sampling only: emitters count only when a path hits them (punctual lights,
+    /// which cannot be hit, are still sampled).
+    BsdfOnly,
+    /// Light sampling only: emitters hit by BSDF-sampled rays are ignored (except those seen
+    /// directly from the camera).
+    LightOnly,
+}
+
+/// Settings of the path tracer.
+#[derive(Clone, Copy, Debug)]
+pub struct PathTracer {
+    /// Longest path counted, in segments (Mitsuba 3's meaning); −1 = unlimited.
+    pub max_depth: i32,
+    /// Path depth (segments) from which Russian roulette may end paths (Mitsuba's default 5).
+    pub rr_depth: u32,
+    /// Estimators to combine; all give the same expected image.
+    pub strategy: Strategy,
+}
+
+impl Default for PathTracer {
+    fn default() -> Self {
+        PathTracer {
+            max_depth: -1,
+            rr_depth: 5,
+            strategy: Strategy::Mis,
+        }
+    }
+}
+
+/// Ray counts of one path, for statistics.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PathCounters {
+    /// Closest-hit rays traced (camera and continuation rays).
+    pub rays: u64,
+    /// Shadow (occlusion) rays traced.
+    pub shadow_rays: u64,
+}
+
+/// One path between vertices: its next ray, throughput, radiance gathered so far and
+/// random stream.
+#[derive(Clone, Debug)]
+pub struct PathState {
+    /// The ray to trace next.
+    pub ray: Ray,
+    /// Path throughput (product of BSDF weights and Russian-roulette factors).
+    pub beta: Rgb,
+    /// Radiance gathered so far.
+    pub l: Rgb,
+    /// Segments traced so far, including `ray`'s.
+    segments: u32,
+    /// Density of the BSDF sample that produced `ray` (None for the camera ray).
+    prev_bsdf_pdf: Option<f32>,
+    /// Origin of the vertex `ray` leaves.
+    prev_p: Vec3,
+    pub sampler: Sampler,
+}
+
+/// Light sampled at a vertex: its contribution counts when `ray` is unoccluded.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowTest {
+    pub ray: Ray,
+    pub contribution: Rgb,
+}
+
+/// A path vertex on a scattering surface, its random numbers drawn and its light chosen:
+/// everything [`PathTracer::scatter`] needs besides the throughput.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Vertex<'s> {
+    pub sp: SurfacePoint,
+    pub bsdf: Bsdf<'s>,
+    /// Direction toward the previous vertex, local shading frame, z > 0.
+    pub wo: Vec3,
+    /// The light chosen for next-event estimation and its selection probability.
+    pub light: Option<(u32, f32)>,
+    /// Sample for the point on the chosen light.
+    pub u_light: Vec2,
+    /// Samples for the BSDF: lobe choice and direction.
+    pub uc: f32,
+    pub u: Vec2,
+}
+
+/// The ray a vertex continues the path with, drawn by BSDF sampling.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Continuation {
+    pub ray: Ray,
+    /// Throughput after the vertex (before Russian roulette): finite, some channel > 0.
+    pub beta: Rgb,
+    /// Density of the sampled direction, 1/sr.
+    pub pdf: f32,
+}
+
+/// What a vertex scatters into: a shadow test from the light sample and the continuation.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Scattered {
+    pub shadow: Option<ShadowTest>,
+    pub next: Option<Continuation>,
+}
+
+/// Fraction of a shadow ray's length left out at the light end (beyond the offset of the
+/// light point by its error bound).
+pub(crate) const SHADOW_EPSILON: f32 = 1e-4;
+
+impl PathTracer {
+    /// Whether a path of `segments` segments may be counted.
+    #[inline]
+    fn allows(&self, segments: u32) -> bool {
+        self.max_depth < 0 || segments <= self.max_depth as u32
+    }
+
+    /// MIS weight of emission found by a ray: camera rays and BSDF-only rendering weigh it 1,
+    /// light-only rendering 0, MIS by the power heuristic against the light-sampling density.
+    #[inline]
+    fn hit_weight(&self, bsdf_pdf: Option<f32>, light_pdf: impl FnOnce() -> f32) -> f32 {
+        match (bsdf_pdf, self.strategy) {
+            (None, _) | (Some(_), Strategy::BsdfOnly) => 1.0,
+            (Some(_), Strategy::LightOnly) => 0.0,
+            (Some(pdf), Strategy::Mis) => power_heuristic(pdf, light_pdf()),
+        }
+    }
+
+    /// The state of a path starting with camera ray `ray`, or `None` when `max_depth`
+    /// counts nothing (0).
+    #[inline]
+    pub fn start(&self, ray: Ray, sampler: Sampler) -> Option<PathState> {
+        self.allows(1).then_some(PathState {
+            ray,
+            beta: Rgb::ONE,
+            l: Rgb::ZERO,
+            segments: 1,
+            prev_bsdf_pdf: None,
+            prev_p: ray.origin,
+            sampler,
+        })
+    }
+
+    /// One path vertex: takes the closest hit `hit` of `path.ray` (or its miss), adds the
+    /// emission found, samples a light (returned as a shadow test whose contribution the
+    /// caller adds to `path.l` when the shadow ray is unoccluded) and the BSDF, and sets
+    /// `path.ray` to the continuation ray. Returns the shadow test and whether the path
+    /// goes on. Paths stepped in any interleaving give the same values as stepped alone.
+    ///
+    /// The three halves — [`Self::begin`], [`Self::scatter`], [`Self::advance`] — are
+    /// public to the batched loop ([`Self::step_batch`]), which scatters many vertices at once.
+    #[inline(always)]
+    pub fn step(&self, scene: &RenderScene, path: &mut PathState, hit: Option<Hit>) -> (Option<ShadowTest>, bool) {
+        let Some(vertex) = self.begin(scene, path, hit) else {
+            return (None, false);
+        };
+        let scattered = self.scatter(scene, &vertex, path.beta);
+        let alive = self.advance(path, &vertex, scattered.next);
+        (scattered.shadow, alive)
+    }
+
+    /// The first half of a vertex: adds the emission `path.ray` finds at `hit` (or, on a
+    /// miss, in the environment) and, where the path may scatter there, draws the vertex's
+    /// random numbers and chooses its light. `None` when the path ends here.
+    #[inline(always)]
+    fn begin<'s>(&self, scene: &'s RenderScene, path: &mut PathState, hit: Option<Hit>) -> Option<Vertex<'s>> {
+        let ray = path.ray;
+        let Some(hit) = hit else {
+            if let Some(env) = scene.lights.environment() {
+                let le = env.radiance(ray.direction);
+                let w = self.hit_weight(path.prev_bsdf_pdf, || scene.lights.pdf_environment(ray.direction));
+                path.l += path.beta * le * w;
+            }
+            return None;
+        };
+        let sp = scene.surface_point(&hit, ray.direction)?;
+        let le = scene.emission(&sp);
+        if le.max_element() > 0.0 {
+            let w = self.hit_weight(path.prev_bsdf_pdf, || scene.lights.pdf_triangle(hit.triangle, path.prev_p, sp.p));
+            path.l += path.beta * le * w;
+        }
+        if !self.allows(path.segments + 1) {
+            return None;
+        }
+        let bsdf = scene.bsdf(&sp)?;
+        let wo = sp.frame.to_local(-ray.direction);
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let sampler = &mut path.sampler;
+        let u_select = sampler.next_1d();
+        let u_light = sampler.next_2d();
+        let uc = sampler.next_1d();
+        let u = sampler.next_2d();
+        Some(Vertex {
+            sp,
+            bsdf,
+            wo,
+            light: scene.lights.choose(u_select),
+            u_light,
+            uc,
+            u,
+        })
+    }
+
+    /// The light-sampling and BSDF-sampling half of a vertex, a pure function of the vertex
+    /// and the path throughput `beta`.
+    #[inline(always)]
+    fn scatter(&self, scene: &RenderScene, vertex: &Vertex, beta: Rgb) -> Scattered {
+        let light = vertex
+            .light
+            .and_then(|(index, select_pdf)| scene.lights.sample_chosen(index, select_pdf, vertex.sp.p, vertex.u_light));
+        match &vertex.bsdf {
+            Bsdf::Lambert(b) => self.scatter_with(b, vertex, light, beta),
+            Bsdf::MetallicRoughness(b) => self.scatter_with(b, vertex, light, beta),
+            Bsdf::Measured(b) => self.scatter_with(*b, vertex, light, beta),
+        }
+    }
+
+    /// [`Self::scatter`] for one BSDF kind and the sampled light.
+    #[inline(always)]
+    fn scatter_with<B: Bxdf>(&self, bsdf: &B, vertex: &Vertex, light: Option<LightSample>, beta: Rgb) -> Scattered {
+        let Vertex { sp, wo, u, uc, .. } = *vertex;
+        let shadow = light
+            .filter(|l| l.is_delta || self.strategy != Strategy::BsdfOnly)
+            .and_then(|ls| self.light_term(bsdf, &sp, wo, beta, &ls));
+        let next = bsdf.sample(wo, u, uc).and_then(|bs| continuation(&sp, &bs, beta));
+        Scattered { shadow, next }
+    }
+
+    /// Next-event estimation: the shadow test of light sample `ls` at `sp`, `None` where it
+    /// cannot contribute.
+    #[inline(always)]
+    fn light_term<B: Bxdf>(&self, bsdf: &B, sp: &SurfacePoint, wo: Vec3, beta: Rgb, ls: &LightSample) -> Option<ShadowTest> {
+        if !(ls.direction.dot(sp.ng_facing) > 0.0) {
+            return None;
+        }
+        let wi = sp.frame.to_local(ls.direction);
+        let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
+        if !(wi.z > 0.0 && f.max_element() > 0.0) {
+            return None;
+        }
+        let origin = offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, ls.direction);
+        let w = match (ls.is_delta, self.strategy) {
+            (true, _) | (false, Strategy::LightOnly) => 1.0,
+            (false, _) => power_heuristic(ls.pdf, bsdf_pdf),
+        };
+        Some(ShadowTest {
+            ray: shadow_ray(origin, ls.direction, ls.shadow_target),
+            contribution: beta * f * ls.radiance * (wi.z * w / ls.pdf),
+        })
+    }
+
+    /// The last half of a vertex: takes the continuation (or ends the path), plays Russian
+    /// roulette and moves the path on. Returns whether it goes on.
+    #[inline(always)]
+    fn advance(&self, path: &mut PathState, vertex: &Vertex, next: Option<Continuation>) -> bool {
+        let Some(next) = next else {
+            return false;
+        };
+        path.beta = next.beta;
+        path.segments += 1;
+        if path.segments > self.rr_depth {
+            let q = path.beta.max_element().min(0.95);
+            if path.sampler.next_1d() >= q {
+                return false;
+            }
+            path.beta /= q;
+        }
+        path.prev_bsdf_pdf = Some(next.pdf);
+        path.prev_p = vertex.sp.p;
+        path.ray = next.ray;
+        true
+    }
+
+    /// Radiance arriving along `ray` (a camera ray), estimated with one path.
+    pub fn radiance(&self, scene: &RenderScene, ray: Ray, sampler: &mut Sampler, counters: &mut PathCounters) -> Rgb {
+        let Some(mut path) = self.start(ray, sampler.clone()) else {
+            return Rgb::ZERO;
+        };
+        loop {
+            counters.rays += 1;
+            let hit = scene.bvh.intersect(&path.ray);
+            let (shadow, alive) = self.step(scene, &mut path, hit);
+            if let Some(test) = shadow {
+                counters.shadow_rays += 1;
+                if !scene.bvh.occluded(&test.ray) {
+                    path.l += test.contribution;
+                }
+            }
+            if !alive {
+                break;
+            }
+        }
+        *sampler = path.sampler;
+        path.l
+    }
+}
+
+/// The continuation of BSDF sample `bs` at `sp` for a path of throughput `beta`; `None` where
+/// the direction leaves below the geometric surface or the throughput becomes zero or not
+/// finite.
+#[inline(always)]
+fn continuation(sp: &SurfacePoint, bs: &BsdfSample, beta: Rgb) -> Option<Continuation> {
+    let wi_world = sp.frame.to_world(bs.wi);
+    if wi_world.dot(sp.ng_facing) <= 0.0 {
+        return None;
+    }
+    let beta = beta * bs.weight();
+    if !beta.is_finite() || beta.max_element() <= 0.0 {
+        return None;
+    }
+    Some(Continuation {
+        ray: Ray::new(offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, wi_world), wi_world),
+        beta,
+        pdf: bs.pdf,
+    })
+}
+
+/// The shadow ray from `origin` toward a light in `direction`: to the point `target` (an
+/// unnormalised direction, t in (0, 1 − ε)) or, without one, to infinity.
+#[inline(always)]
+fn shadow_ray(origin: Vec3, direction: Vec3, target: Option<Vec3>) -> Ray {
+    match target {
+        Some(target) => Ray {
+            origin,
+            direction: target - origin,
+            t_max: 1.0 - SHADOW_EPSILON,
+        },
+        None => Ray::new(origin, direction),
+    }
+}
