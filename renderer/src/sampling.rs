@@ -207,10 +207,17 @@ impl Distribution1D {
         self.pdf_cell(i) * n as f32
     }
 
+    #[inline]
     fn find_cell(&self, u: f32) -> usize {
-        // Last index with cdf[i] <= u, skipping zero-mass cells.
+        // Last index with cdf[i] <= u, skipping zero-mass cells. A few cells (a scene's
+        // lights) are counted without branches; many are searched.
         let n = self.func.len();
-        let mut i = self.cdf.partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
+        let at_most_u = if n <= 16 {
+            self.cdf.iter().map(|&c| (c <= u) as usize).sum()
+        } else {
+            self.cdf.partition_point(|&c| c <= u)
+        };
+        let mut i = at_most_u.saturating_sub(1).min(n - 1);
         while i > 0 && self.pdf_cell(i) == 0.0 {
             i -= 1;
         }

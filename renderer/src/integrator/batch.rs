@@ -3,103 +3,106 @@
 //! ([`DiffuseLanes`]), the others one by one, and all advanced in the batch's order.
 
 use super::diffuse_lanes::{DiffuseLanes, DiffuseScattered};
-use super::{PathState, PathTracer, Scattered, ShadowTest, Strategy, Vertex};
+use super::{PathState, PathTracer, Scattered, ShadowTest, Strategy};
 use crate::accel::Hit;
 use crate::bsdf::Bsdf;
 use crate::lanes::LANES;
 use crate::render_scene::RenderScene;
+use glam::Vec3;
 
 /// Vertices begun and scattered together: small enough that their records stay in cache.
 const CHUNK: usize = 256;
 
+/// Where a vertex's scattering result is.
+#[derive(Clone, Copy, Debug)]
+enum Outcome {
+    /// The path ended at the vertex.
+    Ended,
+    /// Scattered alone: index into [`BatchBuffers::scattered`].
+    Alone(u32),
+    /// Scattered in lanes: group (index into [`BatchBuffers::groups`]) and lane.
+    Lane(u32, u32),
+}
+
 /// Reusable buffers of [`PathTracer::step_batch`].
 #[derive(Default)]
-pub struct BatchBuffers<'s> {
-    vertices: Vec<Option<Vertex<'s>>>,
+pub struct BatchBuffers {
+    /// Per vertex of the chunk: its outcome and position.
+    outcomes: Vec<(Outcome, Vec3)>,
     scattered: Vec<Scattered>,
-    /// Chunk positions of the vertices in `lanes`.
-    lane_owners: [usize; LANES],
     lanes: DiffuseLanes,
-    lanes_out: DiffuseScattered,
+    groups: Vec<DiffuseScattered>,
 }
 
 impl PathTracer {
     /// Steps paths `active` (indices into `paths`) whose rays found `hits` (in the same
     /// order), as [`Self::step`] would one by one: pushes each shadow test with its path
     /// index onto `shadows` and the paths that go on onto `next`, both in `active`'s order.
-    pub fn step_batch<'s>(
+    pub fn step_batch(
         &self,
-        scene: &'s RenderScene,
+        scene: &RenderScene,
         paths: &mut [PathState],
         active: &[u32],
         hits: &[Option<Hit>],
-        buffers: &mut BatchBuffers<'s>,
+        buffers: &mut BatchBuffers,
         shadows: &mut Vec<(u32, ShadowTest)>,
         next: &mut Vec<u32>,
     ) {
         let lanes_apply = self.strategy != Strategy::BsdfOnly;
+        let light_only = self.strategy == Strategy::LightOnly;
+        let BatchBuffers {
+            outcomes,
+            scattered,
+            lanes,
+            groups,
+        } = buffers;
+        groups.resize_with(CHUNK.div_ceil(LANES), DiffuseScattered::default);
         for (chunk, chunk_hits) in active.chunks(CHUNK).zip(hits.chunks(CHUNK)) {
-            let BatchBuffers {
-                vertices,
-                scattered,
-                lane_owners,
-                lanes,
-                lanes_out,
-            } = buffers;
-            vertices.clear();
+            outcomes.clear();
             scattered.clear();
-            scattered.resize(chunk.len(), Scattered::default());
             lanes.clear();
-            for (k, (&i, &hit)) in chunk.iter().zip(chunk_hits).enumerate() {
+            let mut group = 0;
+            for (&i, &hit) in chunk.iter().zip(chunk_hits) {
                 let path = &mut paths[i as usize];
-                let vertex = self.begin(scene, path, hit);
-                if let Some(v) = &vertex {
-                    let diffuse_triangle = match (&v.bsdf, v.light) {
-                        (Bsdf::Lambert(b), Some((light, select_pdf))) if lanes_apply => {
-                            scene.lights.triangle(light).map(|t| (b.albedo, t, select_pdf))
-                        }
-                        _ => None,
-                    };
-                    if let Some((albedo, light, select_pdf)) = diffuse_triangle {
-                        lane_owners[lanes.len()] = k;
-                        lanes.push(v, albedo, path.beta, light, select_pdf);
-                        if lanes.is_full() {
-                            flush(self, lanes, lanes_out, lane_owners, scattered);
-                        }
-                    } else {
-                        scattered[k] = self.scatter(scene, v, path.beta);
+                let Some(v) = self.begin(scene, path, hit) else {
+                    outcomes.push((Outcome::Ended, Vec3::ZERO));
+                    continue;
+                };
+                let diffuse_triangle = match (&v.bsdf, v.light) {
+                    (Bsdf::Lambert(b), Some((light, select_pdf))) if lanes_apply => {
+                        scene.lights.triangle(light).map(|t| (b.albedo, t, select_pdf))
                     }
+                    _ => None,
+                };
+                if let Some((albedo, light, select_pdf)) = diffuse_triangle {
+                    outcomes.push((Outcome::Lane(group, lanes.len() as u32), v.sp.p));
+                    lanes.push(&v, albedo, path.beta, light, select_pdf);
+                    if lanes.is_full() {
+                        lanes.scatter(light_only, &mut groups[group as usize]);
+                        lanes.clear();
+                        group += 1;
+                    }
+                } else {
+                    outcomes.push((Outcome::Alone(scattered.len() as u32), v.sp.p));
+                    scattered.push(self.scatter(scene, &v, path.beta));
                 }
-                vertices.push(vertex);
             }
-            flush(self, lanes, lanes_out, lane_owners, scattered);
-            for ((&i, vertex), s) in chunk.iter().zip(vertices.iter()).zip(scattered.iter()) {
-                let Some(vertex) = vertex else { continue };
+            if lanes.len() > 0 {
+                lanes.scatter(light_only, &mut groups[group as usize]);
+            }
+            for (&i, &(outcome, p)) in chunk.iter().zip(outcomes.iter()) {
+                let s = match outcome {
+                    Outcome::Ended => continue,
+                    Outcome::Alone(k) => scattered[k as usize],
+                    Outcome::Lane(g, lane) => groups[g as usize].get(lane as usize),
+                };
                 if let Some(test) = s.shadow {
                     shadows.push((i, test));
                 }
-                if self.advance(&mut paths[i as usize], vertex, s.next) {
+                if self.advance(&mut paths[i as usize], p, s.next) {
                     next.push(i);
                 }
             }
         }
     }
-}
-
-/// Scatters the filled lanes and stores their results at their owners' chunk positions.
-fn flush(
-    tracer: &PathTracer,
-    lanes: &mut DiffuseLanes,
-    out: &mut DiffuseScattered,
-    owners: &[usize; LANES],
-    scattered: &mut [Scattered],
-) {
-    if lanes.len() == 0 {
-        return;
-    }
-    lanes.scatter(tracer.strategy == Strategy::LightOnly, out);
-    for (lane, &k) in owners[..lanes.len()].iter().enumerate() {
-        scattered[k] = out.get(lane);
-    }
-    lanes.clear();
 }

@@ -174,7 +174,7 @@ impl PathTracer {
             return (None, false);
         };
         let scattered = self.scatter(scene, &vertex, path.beta);
-        let alive = self.advance(path, &vertex, scattered.next);
+        let alive = self.advance(path, vertex.sp.p, scattered.next);
         (scattered.shadow, alive)
     }
 
@@ -270,10 +270,10 @@ impl PathTracer {
         })
     }
 
-    /// The last half of a vertex: takes the continuation (or ends the path), plays Russian
-    /// roulette and moves the path on. Returns whether it goes on.
+    /// The last half of a vertex at `p`: takes the continuation (or ends the path), plays
+    /// Russian roulette and moves the path on. Returns whether it goes on.
     #[inline(always)]
-    fn advance(&self, path: &mut PathState, vertex: &Vertex, next: Option<Continuation>) -> bool {
+    fn advance(&self, path: &mut PathState, p: Vec3, next: Option<Continuation>) -> bool {
         let Some(next) = next else {
             return false;
         };
@@ -287,7 +287,7 @@ impl PathTracer {
             path.beta /= q;
         }
         path.prev_bsdf_pdf = Some(next.pdf);
-        path.prev_p = vertex.sp.p;
+        path.prev_p = p;
         path.ray = next.ray;
         true
     }
