@@ -76,6 +76,23 @@ pub struct RenderStats {
     pub occlusion_traversal: &'static str,
 }
 
+/// The buffers of a tile's batch of paths, reused from tile to tile by a worker thread.
+#[derive(Default)]
+struct TileScratch {
+    paths: Vec<PathState>,
+    /// Sample index (within the tile's pass) of each path.
+    owners: Vec<u32>,
+    /// Paths still going, and those going on after the current vertex.
+    active: Vec<u32>,
+    next: Vec<u32>,
+    rays: Vec<Ray>,
+    hits: Vec<Option<Hit>>,
+    shadows: Vec<(u32, ShadowTest)>,
+    blocked: Vec<bool>,
+    buffers: BatchBuffers,
+    radiance: Vec<Rgb>,
+}
+
 /// What renders one image: scene, camera, integrator and seed.
 pub struct Renderer<'a> {
     pub scene: &'a RenderScene,
@@ -101,11 +118,11 @@ impl Renderer<'_> {
         let tiles_y = h.div_ceil(TILE_SIZE);
         let results: Vec<(u32, Vec<PixelAccumulator>, PassCounters)> = (0..tiles_x * tiles_y)
             .into_par_iter()
-            .map(|tile| {
+            .map_init(TileScratch::default, |scratch, tile| {
                 if cancel.load(Ordering::Relaxed) {
                     return (tile, Vec::new(), PassCounters::default());
                 }
-                let (pixels, counters) = self.render_tile(tile, tiles_x, w, h, first_sample, count);
+                let (pixels, counters) = self.render_tile(scratch, tile, tiles_x, w, h, first_sample, count);
                 progress(counters.samples);
                 (tile, pixels, counters)
             })
@@ -134,7 +151,17 @@ impl Renderer<'_> {
     /// Neighbouring iterations are independent paths, which the CPU overlaps, where one path
     /// alone is a chain of dependent latencies. Each path consumes its random stream exactly
     /// as [`PathTracer::radiance`] does, so the image is the same.
-    fn render_tile(&self, tile: u32, tiles_x: u32, w: u32, h: u32, first_sample: u32, count: u32) -> (Vec<PixelAccumulator>, PassCounters) {
+    #[allow(clippy::too_many_arguments)]
+    fn render_tile(
+        &self,
+        scratch: &mut TileScratch,
+        tile: u32,
+        tiles_x: u32,
+        w: u32,
+        h: u32,
+        first_sample: u32,
+        count: u32,
+    ) -> (Vec<PixelAccumulator>, PassCounters) {
         let (x0, y0, x1, y1) = tile_bounds(tile, tiles_x, w, h);
         let tile_w = x1 - x0;
         let n = (tile_w * (y1 - y0)) as usize;
@@ -142,15 +169,21 @@ impl Renderer<'_> {
         // have ended, the survivors still fill packets.
         let batch = n * count as usize;
         let mut counters = PassCounters::default();
-        let mut paths: Vec<PathState> = Vec::with_capacity(batch);
-        let mut owners: Vec<u32> = Vec::with_capacity(batch);
-        let mut active: Vec<u32> = Vec::with_capacity(batch);
-        let mut next: Vec<u32> = Vec::with_capacity(batch);
-        let mut rays: Vec<Ray> = Vec::with_capacity(batch);
-        let mut hits: Vec<Option<Hit>> = Vec::with_capacity(batch);
-        let mut shadows: Vec<(u32, ShadowTest)> = Vec::with_capacity(batch);
-        let mut blocked: Vec<bool> = Vec::with_capacity(batch);
-        let mut buffers = BatchBuffers::default();
+        let TileScratch {
+            paths,
+            owners,
+            active,
+            next,
+            rays,
+            hits,
+            shadows,
+            blocked,
+            buffers,
+            radiance,
+        } = scratch;
+        paths.clear();
+        owners.clear();
+        active.clear();
         let scene = self.scene;
         for j in 0..batch as u32 {
             let (s, k) = (first_sample + j / n as u32, j % n as u32);
@@ -167,24 +200,24 @@ impl Renderer<'_> {
             counters.rays += active.len() as u64;
             rays.clear();
             rays.extend(active.iter().map(|&i| paths[i as usize].ray));
-            scene.bvh.intersect_all(&rays, &mut hits);
+            scene.bvh.intersect_all(rays, hits);
             shadows.clear();
             next.clear();
-            self.integrator
-                .step_batch(scene, &mut paths, &active, &hits, &mut buffers, &mut shadows, &mut next);
+            self.integrator.step_batch(scene, paths, active, hits, buffers, shadows, next);
             counters.shadow_rays += shadows.len() as u64;
             rays.clear();
             rays.extend(shadows.iter().map(|(_, test)| test.ray));
-            scene.bvh.occluded_all(&rays, &mut blocked);
-            for ((i, test), &blocked) in shadows.iter().zip(&blocked) {
+            scene.bvh.occluded_all(rays, blocked);
+            for ((i, test), &blocked) in shadows.iter().zip(blocked.iter()) {
                 if !blocked {
                     paths[*i as usize].l += test.contribution;
                 }
             }
-            std::mem::swap(&mut active, &mut next);
+            std::mem::swap(active, next);
         }
-        let mut radiance = vec![Rgb::ZERO; batch];
-        for (path, &j) in paths.iter().zip(&owners) {
+        radiance.clear();
+        radiance.resize(batch, Rgb::ZERO);
+        for (path, &j) in paths.iter().zip(owners.iter()) {
             radiance[j as usize] = path.l;
         }
         // Samples of a pixel are accumulated in sample order, as one path at a time would.

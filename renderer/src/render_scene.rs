@@ -66,7 +66,10 @@ pub struct SurfacePoint {
     pub frame: Frame,
     /// Geometric normal flipped to the side the ray arrived from.
     pub ng_facing: Vec3,
-    pub uv: Vec2,
+    /// The triangle hit and the barycentric coordinates (b1, b2) of the point on it (for
+    /// attributes looked up only where needed, such as texture coordinates).
+    pub triangle: u32,
+    pub barycentric: Vec2,
     /// True when the ray hit the front (counter-clockwise) side.
     pub front_face: bool,
     pub material: u32,
@@ -221,7 +224,6 @@ impl RenderScene {
     pub fn surface_point(&self, hit: &Hit, direction: Vec3) -> Option<SurfacePoint> {
         let g = &self.geometry;
         let tri = hit.triangle as usize;
-        let [i0, i1, i2] = g.triangles[tri];
         let HitRecord { corners, ng, flat_normal } = self.hit_records[tri];
         if ng == Vec3::ZERO {
             return None;
@@ -234,23 +236,34 @@ impl RenderScene {
         let mut ns = if flat_normal != Vec3::ZERO {
             flat_normal
         } else {
+            let [i0, i1, i2] = g.triangles[tri];
             let ns = g.normals[i0 as usize] * b0 + g.normals[i1 as usize] * b.x + g.normals[i2 as usize] * b.y;
             ns.try_normalize().unwrap_or(ng)
         };
         if ns.dot(ng_facing) < 0.0 {
             ns = -ns;
         }
-        let uv = g.uvs[i0 as usize] * b0 + g.uvs[i1 as usize] * b.x + g.uvs[i2 as usize] * b.y;
         Some(SurfacePoint {
             p,
             p_error,
             ng,
             frame: Frame::from_normal(ns),
             ng_facing,
-            uv,
+            triangle: hit.triangle,
+            barycentric: b,
             front_face,
             material: g.material_ids[tri],
         })
+    }
+
+    /// Texture coordinates at a surface point, interpolated from its triangle's vertices.
+    #[inline]
+    pub fn uv(&self, sp: &SurfacePoint) -> Vec2 {
+        let g = &self.geometry;
+        let [i0, i1, i2] = g.triangles[sp.triangle as usize];
+        let b = sp.barycentric;
+        let b0 = 1.0 - b.x - b.y;
+        g.uvs[i0 as usize] * b0 + g.uvs[i1 as usize] * b.x + g.uvs[i2 as usize] * b.y
     }
 
     /// The BSDF at a surface point; `None` where the surface does not scatter (the back of
@@ -262,7 +275,7 @@ impl RenderScene {
             return None;
         }
         let base = match material.base_color_texture {
-            Some(t) => material.base_color * self.textures[t].lookup(sp.uv),
+            Some(t) => material.base_color * self.textures[t].lookup(self.uv(sp)),
             None => material.base_color,
         };
         Some(match self.surfaces[sp.material as usize] {

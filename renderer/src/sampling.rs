@@ -218,6 +218,9 @@ impl Distribution1D {
             self.cdf.partition_point(|&c| c <= u)
         };
         let mut i = at_most_u.saturating_sub(1).min(n - 1);
+        if self.pdf_cell(i) > 0.0 {
+            return i;
+        }
         while i > 0 && self.pdf_cell(i) == 0.0 {
             i -= 1;
         }
