@@ -333,6 +333,8 @@ mod tests {
         let cases = [
             ("cornell-box", 8, Strategy::Mis),
             ("cornell-box", 1, Strategy::Mis),
+            ("cornell-box", 6, Strategy::LightOnly),
+            ("cornell-box", 6, Strategy::BsdfOnly),
             ("material-preview", 6, Strategy::Mis),
             ("material-preview", 4, Strategy::LightOnly),
         ];

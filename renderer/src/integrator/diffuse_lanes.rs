@@ -245,3 +245,61 @@ fn power_heuristic(f: F32s, g: F32s) -> F32s {
     let ratio = sum.eq(F32s::splat(0.0)).select(F32s::splat(0.0), f2 / sum);
     f2.is_infinite().select(F32s::splat(1.0), ratio)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::Bsdf;
+    use crate::integrator::{PathTracer, Strategy};
+    use crate::render_scene::RenderScene;
+    use crate::sampler::Sampler;
+    use crate::sampling::sample_uniform_sphere;
+    use crate::scene::SceneDescription;
+
+    /// Every lane gives what the scalar `scatter` gives for its vertex, bit for bit, for
+    /// full and partial groups, lights behind the surface, and zero throughputs.
+    #[test]
+    fn lanes_equal_scalar_scatter_bit_for_bit() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box/scene.gltf");
+        let scene = RenderScene::new(SceneDescription::load(path.as_ref()).expect("shipped scene")).expect("scene");
+        let mut rng = Sampler::new(3, 1, 4);
+        for strategy in [Strategy::Mis, Strategy::LightOnly] {
+            let tracer = PathTracer {
+                strategy,
+                ..PathTracer::default()
+            };
+            let mut cases = Vec::new();
+            while cases.len() < 16 * 12 + 5 {
+                let origin = scene.bounds_centre + (rng.next_2d().extend(rng.next_1d()) - 0.5) * scene.bounds_radius;
+                let ray = Ray::new(origin, sample_uniform_sphere(rng.next_2d()));
+                let mut state = tracer.start(ray, rng.clone()).expect("depth allows a segment");
+                rng.next_1d();
+                // Every eighth throughput is zero: the continuation must end there.
+                state.beta = if cases.len() % 8 == 0 { Rgb::ZERO } else { rng.next_2d().extend(rng.next_1d()) * 2.0 };
+                let hit = scene.bvh.intersect(&ray);
+                let Some(vertex) = tracer.begin(&scene, &mut state, hit) else { continue };
+                if let (Bsdf::Lambert(b), Some((light, select_pdf))) = (vertex.bsdf, vertex.light) {
+                    let triangle = scene.lights.triangle(light).expect("the box's lights are triangles").clone();
+                    cases.push((vertex, b.albedo, state.beta, triangle, select_pdf));
+                }
+            }
+            let (mut lanes, mut out) = (DiffuseLanes::default(), DiffuseScattered::default());
+            let (mut shadows, mut ended) = (0, 0);
+            for group in cases.chunks(LANES) {
+                lanes.clear();
+                for (vertex, albedo, beta, light, select_pdf) in group {
+                    lanes.push(vertex, *albedo, *beta, light, *select_pdf);
+                }
+                lanes.scatter(strategy == Strategy::LightOnly, &mut out);
+                for (lane, (vertex, _, beta, _, _)) in group.iter().enumerate() {
+                    let expected = tracer.scatter(&scene, vertex, *beta);
+                    assert_eq!(format!("{:?}", out.get(lane)), format!("{expected:?}"), "{strategy:?}, lane {lane}");
+                    shadows += expected.shadow.is_some() as usize;
+                    ended += expected.next.is_none() as usize;
+                }
+            }
+            assert!(shadows > 0 && shadows < cases.len(), "both lit and unlit lanes: {shadows}");
+            assert!(ended >= cases.len() / 8, "zero throughputs end: {ended}");
+        }
+    }
+}
