@@ -7,6 +7,9 @@
 //! branch-free, which LLVM turns into vector instructions of the width the enclosing
 //! function is compiled for (SSE2 by default, AVX2 or AVX-512 under `#[target_feature]`).
 
+// Indexed fixed-length loops are the form LLVM vectorises most reliably here.
+#![allow(clippy::needless_range_loop)]
+
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
 /// Number of lanes: one AVX-512 register of `f32`.
@@ -22,7 +25,7 @@ pub struct F32s(pub [f32; LANES]);
 pub struct Mask(pub [bool; LANES]);
 
 /// Three [`F32s`]: a vector per lane.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Vec3s {
     pub x: F32s,
     pub y: F32s,
@@ -30,7 +33,7 @@ pub struct Vec3s {
 }
 
 /// Two [`F32s`]: a 2D point per lane.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Vec2s {
     pub x: F32s,
     pub y: F32s,
@@ -39,21 +42,6 @@ pub struct Vec2s {
 impl Default for F32s {
     fn default() -> Self {
         F32s([0.0; LANES])
-    }
-}
-
-impl Default for Vec3s {
-    fn default() -> Self {
-        Vec3s::splat(glam::Vec3::ZERO)
-    }
-}
-
-impl Default for Vec2s {
-    fn default() -> Self {
-        Vec2s {
-            x: F32s::default(),
-            y: F32s::default(),
-        }
     }
 }
 
@@ -330,7 +318,7 @@ impl Vec3s {
 }
 
 impl Vec2s {
-    /// Lane `i` as a `glam::Vec2`.
+    /// Sets lane `i`.
     #[inline(always)]
     pub fn set(&mut self, i: usize, v: glam::Vec2) {
         self.x.0[i] = v.x;

@@ -38,6 +38,7 @@ impl PathTracer {
     /// Steps paths `active` (indices into `paths`) whose rays found `hits` (in the same
     /// order), as [`Self::step`] would one by one: pushes each shadow test with its path
     /// index onto `shadows` and the paths that go on onto `next`, both in `active`'s order.
+    #[allow(clippy::too_many_arguments)]
     pub fn step_batch(
         &self,
         scene: &RenderScene,

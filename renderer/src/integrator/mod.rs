@@ -248,8 +248,9 @@ impl PathTracer {
     }
 
     /// Next-event estimation: the shadow test of light sample `ls` at `sp`, `None` where it
-    /// cannot contribute.
+    /// cannot contribute (also where a NaN makes a test fail, hence the negated comparisons).
     #[inline(always)]
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     fn light_term<B: Bxdf>(&self, bsdf: &B, sp: &SurfacePoint, wo: Vec3, beta: Rgb, ls: &LightSample) -> Option<ShadowTest> {
         if !(ls.direction.dot(sp.ng_facing) > 0.0) {
             return None;
