@@ -159,29 +159,23 @@ impl Mask {
     }
 }
 
-impl BitAnd for Mask {
-    type Output = Mask;
-    #[inline(always)]
-    fn bitand(self, o: Mask) -> Mask {
-        let mut r = [false; LANES];
-        for i in 0..LANES {
-            r[i] = self.0[i] & o.0[i];
+macro_rules! mask_ops {
+    ($($trait:ident $method:ident $op:tt),*) => {$(
+        impl $trait for Mask {
+            type Output = Mask;
+            #[inline(always)]
+            fn $method(self, o: Mask) -> Mask {
+                let mut r = [false; LANES];
+                for i in 0..LANES {
+                    r[i] = self.0[i] $op o.0[i];
+                }
+                Mask(r)
+            }
         }
-        Mask(r)
-    }
+    )*};
 }
 
-impl BitOr for Mask {
-    type Output = Mask;
-    #[inline(always)]
-    fn bitor(self, o: Mask) -> Mask {
-        let mut r = [false; LANES];
-        for i in 0..LANES {
-            r[i] = self.0[i] | o.0[i];
-        }
-        Mask(r)
-    }
-}
+mask_ops!(BitAnd bitand &, BitOr bitor |);
 
 impl Not for Mask {
     type Output = Mask;
