@@ -10,7 +10,7 @@
 // Indexed fixed-length loops are the form LLVM vectorises most reliably here.
 #![allow(clippy::needless_range_loop)]
 
-use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+use std::ops::{Add, BitAnd, Div, Mul, Neg, Not, Sub};
 
 /// Number of lanes: one AVX-512 register of `f32`.
 pub const LANES: usize = 16;
@@ -94,12 +94,6 @@ impl F32s {
         self.zip(o, f32::max)
     }
 
-    /// `f32::min` per lane.
-    #[inline(always)]
-    pub fn min(self, o: Self) -> Self {
-        self.zip(o, f32::min)
-    }
-
     /// `f32::signum` per lane: ±1 by the sign bit, NaN for NaN.
     #[inline(always)]
     pub fn signum(self) -> Self {
@@ -175,7 +169,7 @@ macro_rules! mask_ops {
     )*};
 }
 
-mask_ops!(BitAnd bitand &, BitOr bitor |);
+mask_ops!(BitAnd bitand &);
 
 impl Not for Mask {
     type Output = Mask;
@@ -259,15 +253,6 @@ impl Neg for Vec3s {
 }
 
 impl Vec3s {
-    #[inline(always)]
-    pub fn splat(v: glam::Vec3) -> Self {
-        Vec3s {
-            x: F32s::splat(v.x),
-            y: F32s::splat(v.y),
-            z: F32s::splat(v.z),
-        }
-    }
-
     /// Lane `i` as a `glam::Vec3`.
     #[inline(always)]
     pub fn get(&self, i: usize) -> glam::Vec3 {

@@ -166,8 +166,8 @@ impl PathTracer {
     /// `path.ray` to the continuation ray. Returns the shadow test and whether the path
     /// goes on. Paths stepped in any interleaving give the same values as stepped alone.
     ///
-    /// The three halves — [`Self::begin`], [`Self::scatter`], [`Self::advance`] — are
-    /// public to the batched loop ([`Self::step_batch`]), which scatters many vertices at once.
+    /// Its three parts — `begin`, `scatter`, `advance` — are also what the batched loop
+    /// ([`Self::step_batch`]) calls, scattering many vertices at once.
     #[inline(always)]
     pub fn step(&self, scene: &RenderScene, path: &mut PathState, hit: Option<Hit>) -> (Option<ShadowTest>, bool) {
         let Some(vertex) = self.begin(scene, path, hit) else {
