@@ -98,8 +98,9 @@ fn main() {
         }
     }
 
-    // latent.bin: small files with the f_ref table left to the target (mode 2), and the
-    // start of the shipped file, checksum fixed (mode 1) and as it is (mode 0).
+    // latent.bin: small files with the f_ref table left to the target (mode 2; one carries
+    // an encoder), and the start of the shipped file, checksum fixed (mode 1) and as it is
+    // (mode 0).
     for (weight_type, name) in [
         (WeightType::F32, "small-f32"),
         (WeightType::F16, "small-f16"),
@@ -114,6 +115,13 @@ fn main() {
             }),
         );
     }
+    write(
+        "latent",
+        "small-encoder",
+        &latent_mode2_input(
+            &LatentFile::synthetic(&[5], WeightType::F16).with_synthetic_encoder(),
+        ),
+    );
     if let Ok(shipped) = std::fs::read(repo.join("scenes/materials/latent.bin")) {
         let mut input = vec![1];
         input.extend_from_slice(&shipped[..shipped.len().min(4096)]);

@@ -2,7 +2,8 @@
 //! byte picks how the rest becomes a file (as it is, with its checksum fixed, or with the
 //! 8.7 MB f_ref table filled in at a `FREF` marker: see `renderer_fuzz::latent_bytes`). A
 //! file that loads must decode every latent code into a target net that runs (and, when
-//! the renderer's evaluator accepts its shape, runs there too).
+//! the renderer's evaluator accepts its shape, runs there too), and its encoder, if any,
+//! must encode a sample into a code of latent_dim values.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -21,6 +22,9 @@ fuzz_target!(|data: &[u8]| {
                 if let Ok(net) = TargetNet::new(&mlp) {
                     let _ = net.forward([0.1; 6]);
                 }
+            }
+            if let Some(encoder) = &file.encoder {
+                assert_eq!(encoder.encode(&[[0.1; 9]]).len(), file.latent_dim);
             }
         }
         Err(error) => check_file_error(&error),

@@ -3,12 +3,15 @@
 //! layout is documented in `docs/latent-format.md`; in short (all little-endian):
 //!
 //! ```text
-//! magic "FRENBRDF" | version u32 = 1 | latent_dim u32
+//! magic "FRENBRDF" | version u32 = 2 (1 is read too) | latent_dim u32
 //! target layer count u32 = K | target widths u32 × (K+1)            (6 60 60 60 60 3)
 //! hypernetwork hidden layer count u32 = H | hidden widths u32 × H    (128 128)
 //! mapping u8 (0 talk, 1 code) | weight dtype u8 (0 f32, 1 f16) | 2 zero bytes | epsilon f32
 //! hypernetwork: per target tensor (W0 b0 W1 b1 ...), per layer: weight [d_in, d_out]
 //!               row-major, then bias [d_out], in the weight dtype
+//! encoder (version 2 only): flag u8 (0 none, 1 present); when present: peak_share f32 |
+//!               layer count u32 = E | widths u32 × (E+1) (9 128 128 128 latent_dim) |
+//!               per layer: weight [d_in, d_out] row-major, then bias [d_out], always f32
 //! f_ref: dims u32 × 3 (90 90 180) | f16 × bins × 3, bin-major RGB, f_r in 1/sr, < 0 unmeasured
 //! latent codes: count u32 | per code: name length u32, UTF-8 name, f32 × latent_dim
 //! training materials: count u32 | per name: length u32, UTF-8 name
@@ -19,7 +22,10 @@
 //! NBRDF's `.npy` tensors and burn's `Linear`); ReLU after every hidden layer of both the
 //! hypernetwork and the target net, the last layers are linear. The target net maps the 6D
 //! input of [`crate::brdf_coords::network_input`] to the mapped value y per RGB channel; f_r
-//! comes back through [`MappingForm::inverse`] with f_ref looked up in the table.
+//! comes back through [`MappingForm::inverse`] with f_ref looked up in the table. The optional
+//! set [`Encoder`] maps measured samples to a latent code (ReLU after every layer, its last
+//! included, then the mean over the samples). Version 1 files have no encoder section and read
+//! with `encoder: None`; writing always writes [`VERSION`].
 
 use crate::merl::{BIN_COUNT, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
 use crate::{Error, Result};
@@ -29,8 +35,10 @@ use std::path::{Path, PathBuf};
 
 /// The 8 bytes every latent file starts with.
 pub const MAGIC: [u8; 8] = *b"FRENBRDF";
-/// The format version this module reads and writes.
-pub const VERSION: u32 = 1;
+/// The format version this module writes; it reads this one and version 1 (no encoder).
+pub const VERSION: u32 = 2;
+/// The oldest format version this module reads.
+const OLDEST_VERSION: u32 = 1;
 /// Upper bound on any one width, latent size or name length (sanity limit of the reader).
 const MAX_DIM: usize = 1 << 20;
 
@@ -136,6 +144,56 @@ impl Mlp {
     }
 }
 
+/// The set encoder of the trained model: per sample [6D network input ‖ 3 mapped values] →
+/// layers → z, ReLU after every layer (its last included, so z ≥ 0), z = mean over the
+/// samples.
+///
+/// A sample is the target net's input of [`crate::brdf_coords::network_input`] (6 values)
+/// followed by the mapped value y = [`MappingForm::forward`] of the measured f_r (1/sr) per
+/// RGB channel, with the file's mapping, ε and f_ref at the same coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Encoder {
+    /// Layers, input first: 9 → hidden... → latent_dim (9 128 128 128 latent_dim by default).
+    pub layers: Vec<DenseLayer>,
+    /// Share (in [0, 1]) of the points whose θh was drawn with MERL's spacing θh = u²·π/2
+    /// (u uniform in [0, 1)) when the encoder was trained; the others have θh uniform in
+    /// [0, π/2]. Encoding must draw its samples the same way.
+    pub peak_share: f32,
+}
+
+impl Encoder {
+    /// Width of one encoder sample: 6D network input ‖ 3 mapped values.
+    pub const INPUT_WIDTH: usize = 9;
+
+    /// Width of the encoder's output, z (latent_dim in a valid file).
+    pub fn output_width(&self) -> usize {
+        self.layers.last().map_or(Self::INPUT_WIDTH, |l| l.d_out)
+    }
+
+    /// The reference forward pass in f32: every layer with ReLU on each sample, then the mean
+    /// over the samples (summed in f64). No samples give zeros of the output width.
+    ///
+    /// # Panics
+    /// If the layers do not chain (a file read by [`LatentFile::read`] is consistent).
+    pub fn encode(&self, samples: &[[f32; 9]]) -> Vec<f32> {
+        let width = self.output_width();
+        let mut sum = vec![0.0f64; width];
+        for sample in samples {
+            let mut h = sample.to_vec();
+            for layer in &self.layers {
+                let mut y = vec![0.0; layer.d_out];
+                layer.forward(&h, &mut y, true);
+                h = y;
+            }
+            sum.iter_mut()
+                .zip(&h)
+                .for_each(|(s, v)| *s += f64::from(*v));
+        }
+        let n = samples.len().max(1) as f64;
+        sum.into_iter().map(|s| (s / n) as f32).collect()
+    }
+}
+
 /// A named latent code.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NamedLatent {
@@ -163,6 +221,9 @@ pub struct LatentFile {
     /// One head per target-net tensor, in the order W0, b0, W1, b1, ...: latent_dim →
     /// hidden... → numel of that tensor.
     pub hypernetwork: Vec<Mlp>,
+    /// The set encoder that made the codes, when the file carries it (always f32 on disk;
+    /// `None` in version 1 files). `material-nn encode --model FILE` needs it.
+    pub encoder: Option<Encoder>,
     /// f_ref per MERL bin (within-channel index), RGB, 1/sr, as f16; negative = unmeasured.
     pub f_ref: Vec<[f16; 3]>,
     /// The latent codes.
@@ -229,15 +290,12 @@ impl LatentFile {
     /// A tiny file for tests, fuzzing seeds and examples: target net 6-4-3, latent size 2,
     /// hypernetwork heads with hidden widths `hyper_hidden` and fixed pseudo-random weights in
     /// [−0.5, 0.5), talk mapping with ε = 0.002, f_ref 0.25 everywhere, codes "gold" (0.5, 1)
-    /// and "blue-acrylic" (0, 2), trained on "gold" and "silver". Valid unless a hidden width
-    /// is 0 (which [`LatentFile::validate`] rejects).
+    /// and "blue-acrylic" (0, 2), trained on "gold" and "silver", no encoder (see
+    /// [`LatentFile::with_synthetic_encoder`]). Valid unless a hidden width is 0 (which
+    /// [`LatentFile::validate`] rejects).
     pub fn synthetic(hyper_hidden: &[usize], weight_type: WeightType) -> LatentFile {
         let (widths, latent_dim) = (vec![6, 4, 3], 2);
-        let mut seed = 1u32;
-        let mut next = || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
-        };
+        let mut next = pseudo_random(1);
         let mut hypernetwork = Vec::new();
         for w in widths.windows(2) {
             for numel in [w[0] * w[1], w[1]] {
@@ -276,8 +334,30 @@ impl LatentFile {
                     z: vec![0.0, 2.0],
                 },
             ],
+            encoder: None,
             training_materials: vec!["gold".into(), "silver".into()],
         }
+    }
+
+    /// The file with a tiny encoder for tests, fuzzing seeds and examples: widths 9 → 5 →
+    /// latent_dim, fixed pseudo-random weights in [−0.5, 0.5), biases in [0, 1) (so most
+    /// outputs are positive), peak_share 0.5.
+    pub fn with_synthetic_encoder(mut self) -> LatentFile {
+        let mut next = pseudo_random(7);
+        let layers = [Encoder::INPUT_WIDTH, 5, self.latent_dim]
+            .windows(2)
+            .map(|d| DenseLayer {
+                d_in: d[0],
+                d_out: d[1],
+                weight: (0..d[0] * d[1]).map(|_| next()).collect(),
+                bias: (0..d[1]).map(|_| next() + 0.5).collect(),
+            })
+            .collect();
+        self.encoder = Some(Encoder {
+            layers,
+            peak_share: 0.5,
+        });
+        self
     }
 
     /// Checks every invariant the renderer relies on; `path` names the file in errors.
@@ -341,6 +421,9 @@ impl LatentFile {
                 }
             }
         }
+        if let Some(encoder) = &self.encoder {
+            self.validate_encoder(encoder, path)?;
+        }
         if self.f_ref.len() != BIN_COUNT {
             return bad(format!(
                 "f_ref has {} bins, expected {BIN_COUNT}",
@@ -369,6 +452,49 @@ impl LatentFile {
             }
             if !names.insert(l.name.as_str()) {
                 return bad(format!("latent name '{}' appears twice", l.name));
+            }
+        }
+        Ok(())
+    }
+
+    /// The encoder's part of [`LatentFile::validate`].
+    fn validate_encoder(&self, encoder: &Encoder, path: &Path) -> Result<()> {
+        let bad = |reason: String| Err(Error::invalid_file(path, reason));
+        if !(0.0..=1.0).contains(&encoder.peak_share) {
+            return bad(format!(
+                "encoder peak_share {} is not in [0, 1]",
+                encoder.peak_share
+            ));
+        }
+        let mut widths = vec![encoder.layers.first().map_or(0, |l| l.d_in)];
+        widths.extend(encoder.layers.iter().map(|l| l.d_out));
+        if encoder.layers.is_empty()
+            || widths[0] != Encoder::INPUT_WIDTH
+            || widths.last() != Some(&self.latent_dim)
+            || widths.iter().any(|&w| w == 0 || w > MAX_DIM)
+        {
+            return bad(format!(
+                "bad encoder shape: widths {widths:?}, expected {} first, latent_dim {} last",
+                Encoder::INPUT_WIDTH,
+                self.latent_dim
+            ));
+        }
+        for (l, layer) in encoder.layers.iter().enumerate() {
+            if layer.d_in != widths[l]
+                || layer.weight.len() != layer.d_in * layer.d_out
+                || layer.bias.len() != layer.d_out
+            {
+                return bad(format!("encoder layer {l} has the wrong shape"));
+            }
+            if let Some(i) = layer
+                .weight
+                .iter()
+                .chain(&layer.bias)
+                .position(|v| !v.is_finite())
+            {
+                return bad(format!(
+                    "non-finite encoder weight in layer {l} (value {i})"
+                ));
             }
         }
         Ok(())
@@ -405,6 +531,25 @@ impl LatentFile {
                 }
             }
         }
+        match &self.encoder {
+            None => w.push(0),
+            Some(encoder) => {
+                w.push(1);
+                w.extend_from_slice(&encoder.peak_share.to_le_bytes());
+                put_u32(&mut w, encoder.layers.len() as u32);
+                if let Some(first) = encoder.layers.first() {
+                    put_u32(&mut w, first.d_in as u32);
+                }
+                for layer in &encoder.layers {
+                    put_u32(&mut w, layer.d_out as u32);
+                }
+                for layer in &encoder.layers {
+                    for v in layer.weight.iter().chain(&layer.bias) {
+                        w.extend_from_slice(&v.to_le_bytes());
+                    }
+                }
+            }
+        }
         for dim in [THETA_H_BINS, THETA_D_BINS, PHI_D_BINS] {
             put_u32(&mut w, dim as u32);
         }
@@ -435,9 +580,10 @@ impl LatentFile {
             ));
         }
         let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
-        if version != VERSION {
+        if !(OLDEST_VERSION..=VERSION).contains(&version) {
             return Err(bad(format!(
-                "latent file version {version}, this build reads version {VERSION}"
+                "latent file version {version}, this build reads versions {OLDEST_VERSION} and \
+                 {VERSION}"
             )));
         }
         if bytes.len() < 20 {
@@ -499,6 +645,7 @@ impl LatentFile {
                 hypernetwork.push(Mlp { layers });
             }
         }
+        let encoder = if version >= 2 { r.encoder()? } else { None };
         let dims = [r.u32()?, r.u32()?, r.u32()?];
         if dims != [THETA_H_BINS as u32, THETA_D_BINS as u32, PHI_D_BINS as u32] {
             return Err(bad(format!("f_ref dims {dims:?}, expected [90, 90, 180]")));
@@ -533,6 +680,7 @@ impl LatentFile {
             epsilon,
             weight_type,
             hypernetwork,
+            encoder,
             f_ref,
             latents,
             training_materials,
@@ -581,6 +729,14 @@ fn fnv1a64(bytes: &[u8]) -> u64 {
         h = h.wrapping_mul(0x0000_0100_0000_01b3);
     }
     h
+}
+
+/// Fixed pseudo-random numbers in [−0.5, 0.5) (an LCG) for the synthetic files.
+fn pseudo_random(mut seed: u32) -> impl FnMut() -> f32 {
+    move || {
+        seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
+    }
 }
 
 /// A bounds-checked reader over the file's bytes.
@@ -640,6 +796,38 @@ impl Cursor<'_> {
         })
     }
 
+    /// The encoder section of a version 2 file (flag, then the encoder when present); shapes
+    /// and values are checked by [`LatentFile::validate`].
+    fn encoder(&mut self) -> Result<Option<Encoder>> {
+        match self.take(1)?[0] {
+            0 => return Ok(None),
+            1 => {}
+            f => {
+                return Err(Error::invalid_file(
+                    self.path,
+                    format!("unknown encoder flag {f} (0 none, 1 present)"),
+                ))
+            }
+        }
+        let peak_share = self.f32()?;
+        let count = self.dim("encoder layer count")?;
+        let widths = (0..=count)
+            .map(|_| self.dim("encoder width"))
+            .collect::<Result<Vec<_>>>()?;
+        let layers = widths
+            .windows(2)
+            .map(|w| {
+                Ok(DenseLayer {
+                    d_in: w[0],
+                    d_out: w[1],
+                    weight: self.weights(w[0] * w[1], WeightType::F32)?,
+                    bias: self.weights(w[1], WeightType::F32)?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Some(Encoder { layers, peak_share }))
+    }
+
     fn string(&mut self) -> Result<String> {
         let n = self.dim("name length")?;
         let path = self.path;
@@ -687,11 +875,13 @@ pub(crate) mod tests {
         let e = err(b"PK\x03\x04 not a latent file");
         assert!(e.contains("latent.bin") && e.contains("bad magic"), "{e}");
 
-        let mut v2 = good.clone();
-        v2[8..12].copy_from_slice(&2u32.to_le_bytes());
-        let e = err(&v2);
+        let mut v3 = good.clone();
+        v3[8..12].copy_from_slice(&3u32.to_le_bytes());
+        let e = err(&v3);
         assert!(
-            e.contains("version 2") && e.contains("reads version 1"),
+            e.contains("latent.bin")
+                && e.contains("version 3")
+                && e.contains("reads versions 1 and 2"),
             "{e}"
         );
 
@@ -716,6 +906,196 @@ pub(crate) mod tests {
         let mut dup = small_file(WeightType::F32);
         dup.latents[1].name = "gold".into();
         assert!(err(&dup.to_bytes()).contains("appears twice"));
+    }
+
+    /// Where the encoder flag byte of `file`'s bytes is: right before the encoder (if any) and
+    /// the f_ref dims, which come 6 · BIN_COUNT bytes before the codes, the names and the
+    /// checksum.
+    fn encoder_flag_offset(file: &LatentFile, bytes: &[u8]) -> usize {
+        let codes: usize = file
+            .latents
+            .iter()
+            .map(|l| 4 + l.name.len() + 4 * l.z.len())
+            .sum();
+        let names: usize = file.training_materials.iter().map(|n| 4 + n.len()).sum();
+        let tail = 4 + codes + 4 + names + 8;
+        let encoder = file.encoder.as_ref().map_or(0, |e| {
+            let values: usize = e.layers.iter().map(|l| l.weight.len() + l.bias.len()).sum();
+            4 + 4 + 4 * (e.layers.len() + 1) + 4 * values
+        });
+        let at = bytes.len() - tail - 6 * BIN_COUNT - 12 - encoder - 1;
+        let dims: Vec<u8> = [90u32, 90, 180]
+            .iter()
+            .flat_map(|d| d.to_le_bytes())
+            .collect();
+        let dims_at = at + 1 + encoder;
+        assert_eq!(bytes[dims_at..dims_at + 12], dims[..], "f_ref dims located");
+        at
+    }
+
+    fn fix_checksum(bytes: &mut Vec<u8>) {
+        bytes.truncate(bytes.len() - 8);
+        let sum = fnv1a64(bytes);
+        bytes.extend_from_slice(&sum.to_le_bytes());
+    }
+
+    /// A few encoder samples: [6D input ‖ 3 mapped values].
+    const SAMPLES: [[f32; 9]; 3] = [
+        [0.1, 0.0, 0.9, 0.3, 0.5, 0.7, -1.0, 0.5, 2.0],
+        [0.7, 0.0, 0.6, 0.1, 0.2, 0.9, 0.3, 0.3, 0.3],
+        [0.0, 0.0, 1.0, 0.8, 0.4, 0.2, -4.0, -3.0, 1.5],
+    ];
+
+    #[test]
+    fn version_2_round_trip_with_encoder() {
+        let path = Path::new("dir/latent.bin");
+        for weight_type in [WeightType::F32, WeightType::F16] {
+            let file = small_file(weight_type).with_synthetic_encoder();
+            let bytes = file.to_bytes();
+            assert_eq!(bytes[8..12], 2u32.to_le_bytes());
+            let at = encoder_flag_offset(&file, &bytes);
+            assert_eq!(bytes[at], 1, "encoder flag");
+            let back = LatentFile::from_bytes(&bytes, path).unwrap();
+            assert_eq!(back.to_bytes(), bytes, "{weight_type:?}");
+            let (encoder, back_encoder) = (
+                file.encoder.as_ref().unwrap(),
+                back.encoder.as_ref().unwrap(),
+            );
+            // The encoder is stored as f32 whatever the hypernetwork's weight type: exact.
+            assert_eq!(back_encoder, encoder, "{weight_type:?}");
+            let z = encoder.encode(&SAMPLES);
+            assert_eq!(z.len(), file.latent_dim);
+            assert!(
+                z.iter().all(|&v| v >= 0.0) && z.iter().any(|&v| v > 0.0),
+                "{z:?}"
+            );
+            assert_eq!(back_encoder.encode(&SAMPLES), z);
+        }
+        // Without an encoder the flag is 0 and the file reads back with none.
+        let plain = small_file(WeightType::F32);
+        let bytes = plain.to_bytes();
+        assert_eq!(bytes[encoder_flag_offset(&plain, &bytes)], 0);
+        assert_eq!(LatentFile::from_bytes(&bytes, path).unwrap().encoder, None);
+        // Through the file system too.
+        let dir = tempfile::tempdir().unwrap();
+        let file = small_file(WeightType::F32).with_synthetic_encoder();
+        file.write(dir.path().join("latent.bin")).unwrap();
+        assert!(LatentFile::read(dir.path().join("latent.bin")).unwrap() == file);
+    }
+
+    #[test]
+    fn encode_is_relu_layers_then_the_mean() {
+        // One layer 9 → 2: out0 = x0 + x6 + 0.5, out1 = −x7 (ReLU clamps it).
+        let mut weight = vec![0.0; 18];
+        weight[0] = 1.0;
+        weight[2 * 6] = 1.0;
+        weight[2 * 7 + 1] = -1.0;
+        let encoder = Encoder {
+            layers: vec![DenseLayer {
+                d_in: 9,
+                d_out: 2,
+                weight,
+                bias: vec![0.5, 0.0],
+            }],
+            peak_share: 0.25,
+        };
+        // Sample sums: out0 = 0.1 − 1 + 0.5 → 0 (ReLU), 0.7 + 0.3 + 0.5 = 1.5, 0 − 4 + 0.5 → 0;
+        // out1 = −0.5 → 0, −0.3 → 0, 3.
+        let z = encoder.encode(&SAMPLES);
+        assert!(
+            (z[0] - 0.5).abs() < 1e-6 && (z[1] - 1.0).abs() < 1e-6,
+            "{z:?}"
+        );
+        assert_eq!(encoder.encode(&[]), vec![0.0, 0.0]);
+        assert_eq!(encoder.output_width(), 2);
+    }
+
+    #[test]
+    fn version_1_files_still_read_without_an_encoder() {
+        let path = Path::new("dir/latent.bin");
+        let file = small_file(WeightType::F16);
+        let mut bytes = file.to_bytes();
+        let at = encoder_flag_offset(&file, &bytes);
+        assert_eq!(bytes[at], 0);
+        let mut v1 = bytes.clone();
+        v1.remove(at);
+        v1[8..12].copy_from_slice(&1u32.to_le_bytes());
+        fix_checksum(&mut v1);
+        let back = LatentFile::from_bytes(&v1, path).unwrap();
+        assert_eq!(back.encoder, None);
+        // (f16 weights: equal to the version 2 file read back, not to `file`.)
+        assert!(back == LatentFile::from_bytes(&bytes, path).unwrap());
+        // Written again, it is version 2.
+        assert_eq!(back.to_bytes(), bytes);
+        // A version 2 file without the flag byte is not one.
+        bytes.remove(at);
+        fix_checksum(&mut bytes);
+        assert!(LatentFile::from_bytes(&bytes, path).is_err());
+    }
+
+    #[test]
+    fn bad_encoders_are_rejected_with_the_reason() {
+        let path = Path::new("dir/latent.bin");
+        let err = |f: &LatentFile| {
+            assert!(f
+                .write(std::env::temp_dir().join("never-written.bin"))
+                .is_err());
+            LatentFile::from_bytes(&f.to_bytes(), path)
+                .unwrap_err()
+                .to_string()
+        };
+        let good = small_file(WeightType::F32).with_synthetic_encoder();
+        assert!(LatentFile::from_bytes(&good.to_bytes(), path).is_ok());
+
+        let mut wide = good.clone();
+        let last = wide.encoder.as_mut().unwrap().layers.last_mut().unwrap();
+        last.d_out = 3;
+        last.weight = vec![0.1; last.d_in * 3];
+        last.bias = vec![0.1; 3];
+        let e = err(&wide);
+        assert!(
+            e.starts_with("dir/latent.bin")
+                && e.contains("bad encoder shape")
+                && e.contains("latent_dim 2"),
+            "{e}"
+        );
+
+        let mut narrow = good.clone();
+        let first = &mut narrow.encoder.as_mut().unwrap().layers[0];
+        first.d_in = 8;
+        first.weight.truncate(8 * first.d_out);
+        let e = err(&narrow);
+        assert!(
+            e.contains("bad encoder shape") && e.contains("[8, 5, 2]"),
+            "{e}"
+        );
+
+        let mut nan = good.clone();
+        nan.encoder.as_mut().unwrap().layers[1].weight[3] = f32::NAN;
+        let e = err(&nan);
+        assert!(
+            e.starts_with("dir/latent.bin") && e.contains("non-finite encoder weight in layer 1"),
+            "{e}"
+        );
+
+        for share in [1.5, -0.1, f32::NAN] {
+            let mut peak = good.clone();
+            peak.encoder.as_mut().unwrap().peak_share = share;
+            let e = err(&peak);
+            assert!(
+                e.starts_with("dir/latent.bin") && e.contains(&format!("peak_share {share}")),
+                "{e}"
+            );
+        }
+
+        let mut bytes = good.to_bytes();
+        let at = encoder_flag_offset(&good, &bytes);
+        bytes[at] = 2;
+        fix_checksum(&mut bytes);
+        let e = LatentFile::from_bytes(&bytes, path)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("unknown encoder flag 2"), "{e}");
     }
 
     #[test]

@@ -751,12 +751,12 @@ fn fix_checksum(bytes: &mut Vec<u8>) {
     }
 }
 
-/// The bytes of a small valid file ([`LatentFile::synthetic`] with one hidden layer of 5) and where
-/// its f_ref table starts and ends in them.
+/// The bytes of a small valid file ([`LatentFile::synthetic`] with one hidden layer of 5 and
+/// [`LatentFile::with_synthetic_encoder`]) and where its f_ref table starts and ends in them.
 fn latent_file() -> &'static (Vec<u8>, std::ops::Range<usize>) {
     static FILE: OnceLock<(Vec<u8>, std::ops::Range<usize>)> = OnceLock::new();
     FILE.get_or_init(|| {
-        let file = LatentFile::synthetic(&[5], WeightType::F32);
+        let file = LatentFile::synthetic(&[5], WeightType::F32).with_synthetic_encoder();
         let bytes = file.to_bytes();
         // After f_ref: the codes (count, then name length, name, values each), the training
         // names (count, then length and name each) and the checksum.
@@ -775,6 +775,9 @@ fn check_latent(bytes: &[u8]) -> Result<(), TestCaseError> {
                 let net = file.decode(&latent.z);
                 let y = net.forward(&vec![0.1; file.target_widths[0]]);
                 prop_assert_eq!(y.len(), *file.target_widths.last().expect("widths"));
+            }
+            if let Some(encoder) = &file.encoder {
+                prop_assert_eq!(encoder.encode(&[[0.1; 9]]).len(), file.latent_dim);
             }
         }
         Err(e) => check_file_error(&e, &["latent.bin"])?,
@@ -813,6 +816,7 @@ fn latent_seed_loads() {
     let file = LatentFile::from_bytes(&latent_file().0, Path::new("props/latent.bin"))
         .expect("valid latent file");
     assert_eq!(file.latent_names(), ["gold", "blue-acrylic"]);
+    assert!(file.encoder.is_some(), "the seed carries an encoder");
     let (bytes, f_ref) = latent_file();
     let dims: Vec<u8> = [90u32, 90, 180]
         .iter()
