@@ -27,12 +27,45 @@ pub enum RecForm {
     Code,
 }
 
+/// How the learning rate changes over a run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LrSchedule {
+    /// `learning_rate` throughout.
+    Constant,
+    /// From `learning_rate` down to `learning_rate × final_lr_fraction` along a half cosine
+    /// over all the run's steps.
+    Cosine,
+}
+
+/// Where L_fre takes its spherical-harmonic coefficients.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FreForm {
+    /// The talk's Eq. 3: the model and the table evaluated on a fixed grid of difference
+    /// directions (θd, φd) at each of `theta_h_slices` (φh = 0), cos θi-weighted, zero
+    /// outside the rendered domain ([`crate::loss::SlicedFre`]).
+    Slices,
+    /// The released code's: the step's own samples splatted onto the grid by their
+    /// difference directions, all θh together ([`crate::loss::FreOperator`]).
+    Splat,
+}
+
 /// Settings of the frequency-rectified loss L_fre.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FreConfig {
-    /// Weight η of L_fre in the total loss (FreNBRDF only).
+    /// Where the coefficients come from.
+    pub form: FreForm,
+    /// θh of the slices (degrees) of the `slices` form.
+    pub theta_h_slices: Vec<f32>,
+    /// Weight η of L_fre in the total loss (FreNBRDF only). When `eta_share` is set, a new
+    /// run replaces it before its first step (and records the value in its configuration).
     pub eta: f32,
+    /// If set, η is chosen at the start of a run so that η·L_fre is this share of the L_rec
+    /// data term, both measured with the initial model on the validation materials (the
+    /// training ones when there are none).
+    pub eta_share: Option<f32>,
     /// Maximum SH degree L.
     pub lmax: usize,
     /// Neighbours per grid point in the splat.
@@ -46,7 +79,10 @@ pub struct FreConfig {
 impl Default for FreConfig {
     fn default() -> Self {
         FreConfig {
+            form: FreForm::Slices,
+            theta_h_slices: vec![0.0, 1.0, 3.0, 6.0, 12.0, 22.0, 35.0, 50.0, 70.0],
             eta: 0.1,
+            eta_share: Some(0.25),
             lmax: 49,
             neighbours: 2,
             splat_sigma: 0.05,
@@ -97,7 +133,10 @@ pub struct TrainConfig {
     pub mapping: MappingForm,
     /// ε of the mapping.
     pub epsilon: f32,
-    /// Samples drawn per material per step (a fresh uniform subset each step; the authors
+    /// Share of each step's points (and so of the encoder's) whose θh is drawn with MERL's
+    /// spacing θh = u²·π/2 instead of uniformly ([`crate::dataset::draw_angles`]).
+    pub peak_share: f32,
+    /// Samples drawn per material per step (a fresh subset each step; the authors
     /// draw 1,458,000 per material once, which a CPU cannot afford per step). They feed the
     /// loss; the first `encoder_samples` of them also feed the set encoder.
     pub samples_per_step: usize,
@@ -108,8 +147,12 @@ pub struct TrainConfig {
     pub materials_per_step: usize,
     /// Passes over the training materials.
     pub epochs: usize,
-    /// Adam learning rate.
+    /// Adam learning rate (at the start of the run).
     pub learning_rate: f64,
+    /// How the learning rate changes over the run.
+    pub lr_schedule: LrSchedule,
+    /// The cosine schedule's last learning rate, as a fraction of `learning_rate`.
+    pub final_lr_fraction: f64,
     /// Form of L_rec. Default: the code's; with the talk's form the summed penalties dwarf
     /// the data term and the reconstruction does not improve (docs/training.md).
     pub rec_form: RecForm,
@@ -135,13 +178,16 @@ impl Default for TrainConfig {
             model: ModelKind::Frenbrdf,
             seed: 1,
             split: [0.7, 0.1, 0.2],
-            mapping: MappingForm::Talk,
+            mapping: MappingForm::Code,
             epsilon: 0.002,
+            peak_share: 0.5,
             samples_per_step: 16_384,
             encoder_samples: 4_096,
             materials_per_step: 1,
             epochs: 100,
             learning_rate: 5e-4,
+            lr_schedule: LrSchedule::Cosine,
+            final_lr_fraction: 0.05,
             rec_form: RecForm::Code,
             lambda_weights: 0.1,
             lambda_latent: 0.1,
@@ -162,6 +208,18 @@ impl TrainConfig {
             .map_err(|e| Error::invalid_file(path, format!("bad config: {e}")))?;
         config.check().map_err(|e| Error::invalid_file(path, e))?;
         Ok(config)
+    }
+
+    /// The learning rate of optimiser step `step` (0-based) of a run of `total_steps`.
+    pub fn learning_rate_at(&self, step: u64, total_steps: u64) -> f64 {
+        match self.lr_schedule {
+            LrSchedule::Constant => self.learning_rate,
+            LrSchedule::Cosine => {
+                let t = (step as f64 / total_steps.max(1) as f64).min(1.0);
+                let end = self.learning_rate * self.final_lr_fraction;
+                end + (self.learning_rate - end) * 0.5 * (1.0 + (std::f64::consts::PI * t).cos())
+            }
+        }
     }
 
     /// Whether L_fre is part of the loss.
@@ -197,6 +255,15 @@ impl TrainConfig {
                 "materials_per_step, epochs and validation_samples must be positive".to_string(),
             );
         }
+        if !(0.0..=1.0).contains(&self.peak_share) {
+            return Err(format!("peak_share {} must lie in [0, 1]", self.peak_share));
+        }
+        if !(0.0..=1.0).contains(&self.final_lr_fraction) {
+            return Err(format!(
+                "final_lr_fraction {} must lie in [0, 1]",
+                self.final_lr_fraction
+            ));
+        }
         if !(self.learning_rate > 0.0 && self.learning_rate.is_finite()) {
             return Err(format!(
                 "learning_rate {} must be positive",
@@ -216,6 +283,15 @@ impl TrainConfig {
         {
             return Err("net: widths must be positive, target widths from 6 to 3".to_string());
         }
+        if self.fre.form == FreForm::Slices
+            && (self.fre.theta_h_slices.is_empty()
+                || self.fre.theta_h_slices.iter().any(|t| !(0.0..90.0).contains(t)))
+        {
+            return Err("fre: theta_h_slices must be angles in [0, 90) degrees".to_string());
+        }
+        if self.fre.eta_share.is_some_and(|s| !(s > 0.0 && s.is_finite())) {
+            return Err("fre: eta_share must be positive".to_string());
+        }
         if self.fre.neighbours == 0
             || self.fre.lmax == 0
             || self.fre.splat_sigma <= 0.0
@@ -226,5 +302,32 @@ impl TrainConfig {
             );
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cosine_schedule_runs_from_the_rate_to_its_fraction() {
+        let c = TrainConfig {
+            learning_rate: 1e-3,
+            final_lr_fraction: 0.1,
+            ..TrainConfig::default()
+        };
+        assert_eq!(c.learning_rate_at(0, 100), 1e-3);
+        assert!((c.learning_rate_at(50, 100) - 0.55e-3).abs() < 1e-12);
+        assert!((c.learning_rate_at(100, 100) - 1e-4).abs() < 1e-12);
+        let constant = TrainConfig {
+            lr_schedule: LrSchedule::Constant,
+            ..c.clone()
+        };
+        assert_eq!(constant.learning_rate_at(70, 100), 1e-3);
+        let bad = TrainConfig {
+            peak_share: 1.5,
+            ..c
+        };
+        assert!(bad.check().unwrap_err().contains("peak_share"));
     }
 }

@@ -8,18 +8,22 @@
 //!   fractions (at least one training material); recorded in the run as `split.json`.
 //! - f_ref: the per-bin, per-channel median of the training split's tables, unmeasured
 //!   entries left out (Nielsen et al. 2015).
-//! - Samples: θh, θd uniform in [0, π/2], φd uniform in [0, 2π); f and f_ref by trilinear
-//!   look-up between bin centres (unmeasured corners left out); samples where either is
-//!   unmeasured are dropped and redrawn. Network input: the 6D (sin θh, 0, cos θh, d) of
-//!   [`renderer::brdf_coords::network_input_from_angles`]; value y = mapping(f, f_ref) per
-//!   channel; weight cos θi = clamp(wi · n, 0, 1) with wi from (θh, φh = 0, θd, φd).
+//! - Samples: θd uniform in [0, π/2], φd uniform in [0, 2π), θh uniform in [0, π/2] or, for
+//!   a share `peak_share` of the points, with MERL's own spacing θh = u²·π/2 (u uniform),
+//!   which puts ten times more points within 1° of the specular peak
+//!   ([`draw_angles`]). Only the rendered domain is kept: configurations with wi or wo at
+//!   or below the horizon are redrawn, and the network input is the renderer's, φd folded
+//!   into [0, π) ([`renderer::brdf_coords::rendered_point`]). f and f_ref by trilinear look-up
+//!   between bin centres at the folded angles (unmeasured corners left out); samples where
+//!   either is unmeasured are redrawn. Value y = mapping(f, f_ref) per channel; weight
+//!   cos θi = wi · n of the drawn (unfolded) configuration.
 
 use crate::error::{Error, Result};
 use burn::data::dataset::Dataset;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
-use renderer::brdf_coords::{directions_from_angles, network_input_from_angles, HalfDiffAngles};
+use renderer::brdf_coords::{rendered_point, RenderedPoint};
 use renderer::latent_file::MappingForm;
 use renderer::merl::{lookup_trilinear_measured, MerlTable, BIN_COUNT, SCALE};
 use serde::{Deserialize, Serialize};
@@ -284,14 +288,25 @@ pub struct Sampler {
     pub mapping: MappingForm,
     /// ε of the mapping.
     pub epsilon: f32,
+    /// Share of the points whose θh is drawn with MERL's spacing (see [`draw_angles`]).
+    pub peak_share: f32,
 }
 
 /// Attempts per requested sample before giving up on a (mostly unmeasured) table.
 const MAX_ATTEMPTS_PER_SAMPLE: usize = 64;
 
 impl Sampler {
-    /// The sample at (θh, θd, φd) with measured value `f` (1/sr); `None` where f_ref is
-    /// unmeasured.
+    /// The sample of a rendered point with measured value `f` (1/sr): (network input,
+    /// mapped value, cos θi); `None` where f_ref is unmeasured.
+    pub fn sample_of(&self, point: &RenderedPoint, f: [f32; 3]) -> Option<([f32; 6], [f32; 3], f32)> {
+        let [theta_h, theta_d, phi_d] = point.angles;
+        let r = self.reference.lookup(theta_h, theta_d, phi_d)?;
+        let y = [0, 1, 2].map(|c| self.mapping.forward(f[c].max(0.0), r[c].max(0.0), self.epsilon));
+        Some((point.input, y, point.cos_i))
+    }
+
+    /// The sample at (θh, θd, φd) (radians, φh = 0) with measured value `f` (1/sr); `None`
+    /// outside the rendered domain or where f_ref is unmeasured.
     pub fn sample_at(
         &self,
         theta_h: f32,
@@ -299,42 +314,42 @@ impl Sampler {
         phi_d: f32,
         f: [f32; 3],
     ) -> Option<([f32; 6], [f32; 3], f32)> {
-        let r = self.reference.lookup(theta_h, theta_d, phi_d)?;
-        let y = [0, 1, 2].map(|c| {
-            self.mapping
-                .forward(f[c].max(0.0), r[c].max(0.0), self.epsilon)
-        });
-        let (wi, _) = directions_from_angles(&HalfDiffAngles {
-            theta_h,
-            phi_h: 0.0,
-            theta_d,
-            phi_d,
-        });
-        Some((
-            network_input_from_angles(theta_h, theta_d, phi_d),
-            y,
-            wi.z.clamp(0.0, 1.0),
-        ))
+        self.sample_of(&rendered_point(theta_h, theta_d, phi_d)?, f)
     }
 
-    /// `n` uniform samples of `table` (see the module documentation). Errors when the table
-    /// is (almost) entirely unmeasured.
+    /// `n` samples of `table` (see the module documentation). Errors when the table is
+    /// (almost) entirely unmeasured.
     pub fn draw(&self, table: &MaterialTable, n: usize, rng: &mut impl Rng) -> Result<SampleSet> {
-        draw_uniform(table, n, rng, |theta_h, theta_d, phi_d, f| self.sample_at(theta_h, theta_d, phi_d, f))
+        draw_points(table, n, self.peak_share, rng, |point, f| self.sample_of(point, f))
     }
 }
 
-/// `n` samples of `table` at uniform (θh, θd ∈ [0, π/2], φd ∈ [0, 2π)) with f looked up
-/// trilinearly (points with no measured corner skipped); `to_sample(θh, θd, φd, f)` turns a
-/// point into (network input, value, cos θi) or rejects it. Errors when the table is (almost)
-/// entirely unmeasured.
-pub fn draw_uniform(
+/// (θh, θd, φd) of one point: θd uniform in [0, π/2], φd uniform in [0, 2π), θh with MERL's
+/// spacing θh = u²·π/2 with probability `peak_share` and uniform in [0, π/2] otherwise.
+/// Uniform θh puts 1.1 % of the points within 1° of the specular peak (θh = 0), MERL's
+/// spacing 10.5 %; mirror-like materials hold almost all their energy there.
+pub fn draw_angles(peak_share: f32, rng: &mut impl Rng) -> [f32; 3] {
+    let peak = rng.random::<f32>() < peak_share;
+    let u = rng.random::<f32>();
+    let theta_h = if peak { u * u } else { u } * FRAC_PI_2;
+    [theta_h, rng.random::<f32>() * FRAC_PI_2, rng.random::<f32>() * TAU]
+}
+
+/// `n` samples of `table` at points of [`draw_angles`] inside the rendered domain
+/// ([`rendered_point`]), with f looked up trilinearly at the folded angles (points with no
+/// measured corner skipped); `to_sample(point, f)` turns a point into (network input, value,
+/// cos θi) or rejects it. Errors when the table is (almost) entirely unmeasured.
+pub fn draw_points(
     table: &MaterialTable,
     n: usize,
+    peak_share: f32,
     rng: &mut impl Rng,
-    mut to_sample: impl FnMut(f32, f32, f32, [f32; 3]) -> Option<([f32; 6], [f32; 3], f32)>,
+    mut to_sample: impl FnMut(&RenderedPoint, [f32; 3]) -> Option<([f32; 6], [f32; 3], f32)>,
 ) -> Result<SampleSet> {
     let mut set = SampleSet::default();
+    set.inputs.reserve(6 * n);
+    set.values.reserve(3 * n);
+    set.cos_i.reserve(n);
     let mut attempts = 0usize;
     while set.len() < n {
         attempts += 1;
@@ -344,13 +359,15 @@ pub fn draw_uniform(
                 table.name
             )));
         }
-        let theta_h = rng.random::<f32>() * FRAC_PI_2;
-        let theta_d = rng.random::<f32>() * FRAC_PI_2;
-        let phi_d = rng.random::<f32>() * TAU;
-        let Some(f) = table.lookup(theta_h, theta_d, phi_d) else {
+        let [theta_h, theta_d, phi_d] = draw_angles(peak_share, rng);
+        let Some(point) = rendered_point(theta_h, theta_d, phi_d) else {
             continue;
         };
-        if let Some((x, y, c)) = to_sample(theta_h, theta_d, phi_d, f) {
+        let [th, td, pd] = point.angles;
+        let Some(f) = table.lookup(th, td, pd) else {
+            continue;
+        };
+        if let Some((x, y, c)) = to_sample(&point, f) {
             set.push(x, y, c);
         }
     }
@@ -403,6 +420,7 @@ mod tests {
             reference,
             mapping: MappingForm::Talk,
             epsilon: 0.002,
+            peak_share: 0.5,
         };
         let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
         let set = sampler.draw(&constant("same", 0.1), 100, &mut rng).unwrap();
@@ -432,5 +450,43 @@ mod tests {
         let m = MaterialTable::median("m", &tables).unwrap();
         assert!((m.values[0][0] - 0.2).abs() < 1e-7);
         assert!((m.values[5][0] - 0.15).abs() < 1e-7);
+    }
+
+    #[test]
+    fn peak_share_puts_points_near_the_specular_peak() {
+        let near = |share: f32| {
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(2);
+            let n = 200_000;
+            let hits = (0..n)
+                .filter(|_| draw_angles(share, &mut rng)[0] < 1f32.to_radians())
+                .count();
+            hits as f64 / n as f64
+        };
+        // Uniform θh: 1/90 of the points within 1°; MERL's spacing: √(1/90) of them.
+        assert!((near(0.0) - 1.0 / 90.0).abs() < 0.002, "{}", near(0.0));
+        assert!((near(1.0) - (1.0f64 / 90.0).sqrt()).abs() < 0.005, "{}", near(1.0));
+        let half = near(0.5);
+        assert!((half - 0.5 * (1.0 / 90.0 + (1.0f64 / 90.0).sqrt())).abs() < 0.005, "{half}");
+    }
+
+    #[test]
+    fn samples_lie_in_the_rendered_domain() {
+        let sampler = Sampler {
+            reference: Arc::new(constant("ref", 0.1)),
+            mapping: MappingForm::Code,
+            epsilon: 0.002,
+            peak_share: 0.5,
+        };
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(4);
+        let set = sampler.draw(&constant("m", 0.2), 5000, &mut rng).unwrap();
+        for (x, &c) in set.inputs.chunks_exact(6).zip(&set.cos_i) {
+            // Folded (dy ≥ 0), wi above the horizon; the renderer's own input.
+            assert!(x[4] >= 0.0 && c > 0.0 && c <= 1.0, "{x:?} {c}");
+            let h = glam::Vec3::new(x[0], x[1], x[2]);
+            assert!((h.length() - 1.0).abs() < 1e-5 && h.z >= 0.0);
+        }
+        // A sample outside the domain (wo below the horizon) is refused.
+        assert!(sampler.sample_at(1.4, 1.4, 0.0, [0.2; 3]).is_none());
+        assert!(sampler.sample_at(0.1, 0.3, 0.5, [0.2; 3]).is_some());
     }
 }

@@ -3,9 +3,12 @@
 //! NBRDF baseline of [`crate::nbrdf_fit`].
 //!
 //! # BRDF space
-//! For each material: z = encoder over [`crate::export::ENCODE_SAMPLES`] samples of its table,
+//! For each material: z = encoder over [`crate::inference::ENCODE_SAMPLES`] samples of its
+//! table, refined as `encode` refines it ([`EvalSettings::encode`]),
 //! then the decoded network is compared with the table at `samples` uniform points (θh, θd,
-//! φd) drawn from a fixed seed (trilinear look-ups, unmeasured points left out):
+//! φd) of the rendered domain ([`renderer::brdf_coords::rendered_point`]: wi and wo above
+//! the horizon, φd folded as the renderer folds it) drawn from a fixed seed (trilinear
+//! look-ups, unmeasured points left out):
 //! - `rmse`: √ mean over points and RGB of ((f' − f) cos θi)², f in 1/sr (f' clamped ≥ 0);
 //! - `rec`: mean |(y' − y) cos θi| in the run's mapped space (the L_rec data term);
 //! - `fre`: L_fre of the mapped, cos-weighted values, with the run's L_fre settings.
@@ -31,17 +34,17 @@
 use crate::config::FreConfig;
 use crate::dataset::{MaterialTable, SampleSet};
 use crate::error::{Error, Result};
-use crate::export::ENCODE_SAMPLES;
-use crate::inference::TrainedRun;
+use crate::inference::{EncodeSettings, TrainedRun};
 use crate::loss::FreOperator;
 use burn::tensor::Device;
 use rand::{Rng, SeedableRng};
-use renderer::brdf_coords::fold_phi_d;
+use renderer::brdf_coords::rendered_point;
+use crate::dataset::draw_angles;
 use renderer::bsdf::frenbrdf::{FrenbrdfBsdf, ReferenceValues};
 use renderer::bsdf::merl::MerlBsdf;
 use renderer::bsdf::nbrdf::NbrdfBsdf;
 use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
-use renderer::bsdf::MeasuredBsdf;
+use renderer::bsdf::{Bxdf, MeasuredBsdf};
 use renderer::camera::PinholeCamera;
 use renderer::image_io::ToneMap;
 use renderer::integrator::PathTracer;
@@ -52,7 +55,8 @@ use renderer::render::{Budget, Renderer};
 use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
 use renderer::Rgb;
-use std::f32::consts::{FRAC_PI_2, TAU};
+use glam::Vec3;
+use renderer::chi2::guided_directional_albedo;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -76,6 +80,26 @@ pub struct Metrics {
     pub fre: f64,
     /// Image metrics against the table's preview (when rendered).
     pub image: Option<ImageError>,
+    /// Directional albedo of the candidate over the table's, per channel, at each of
+    /// [`ALBEDO_THETAS`] (reconstruction rows).
+    pub albedo_ratio: Option<[[f64; 3]; 3]>,
+}
+
+/// Viewing angles θo (degrees from the normal) of the directional albedos compared.
+pub const ALBEDO_THETAS: [f32; 3] = [0.0, 45.0, 75.0];
+
+/// The candidate's directional albedo over the table's at [`ALBEDO_THETAS`], both integrated
+/// over the same directions guided by the table's sampler
+/// ([`renderer::chi2::guided_directional_albedo`]); a table channel with no energy gives
+/// ratio 1 when the candidate has none either.
+pub fn albedo_ratios(candidate: &impl Bxdf, table: &MerlBsdf, samples: usize) -> [[f64; 3]; 3] {
+    ALBEDO_THETAS.map(|deg| {
+        let t = deg.to_radians();
+        let wo = Vec3::new(t.sin(), 0.0, t.cos());
+        let a = guided_directional_albedo(candidate, table, wo, samples).to_array();
+        let b = guided_directional_albedo(table, table, wo, samples).to_array();
+        [0, 1, 2].map(|c| if b[c] > 1e-9 { a[c] / b[c] } else if a[c] > 1e-9 { f64::INFINITY } else { 1.0 })
+    })
 }
 
 /// One evaluated row.
@@ -119,6 +143,10 @@ pub struct EvalSettings {
     pub nbrdf_dir: Option<PathBuf>,
     /// Preview rendering; `None` for BRDF-space metrics only.
     pub images: Option<ImageSettings>,
+    /// How each material is encoded (its seed is offset by the material's position).
+    pub encode: EncodeSettings,
+    /// Directions per directional-albedo estimate.
+    pub albedo_samples: usize,
 }
 
 /// The run's model name as rows and summaries show it (`frenbrdf`, `hyperbrdf`).
@@ -151,31 +179,31 @@ fn compare(
     let mut attempts = 0;
     while set.len() < settings.samples && attempts < 64 * settings.samples {
         attempts += 1;
-        let (th, td, pd) = (
-            rng.random::<f32>() * FRAC_PI_2,
-            rng.random::<f32>() * FRAC_PI_2,
-            rng.random::<f32>() * TAU,
-        );
-        let (Some(f), Some(r)) = (truth(th, td, pd), run.sampler.reference.lookup(th, td, pd))
+        let [th, td, pd] = draw_angles(0.0, &mut rng);
+        let Some(point) = rendered_point(th, td, pd) else {
+            continue;
+        };
+        let [th, td, pd] = point.angles;
+        let (Some(f), Some(r)) = (truth(th, td, pd), run.codec.sampler.reference.lookup(th, td, pd))
         else {
             continue;
         };
-        if let Some((x, y, c)) = run.sampler.sample_at(th, td, pd, f) {
+        if let Some((x, y, c)) = run.codec.sampler.sample_of(&point, f) {
             set.push(x, y, c);
             f_true.push(f);
             f_ref.push(r);
-            angles.push([th, td, pd]);
+            angles.push(point.angles);
         }
     }
     if set.is_empty() {
         return Err(Error::Invalid("no measured points to evaluate".to_string()));
     }
     let n = set.len();
-    let (mapping, epsilon) = (run.sampler.mapping, run.sampler.epsilon);
+    let (mapping, epsilon) = (run.codec.sampler.mapping, run.codec.sampler.epsilon);
     // (y', f') per point and channel.
     let predicted: Vec<(f32, f32)> = match candidate {
         Candidate::Latent(z) => {
-            let y = run.predict(z, &set.inputs);
+            let y = run.codec.predict(z, &set.inputs);
             (0..3 * n)
                 .map(|k| {
                     let r = f_ref[k / 3][k % 3].max(0.0);
@@ -187,7 +215,7 @@ fn compare(
             .iter()
             .zip(&f_ref)
             .flat_map(|(&[th, td, pd], r)| {
-                let f = net.eval_angles(th, td, fold_phi_d(pd));
+                let f = net.eval_angles(th, td, pd);
                 (0..3).map(move |c| (mapping.forward(f[c], r[c].max(0.0), epsilon), f[c]))
             })
             .collect(),
@@ -212,6 +240,7 @@ fn compare(
         rec: abs / (3 * n) as f64,
         fre: fre.loss_cpu(&splat.map, &pred_cos, &true_cos),
         image: None,
+        albedo_ratio: None,
     })
 }
 
@@ -365,7 +394,7 @@ pub fn evaluate(
             "no materials to evaluate (the split is empty)".to_string(),
         ));
     }
-    let device = run.device.clone();
+    let device = run.codec.device.clone();
     let fre_config: FreConfig = run.config.fre.clone();
     let fre = FreOperator::new(&fre_config, &device);
     let model = model_name(run);
@@ -385,24 +414,22 @@ pub fn evaluate(
     for (i, name) in names.iter().enumerate() {
         progress(&format!("encoding {name}"));
         let table = MaterialTable::read(&table_path(name))?;
-        codes.push(run.encode_table(
-            &table,
-            ENCODE_SAMPLES,
-            settings.seed.wrapping_add(i as u64),
-        )?);
+        let encode = EncodeSettings {
+            seed: settings.seed.wrapping_add(i as u64),
+            ..settings.encode.clone()
+        };
+        codes.push(run.codec.encode(&table, &encode)?.z);
         tables.push(table);
     }
+    let file = crate::export::latent_file(run, WeightType::F32);
+    let reference: ReferenceValues = Arc::new(run.codec.sampler.reference.values.clone());
     let mut preview = match &settings.images {
         Some(images) => {
             if let Some(dir) = &images.out_dir {
                 std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
             }
-            let file = crate::export::latent_file(run, WeightType::F32);
-            let reference: ReferenceValues = Arc::new(run.sampler.reference.values.clone());
             Some((
                 PreviewScene::load(images, &table_path(&names[0]), settings.seed)?,
-                file,
-                reference,
                 images.out_dir.clone(),
             ))
         }
@@ -413,10 +440,13 @@ pub fn evaluate(
         progress(&format!("reconstruction {name}"));
         let truth = |a, b, c| table.lookup(a, b, c);
         let mut latent = compare(run, &Candidate::Latent(z), &truth, settings, &fre, &device)?;
-        let mut nbrdf = match &nbrdf_prefixes {
+        let table_bsdf = MerlBsdf::load(table_path(name))?;
+        let neural = neural_bsdf(run, &file, &reference, name, z)?;
+        latent.albedo_ratio = Some(albedo_ratios(&neural, &table_bsdf, settings.albedo_samples));
+        let (mut nbrdf, nbrdf_bsdf) = match &nbrdf_prefixes {
             Some(prefixes) => {
                 let net = NbrdfNetwork::load(&prefixes[i])?;
-                let m = compare(
+                let mut m = compare(
                     run,
                     &Candidate::Nbrdf(&net),
                     &truth,
@@ -424,20 +454,21 @@ pub fn evaluate(
                     &fre,
                     &device,
                 )?;
-                Some((m, &prefixes[i]))
+                let bsdf = NbrdfBsdf::load(prefixes[i].as_path())?;
+                m.albedo_ratio = Some(albedo_ratios(&bsdf, &table_bsdf, settings.albedo_samples));
+                (Some(m), Some(bsdf))
             }
-            None => None,
+            None => (None, None),
         };
-        if let Some((scene, file, reference, dir)) = &mut preview {
+        if let Some((scene, dir)) = &mut preview {
             let dir = dir.as_deref();
-            let table_image = scene.render(MeasuredBsdf::Merl(MerlBsdf::load(table_path(name))?));
+            let table_image = scene.render(MeasuredBsdf::Merl(table_bsdf));
             scene.write_png(dir, &format!("{name}-table.png"), &table_image)?;
-            let neural = neural_bsdf(run, file, reference, name, z)?;
             let image = scene.render(MeasuredBsdf::Neural(neural));
             scene.write_png(dir, &format!("{name}-{model}.png"), &image)?;
             latent.image = Some(scene.error(&image, &table_image));
-            if let Some((m, prefix)) = &mut nbrdf {
-                let image = scene.render(MeasuredBsdf::Nbrdf(NbrdfBsdf::load(prefix.as_path())?));
+            if let (Some(m), Some(bsdf)) = (&mut nbrdf, nbrdf_bsdf) {
+                let image = scene.render(MeasuredBsdf::Nbrdf(bsdf));
                 scene.write_png(dir, &format!("{name}-{NBRDF_MODEL}.png"), &image)?;
                 m.image = Some(scene.error(&image, &table_image));
             }
@@ -448,7 +479,7 @@ pub fn evaluate(
             t: 0.0,
             metrics: latent,
         });
-        if let Some((metrics, _)) = nbrdf {
+        if let Some(metrics) = nbrdf {
             reconstruction.push(Row {
                 model: NBRDF_MODEL.to_string(),
                 name: name.clone(),
@@ -503,8 +534,8 @@ fn neural_bsdf(
         name,
         net,
         reference.clone(),
-        run.sampler.mapping,
-        run.sampler.epsilon,
+        run.codec.sampler.mapping,
+        run.codec.sampler.epsilon,
         &TabulatedSamplerConfig::default(),
     ))
 }
@@ -548,20 +579,58 @@ fn rows_of(rows: &[Row], model: &str) -> Vec<Row> {
     rows.iter().filter(|r| r.model == model).cloned().collect()
 }
 
-/// Rows as CSV (`model,name,t,rmse,rec,fre,psnr,ssim,image_rmse`; the image columns are
-/// empty where no preview was rendered).
+/// Rows as CSV (`model,name,t,rmse,rec,fre,psnr,ssim,image_rmse`, then the albedo ratios
+/// `albedo_DEG_r,albedo_DEG_g,albedo_DEG_b` for each of [`ALBEDO_THETAS`]; the image and albedo
+/// columns are empty where they were not measured).
 pub fn to_csv(rows: &[Row]) -> String {
-    let mut out = String::from("model,name,t,rmse,rec,fre,psnr,ssim,image_rmse\n");
+    let mut out = String::from("model,name,t,rmse,rec,fre,psnr,ssim,image_rmse");
+    for deg in ALBEDO_THETAS {
+        for c in ["r", "g", "b"] {
+            let _ = write!(out, ",albedo_{deg}_{c}");
+        }
+    }
+    out.push('\n');
     for r in rows {
         let m = &r.metrics;
         let image = m.image.map_or(",,".to_string(), |e| {
             format!("{:.4},{:.6},{:.6e}", e.psnr, e.ssim, e.rmse)
         });
+        let albedo = m.albedo_ratio.map_or_else(
+            || vec![String::new(); 3 * ALBEDO_THETAS.len()].join(","),
+            |a| a.iter().flatten().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(","),
+        );
         let _ = writeln!(
             out,
-            "{},{},{},{:.6e},{:.6e},{:.6e},{image}",
+            "{},{},{},{:.6e},{:.6e},{:.6e},{image},{albedo}",
             r.model, r.name, r.t, m.rmse, m.rec, m.fre
         );
+    }
+    out
+}
+
+/// Per-material reconstruction rows of `model` as markdown, worst preview PSNR first (BRDF
+/// RMSE when there are no previews): PSNR, SSIM, RMSE and the albedo ratios per channel.
+pub fn per_material_markdown(reconstruction: &[Row], model: &str) -> String {
+    let mut rows = rows_of(reconstruction, model);
+    let key = |r: &Row| r.metrics.image.map_or(-r.metrics.rmse, |e| e.psnr);
+    rows.sort_by(|a, b| key(a).total_cmp(&key(b)));
+    let mut out = String::from("| material | PSNR (dB) | SSIM | RMSE×10² |");
+    for deg in ALBEDO_THETAS {
+        let _ = write!(out, " albedo ratio θo={deg}° (R G B) |");
+    }
+    out.push_str("\n| --- | --- | --- | --- |");
+    out.push_str(&" --- |".repeat(ALBEDO_THETAS.len()));
+    out.push('\n');
+    for r in &rows {
+        let m = &r.metrics;
+        let (psnr, ssim) = m.image.map_or(("–".to_string(), "–".to_string()), |e| {
+            (format!("{:.2}", e.psnr), format!("{:.4}", e.ssim))
+        });
+        let _ = write!(out, "| {} | {psnr} | {ssim} | {:.3} |", r.name, m.rmse * 1e2);
+        for a in m.albedo_ratio.iter().flatten() {
+            let _ = write!(out, " {:.2} {:.2} {:.2} |", a[0], a[1], a[2]);
+        }
+        out.push('\n');
     }
     out
 }
@@ -599,6 +668,23 @@ pub fn to_markdown(reconstruction: &[Row], editing: &[Row], images: Option<&str>
                 m.fre * 1e3,
             );
         }
+    }
+    for model in &models {
+        let rows = rows_of(reconstruction, model);
+        if rows.is_empty() {
+            continue;
+        }
+        let psnrs: Vec<f64> = rows.iter().filter_map(|r| r.metrics.image.map(|e| e.psnr)).collect();
+        let _ = write!(out, "\n### {model}: per material, worst first\n\n");
+        if let Some(worst) = psnrs.iter().copied().reduce(f64::min) {
+            let _ = writeln!(
+                out,
+                "Preview PSNR mean {:.2} dB, worst {worst:.2} dB over {} materials.\n",
+                psnrs.iter().sum::<f64>() / psnrs.len() as f64,
+                psnrs.len()
+            );
+        }
+        out.push_str(&per_material_markdown(reconstruction, model));
     }
     if let Some(images) = images {
         let _ = writeln!(out, "\n{images}");

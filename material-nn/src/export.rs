@@ -1,21 +1,21 @@
 //! `material-nn export`: a trained run → one self-contained `latent.bin`
-//! ([`renderer::latent_file`]): the hypernetwork's weights, f_ref as f16, the latent codes of
-//! the chosen materials and the names of the training materials.
+//! ([`renderer::latent_file`]): the hypernetwork's weights, the set encoder (so that
+//! `material-nn encode --model latent.bin` needs no run directory), f_ref as f16, the latent
+//! codes of the chosen materials (encoded and refined as `encode` does) and the names of the
+//! training materials.
 
 use crate::dataset::MaterialTable;
 use crate::error::{Error, Result};
-use crate::inference::TrainedRun;
+use crate::inference::{EncodeSettings, TrainedRun};
 use half::f16;
 use rayon::prelude::*;
-use renderer::latent_file::{LatentFile, Mlp, NamedLatent, WeightType};
+use renderer::latent_file::{Encoder, LatentFile, Mlp, NamedLatent, WeightType};
 use std::path::Path;
-
-/// Samples drawn per material to encode it (z is a mean over them).
-pub const ENCODE_SAMPLES: usize = 65_536;
 
 /// The decoder part of a latent file (no latent codes yet).
 pub fn latent_file(run: &TrainedRun, weight_type: WeightType) -> LatentFile {
-    let hypernetwork = run
+    let codec = &run.codec;
+    let hypernetwork = codec
         .model
         .heads
         .iter()
@@ -23,7 +23,7 @@ pub fn latent_file(run: &TrainedRun, weight_type: WeightType) -> LatentFile {
             layers: h.to_dense(),
         })
         .collect();
-    let f_ref = run
+    let f_ref = codec
         .sampler
         .reference
         .values
@@ -46,18 +46,24 @@ pub fn latent_file(run: &TrainedRun, weight_type: WeightType) -> LatentFile {
         epsilon: run.config.epsilon,
         weight_type,
         hypernetwork,
+        encoder: Some(Encoder {
+            layers: codec.model.encoder.to_dense(),
+            peak_share: codec.sampler.peak_share,
+        }),
         f_ref,
         latents: Vec::new(),
         training_materials: run.split.train.clone(),
     }
 }
 
-/// Encodes the tables `names` of `data_dir` (`NAME.binary`) with a fixed seed per material.
+/// Encodes the tables `names` of `data_dir` (`NAME.binary`) as `settings` say, the seed
+/// offset by the material's position; `progress(name)` after each.
 pub fn encode_materials(
     run: &TrainedRun,
     data_dir: &Path,
     names: &[String],
-    seed: u64,
+    settings: &EncodeSettings,
+    progress: &mut dyn FnMut(&str),
 ) -> Result<Vec<NamedLatent>> {
     names
         .iter()
@@ -71,7 +77,12 @@ pub fn encode_materials(
                 ));
             }
             let table = MaterialTable::read(&path)?;
-            let z = run.encode_table(&table, ENCODE_SAMPLES, seed.wrapping_add(i as u64))?;
+            let settings = EncodeSettings {
+                seed: settings.seed.wrapping_add(i as u64),
+                ..settings.clone()
+            };
+            let z = run.codec.encode(&table, &settings)?.z;
+            progress(name);
             Ok(NamedLatent {
                 name: name.clone(),
                 z,
@@ -81,16 +92,50 @@ pub fn encode_materials(
 }
 
 /// Exports a run to `out`: the materials `names` (default: every material of the run's data
-/// directory) encoded from `data_dir`.
+/// directory) encoded from `data_dir` with `settings`.
 pub fn export(
     run: &TrainedRun,
     data_dir: &Path,
     names: &[String],
     weight_type: WeightType,
+    settings: &EncodeSettings,
     out: &Path,
+    progress: &mut dyn FnMut(&str),
 ) -> Result<LatentFile> {
     let mut file = latent_file(run, weight_type);
-    file.latents = encode_materials(run, data_dir, names, run.config.seed)?;
+    file.latents = encode_materials(run, data_dir, names, settings, progress)?;
     file.write(out)?;
     Ok(file)
+}
+
+/// Checks that `library` holds the decoder of `model` (same networks, mapping and f_ref up to
+/// the f16 rounding either may be stored with): a latent code means something only with the
+/// decoder it was encoded for. The error names `path` (the library).
+pub fn check_same_decoder(library: &LatentFile, model: &LatentFile, path: &Path) -> Result<()> {
+    let close = |a: &[f32], b: &[f32]| {
+        a.len() == b.len()
+            && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-3 * x.abs().max(y.abs()) + 1e-7)
+    };
+    let same = library.latent_dim == model.latent_dim
+        && library.target_widths == model.target_widths
+        && library.hyper_hidden == model.hyper_hidden
+        && library.mapping == model.mapping
+        && library.epsilon == model.epsilon
+        && library.hypernetwork.len() == model.hypernetwork.len()
+        && library.hypernetwork.iter().zip(&model.hypernetwork).all(|(a, b)| {
+            a.layers.len() == b.layers.len()
+                && a.layers.iter().zip(&b.layers).all(|(p, q)| {
+                    close(&p.weight, &q.weight) && close(&p.bias, &q.bias)
+                })
+        })
+        && library.f_ref == model.f_ref;
+    if same {
+        Ok(())
+    } else {
+        Err(Error::invalid_file(
+            path,
+            "holds another model's decoder; a code is only valid with the decoder it was \
+             encoded for (use a new --add-to file)",
+        ))
+    }
 }

@@ -1,32 +1,295 @@
-//! Using a trained run: load its model, encode materials (full tables or sparse sample sets)
-//! into latent codes, and decode latent codes.
+//! Using a trained model: encode materials (full tables or sparse sample sets) into latent
+//! codes, refine those codes, and decode them.
+//!
+//! A [`Codec`] holds what encoding needs — the HyperBRDF network (set encoder and
+//! hypernetwork) and the sampler of its training (f_ref, mapping, ε, θh distribution) — and
+//! comes from a run directory ([`TrainedRun`]) or from a `latent.bin` that carries the set
+//! encoder ([`Codec::from_latent_file`]).
+//!
+//! Encoding a material is two steps:
+//! 1. the amortised encoder: z = mean over the samples of the set encoder (one pass);
+//! 2. refinement ([`Codec::refine`]): z alone is optimised with Adam (decoder frozen) on the
+//!    training objective L_rec (data term + λ1 generated-weight and λ2 latent penalties, the
+//!    run's form) over a fixed sample set of the material, projected onto z ≥ 0 after every
+//!    step (the encoder's ReLU output never leaves that orthant, so refined codes stay in
+//!    the latent space that editing interpolates). It brings a material the encoder has
+//!    never seen to the decoder's best fit.
 
 use crate::checkpoint::Checkpoint;
-use crate::config::TrainConfig;
+use crate::config::{RecForm, TrainConfig};
 use crate::dataset::{MaterialTable, SampleSet, Sampler};
 use crate::error::{Error, Result};
-use crate::model::{to_vec, HyperBrdf};
-use crate::training::{load_model, read_json, RunDir, RunInfo};
+use crate::loss::reconstruction_loss;
+use crate::model::{to_vec, HyperBrdf, Mlp};
+use crate::training::{load_model, optimizer, read_json, training_device, RunDir, RunInfo};
+use burn::module::{Module, Param};
+use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use rand::SeedableRng;
+use renderer::latent_file::LatentFile;
 use std::path::Path;
 use std::sync::Arc;
 
-/// A trained run, ready for inference on the CPU (no autodiff).
+/// Samples drawn per material to encode it (z is a mean over them).
+pub const ENCODE_SAMPLES: usize = 65_536;
+
+/// How a material is encoded.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodeSettings {
+    /// Samples drawn from a table for the amortised encoder.
+    pub samples: usize,
+    /// Seed of the drawn samples.
+    pub seed: u64,
+    /// Refinement of the encoder's z.
+    pub refine: RefineSettings,
+}
+
+impl Default for EncodeSettings {
+    fn default() -> Self {
+        EncodeSettings {
+            samples: ENCODE_SAMPLES,
+            seed: 1,
+            refine: RefineSettings::default(),
+        }
+    }
+}
+
+/// Settings of the latent refinement ([`Codec::refine`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RefineSettings {
+    /// Adam steps (0: the encoder's z as it is).
+    pub steps: usize,
+    /// Samples of the material the objective is evaluated on (a fixed set; the first ones of
+    /// the encoder's set, or all of a sparse set).
+    pub samples: usize,
+    /// Adam learning rate, decayed along a half cosine to 5 % over the steps.
+    pub learning_rate: f64,
+}
+
+impl Default for RefineSettings {
+    fn default() -> Self {
+        RefineSettings {
+            steps: 100,
+            samples: 16_384,
+            learning_rate: 3e-2,
+        }
+    }
+}
+
+/// A latent code being refined: the one trainable tensor, z [1, latent_dim].
+#[derive(Module, Debug)]
+struct LatentCode {
+    z: Param<Tensor<2>>,
+}
+
+/// A trained HyperBRDF model ready to encode and decode (see the module documentation).
+#[derive(Debug)]
+pub struct Codec {
+    /// The network on the training device, every parameter frozen (refinement backpropagates
+    /// through it to z).
+    frozen: HyperBrdf,
+    /// The same network for inference (no autodiff).
+    pub model: HyperBrdf,
+    /// Sampler with the model's f_ref, mapping and θh distribution.
+    pub sampler: Sampler,
+    /// Form of L_rec the model was trained with.
+    pub rec_form: RecForm,
+    /// λ1 (generated weights) and λ2 (latent) of L_rec.
+    pub lambdas: (f32, f32),
+    /// Device of `model`.
+    pub device: Device,
+}
+
+/// A refined code and its objective before and after.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Refined {
+    /// The refined z.
+    pub z: Vec<f32>,
+    /// L_rec (data term) of the encoder's z on the refinement set.
+    pub initial_loss: f64,
+    /// L_rec (data term) of the refined z on the same set.
+    pub final_loss: f64,
+}
+
+impl Codec {
+    fn new(frozen: HyperBrdf, sampler: Sampler, rec_form: RecForm, lambdas: (f32, f32)) -> Self {
+        let frozen = frozen.freeze();
+        let model = frozen.valid();
+        let device = Device::flex();
+        Codec {
+            frozen,
+            model,
+            sampler,
+            rec_form,
+            lambdas,
+            device,
+        }
+    }
+
+    /// The codec of a latent file that carries its set encoder (format version 2, written by
+    /// `material-nn export`); f_ref is the file's (f16). Errors name the file when it has no
+    /// encoder.
+    pub fn from_latent_file(file: &LatentFile, path: &Path) -> Result<Self> {
+        let Some(encoder) = &file.encoder else {
+            return Err(Error::invalid_file(
+                path,
+                "this latent file has no set encoder (format version 1, or exported without \
+                 it); re-export the model with `material-nn export`, or encode with --run",
+            ));
+        };
+        let device = training_device();
+        let model = HyperBrdf {
+            encoder: Mlp::from_dense(&encoder.layers, &device),
+            heads: file
+                .hypernetwork
+                .iter()
+                .map(|h| Mlp::from_dense(&h.layers, &device))
+                .collect(),
+        };
+        let values = (0..renderer::merl::BIN_COUNT).map(|i| file.f_ref(i)).collect();
+        let sampler = Sampler {
+            reference: Arc::new(MaterialTable {
+                name: "reference".to_string(),
+                values,
+            }),
+            mapping: file.mapping,
+            epsilon: file.epsilon,
+            peak_share: encoder.peak_share,
+        };
+        // Training's L_rec settings (the file does not record them; these are the defaults).
+        let t = TrainConfig::default();
+        Ok(Self::new(model, sampler, t.rec_form, (t.lambda_weights, t.lambda_latent)))
+    }
+
+    /// Size of z.
+    pub fn latent_dim(&self) -> usize {
+        self.model.encoder.output_width()
+    }
+
+    /// z (latent_dim values) of a sample set: the set encoder's mean over all its samples.
+    pub fn encode_samples(&self, set: &SampleSet) -> Result<Vec<f32>> {
+        if set.is_empty() {
+            return Err(Error::Invalid(
+                "cannot encode an empty sample set".to_string(),
+            ));
+        }
+        let n = set.len();
+        let x = Tensor::from_data(
+            TensorData::new(set.encoder_input(n), [1, n, 9]),
+            &self.device,
+        );
+        Ok(to_vec(self.model.encode(x)))
+    }
+
+    /// `samples` samples of a table drawn with `seed`, as the model was trained on them.
+    pub fn draw(&self, table: &MaterialTable, samples: usize, seed: u64) -> Result<SampleSet> {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        self.sampler.draw(table, samples, &mut rng)
+    }
+
+    /// z of a table from `samples` samples drawn with `seed` (the amortised encoder only).
+    pub fn encode_table(
+        &self,
+        table: &MaterialTable,
+        samples: usize,
+        seed: u64,
+    ) -> Result<Vec<f32>> {
+        self.encode_samples(&self.draw(table, samples, seed)?)
+    }
+
+    /// Encodes a sample set and refines the code on its first `settings.refine.samples`
+    /// samples (see the module documentation).
+    pub fn encode_and_refine(&self, set: &SampleSet, settings: &RefineSettings) -> Result<Refined> {
+        let z = self.encode_samples(set)?;
+        self.refine(&z, set, settings, &mut |_, _| {})
+    }
+
+    /// Encodes a table as `settings` say: the amortised encoder on `settings.samples` samples,
+    /// then refinement.
+    pub fn encode(&self, table: &MaterialTable, settings: &EncodeSettings) -> Result<Refined> {
+        let set = self.draw(table, settings.samples, settings.seed)?;
+        self.encode_and_refine(&set, &settings.refine)
+    }
+
+    /// Refines `z` on the first `settings.samples` samples of `set` (see the module
+    /// documentation); `progress(step, loss)` is called after every step.
+    pub fn refine(
+        &self,
+        z: &[f32],
+        set: &SampleSet,
+        settings: &RefineSettings,
+        progress: &mut dyn FnMut(usize, f64),
+    ) -> Result<Refined> {
+        if z.len() != self.latent_dim() {
+            return Err(Error::Invalid(format!(
+                "latent code of size {}, the model's is {}",
+                z.len(),
+                self.latent_dim()
+            )));
+        }
+        if set.is_empty() {
+            return Err(Error::Invalid("cannot refine on an empty sample set".to_string()));
+        }
+        let device = training_device();
+        let n = set.len().min(settings.samples.max(1));
+        let tensor3 = |v: Vec<f32>, w: usize| Tensor::<3>::from_data(TensorData::new(v, [1, n, w]), &device);
+        let x = tensor3(set.inputs[..6 * n].to_vec(), 6);
+        let y = tensor3(set.values[..3 * n].to_vec(), 3);
+        let cos = tensor3(set.cos_i[..n].to_vec(), 1);
+        let (lambda_w, lambda_z) = self.lambdas;
+        let objective = |code: &LatentCode| {
+            let z = code.z.val();
+            let params = self.frozen.decode(z.clone());
+            let pred = self.frozen.target_forward(&params, x.clone());
+            reconstruction_loss(self.rec_form, pred, y.clone(), cos.clone(), &params, z, lambda_w, lambda_z)
+        };
+        let mut code = LatentCode {
+            z: Param::from_tensor(Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &device)),
+        };
+        let initial_loss = objective(&code).1.into_scalar::<f32>() as f64;
+        let mut optim = optimizer();
+        for step in 0..settings.steps {
+            let t = step as f64 / settings.steps as f64;
+            let lr = settings.learning_rate * (0.05 + 0.95 * 0.5 * (1.0 + (std::f64::consts::PI * t).cos()));
+            let (total, data) = objective(&code);
+            let grads = GradientsParams::from_grads(total.backward(), &code);
+            code = optim.step(lr, code, grads);
+            code.z = code.z.map(|z| z.clamp_min(0.0).detach().require_grad());
+            progress(step + 1, data.into_scalar::<f32>() as f64);
+        }
+        let final_loss = objective(&code).1.into_scalar::<f32>() as f64;
+        let z = to_vec(code.z.val());
+        if z.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Invalid("latent refinement diverged (non-finite code)".to_string()));
+        }
+        Ok(Refined {
+            z,
+            initial_loss,
+            final_loss,
+        })
+    }
+
+    /// The mapped predictions y [n, 3] of latent `z` at network inputs [n, 6].
+    pub fn predict(&self, z: &[f32], inputs: &[f32]) -> Vec<f32> {
+        let n = inputs.len() / 6;
+        let zt = Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &self.device);
+        let params = self.model.decode(zt);
+        let x = Tensor::from_data(TensorData::new(inputs.to_vec(), [1, n, 6]), &self.device);
+        to_vec(self.model.target_forward(&params, x))
+    }
+}
+
+/// A trained run: its codec (the best epoch's model) and what it was trained on.
 #[derive(Debug)]
 pub struct TrainedRun {
     /// The run's configuration.
     pub config: TrainConfig,
     /// The model of the best epoch (or of the latest checkpoint when there is no best yet).
-    pub model: HyperBrdf,
-    /// Sampler with the run's f_ref and mapping.
-    pub sampler: Sampler,
+    pub codec: Codec,
     /// What the run was trained on.
     pub info: RunInfo,
     /// The run's split of the materials.
     pub split: crate::dataset::Split,
-    /// Device of the model.
-    pub device: Device,
 }
 
 impl TrainedRun {
@@ -45,59 +308,29 @@ impl TrainedRun {
             ));
         }
         let ckpt = Checkpoint::read(&path)?;
-        let device = Device::flex();
-        let model = load_model(&ckpt.config, &ckpt.model, &device, &path)?;
+        let model = load_model(&ckpt.config, &ckpt.model, &training_device(), &path)?;
         let reference = MaterialTable::read(&run.reference())?;
         let info: RunInfo = read_json(&run.info())?;
         let split: crate::dataset::Split = read_json(&run.split())?;
-        Ok(TrainedRun {
-            sampler: Sampler {
-                reference: Arc::new(reference),
-                mapping: ckpt.config.mapping,
-                epsilon: ckpt.config.epsilon,
-            },
-            config: ckpt.config,
+        let config = ckpt.config;
+        let sampler = Sampler {
+            reference: Arc::new(reference),
+            mapping: config.mapping,
+            epsilon: config.epsilon,
+            peak_share: config.peak_share,
+        };
+        let codec = Codec::new(
             model,
+            sampler,
+            config.rec_form,
+            (config.lambda_weights, config.lambda_latent),
+        );
+        Ok(TrainedRun {
+            config,
+            codec,
             info,
             split,
-            device,
         })
-    }
-
-    /// z (latent_dim values) of a sample set: the set encoder's mean over all its samples.
-    pub fn encode_samples(&self, set: &SampleSet) -> Result<Vec<f32>> {
-        if set.is_empty() {
-            return Err(Error::Invalid(
-                "cannot encode an empty sample set".to_string(),
-            ));
-        }
-        let n = set.len();
-        let x = Tensor::from_data(
-            TensorData::new(set.encoder_input(n), [1, n, 9]),
-            &self.device,
-        );
-        Ok(to_vec(self.model.encode(x)))
-    }
-
-    /// z of a table from `samples` uniform samples drawn with `seed`.
-    pub fn encode_table(
-        &self,
-        table: &MaterialTable,
-        samples: usize,
-        seed: u64,
-    ) -> Result<Vec<f32>> {
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-        let set = self.sampler.draw(table, samples, &mut rng)?;
-        self.encode_samples(&set)
-    }
-
-    /// The mapped predictions y [n, 3] of latent `z` at network inputs [n, 6].
-    pub fn predict(&self, z: &[f32], inputs: &[f32]) -> Vec<f32> {
-        let n = inputs.len() / 6;
-        let zt = Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &self.device);
-        let params = self.model.decode(zt);
-        let x = Tensor::from_data(TensorData::new(inputs.to_vec(), [1, n, 6]), &self.device);
-        to_vec(self.model.target_forward(&params, x))
     }
 }
 
@@ -139,4 +372,71 @@ pub fn read_sample_csv(path: &Path, sampler: &Sampler) -> Result<SampleSet> {
         return Err(Error::invalid_file(path, "no usable samples"));
     }
     Ok(set)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::ModelConfig;
+    use renderer::analytic::AnalyticBrdf;
+    use renderer::merl::{MerlTable, BIN_COUNT};
+    use renderer::Rgb;
+
+    fn small_codec() -> Codec {
+        let config = ModelConfig {
+            latent_dim: 8,
+            encoder_hidden: vec![32],
+            hyper_hidden: vec![32],
+            target_widths: vec![6, 16, 3],
+            // A decoder whose output depends strongly on z, as a trained one does.
+            hyper_last_init_scale: 1.0,
+        };
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let model = HyperBrdf::init(&config, &mut rng, &training_device());
+        let sampler = Sampler {
+            reference: Arc::new(MaterialTable {
+                name: "reference".to_string(),
+                values: vec![[0.1; 3]; BIN_COUNT],
+            }),
+            mapping: renderer::latent_file::MappingForm::Code,
+            epsilon: 0.002,
+            peak_share: 0.5,
+        };
+        Codec::new(model, sampler, RecForm::Code, (0.1, 0.1))
+    }
+
+    #[test]
+    fn refinement_lowers_the_fit_error_and_stays_in_the_latent_orthant() {
+        let codec = small_codec();
+        let brdf = AnalyticBrdf::LambertGgx {
+            albedo: Rgb::new(0.5, 0.2, 0.1),
+            specular: Rgb::splat(0.5),
+            alpha: 0.1,
+        };
+        let table = MaterialTable::from_merl("ggx", &MerlTable::from_fn(|h, d, p| brdf.eval_angles(h, d, p)));
+        let set = codec.draw(&table, 2048, 1).unwrap();
+        let z = codec.encode_samples(&set).unwrap();
+        assert!(z.iter().all(|v| *v >= 0.0), "ReLU encoder: {z:?}");
+        let settings = RefineSettings {
+            steps: 40,
+            samples: 2048,
+            learning_rate: 0.1,
+        };
+        let mut losses = Vec::new();
+        let refined = codec.refine(&z, &set, &settings, &mut |_, l| losses.push(l)).unwrap();
+        assert_eq!(losses.len(), 40);
+        assert!(
+            refined.final_loss < 0.8 * refined.initial_loss,
+            "{} -> {}",
+            refined.initial_loss,
+            refined.final_loss
+        );
+        assert!(refined.z.iter().all(|v| *v >= 0.0), "{:?}", refined.z);
+        assert_ne!(refined.z, z);
+        let none = RefineSettings { steps: 0, ..settings };
+        let same = codec.refine(&z, &set, &none, &mut |_, _| {}).unwrap();
+        assert_eq!((same.z, same.final_loss), (z.clone(), same.initial_loss));
+        let e = codec.refine(&z[..3], &set, &none, &mut |_, _| {}).unwrap_err();
+        assert!(e.to_string().contains("size 3"), "{e}");
+    }
 }

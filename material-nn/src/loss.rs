@@ -13,7 +13,15 @@
 //! Steps 2–3 depend only on the coordinates, so they form a fixed linear map of the values,
 //! built once per sample set: a sparse gather (k entries per grid point) followed by a dense
 //! [(L+1)², G] analysis matrix shared by every set (G = grid points on the hemisphere). Both are
-//! burn tensor operations, so L_fre is differentiable in the predicted values.
+//! burn tensor operations, so L_fre is differentiable in the predicted values. This is the
+//! released code's form ([`FreOperator`]); by Parseval it is a re-weighted squared error of
+//! the same points, all θh mixed on one sphere, and at η = 0.1 it is ≈ 0.1 % of the loss.
+//!
+//! The talk's form (Eq. 3, [`SlicedFre`]) takes the coefficients of the function of the
+//! difference direction at fixed half-vector angles θh (φh = α = 0): the model and the table
+//! are evaluated at the same fixed grid points of each slice — no splat, no dependence on the
+//! step's samples — so L_fre compares the two functions' spectra slice by slice, including
+//! the specular slice θh = 0.
 
 use crate::config::{FreConfig, RecForm};
 use crate::error::Result;
@@ -187,6 +195,137 @@ impl FreOperator {
     }
 }
 
+/// The talk's L_fre on fixed θh slices (see the module documentation): for each slice θh and
+/// each upper-hemisphere point d = (θd, φd) of the [`ShGrid`] of degree L, the configuration
+/// (θh, θd, φd) of the rendered domain ([`renderer::brdf_coords::rendered_point`]) with weight
+/// cos θi (0 outside the domain, or where the table or f_ref is unmeasured). Per slice s:
+/// c_s = A (w · y) with A the degree-weighted analysis matrix [(L+1)², G];
+/// L_fre = mean over slices of Σ_RGB mean_lm (c'_s − c_s)².
+#[derive(Clone, Debug)]
+pub struct SlicedFre {
+    /// (θh, θd, φd) of every (slice, grid point), slice-major, with φd unfolded.
+    points: Vec<[f32; 3]>,
+    /// Network inputs of the points, [1, S·G, 6] (zeros outside the domain).
+    inputs: Tensor<3>,
+    /// Degree-weighted analysis matrix [(L+1)², G].
+    analysis: Tensor<2>,
+    slices: usize,
+    grid: usize,
+}
+
+/// What [`SlicedFre`] needs of one material: its weights and its coefficients, fixed.
+#[derive(Clone, Debug)]
+pub struct SliceTarget {
+    /// cos θi where the material is measured inside the domain, else 0: [1, S·G, 1].
+    weights: Tensor<3>,
+    /// The table's weighted coefficients, [(L+1)², S·3] (slice-major columns).
+    coefficients: Tensor<2>,
+}
+
+impl SlicedFre {
+    /// The grid of degree `config.lmax` at `config.theta_h_slices` (degrees), on `device`.
+    pub fn new(config: &FreConfig, device: &Device) -> Self {
+        let grid = ShGrid::new(config.lmax);
+        let upper = grid.upper_hemisphere();
+        let mut analysis = grid.analysis_matrix(&upper);
+        let g = upper.len();
+        for (row, w) in analysis
+            .chunks_mut(g)
+            .zip(degree_weights(config.lmax, config.degree_sigma))
+        {
+            row.iter_mut().for_each(|v| *v *= w);
+        }
+        let c = coefficient_count(config.lmax);
+        let analysis = Tensor::from_data(
+            TensorData::new(analysis.iter().map(|&v| v as f32).collect::<Vec<_>>(), [c, g]),
+            device,
+        );
+        let mut points = Vec::new();
+        let mut inputs = Vec::new();
+        for &deg in &config.theta_h_slices {
+            for &i in &upper {
+                let (theta_d, phi_d) = grid.angles(i);
+                let p = [deg.to_radians(), theta_d as f32, phi_d as f32];
+                let x = renderer::brdf_coords::rendered_point(p[0], p[1], p[2])
+                    .map_or([0.0; 6], |r| r.input);
+                points.push(p);
+                inputs.extend_from_slice(&x);
+            }
+        }
+        let n = points.len();
+        SlicedFre {
+            points,
+            inputs: Tensor::from_data(TensorData::new(inputs, [1, n, 6]), device),
+            analysis,
+            slices: config.theta_h_slices.len(),
+            grid: g,
+        }
+    }
+
+    /// Number of (slice, grid point) configurations the model is evaluated at.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The network inputs for a batch of `b` materials, [b, S·G, 6].
+    pub fn inputs(&self, b: usize) -> Tensor<3> {
+        if b == 1 {
+            self.inputs.clone()
+        } else {
+            self.inputs.clone().repeat_dim(0, b)
+        }
+    }
+
+    /// Weighted coefficients [(L+1)², S·3] of values [S·G, 3] already multiplied by weights.
+    fn coefficients(&self, weighted: Tensor<2>) -> Tensor<2> {
+        let (s, g) = (self.slices, self.grid);
+        let columns = weighted.reshape([s, g, 3]).swap_dims(0, 1).reshape([g, s * 3]);
+        self.analysis.clone().matmul(columns)
+    }
+
+    /// The fixed part of one material: `value(θh, θd, φd)` gives its mapped values y at a
+    /// point of the domain (φd folded), or `None` where it is unmeasured.
+    pub fn target(
+        &self,
+        value: impl Fn(&renderer::brdf_coords::RenderedPoint) -> Option<[f32; 3]>,
+        device: &Device,
+    ) -> SliceTarget {
+        let n = self.points.len();
+        let mut weights = vec![0f32; n];
+        let mut values = vec![0f32; 3 * n];
+        for (i, p) in self.points.iter().enumerate() {
+            let Some(point) = renderer::brdf_coords::rendered_point(p[0], p[1], p[2]) else {
+                continue;
+            };
+            if let Some(y) = value(&point) {
+                weights[i] = point.cos_i;
+                for c in 0..3 {
+                    values[3 * i + c] = y[c] * point.cos_i;
+                }
+            }
+        }
+        let values = Tensor::<2>::from_data(TensorData::new(values, [n, 3]), device);
+        SliceTarget {
+            weights: Tensor::from_data(TensorData::new(weights, [1, n, 1]), device),
+            coefficients: self.coefficients(values),
+        }
+    }
+
+    /// L_fre of predictions `pred` [1, S·G, 3] (the model at [`inputs`](Self::inputs)) against
+    /// a material's target. Returns a one-element tensor.
+    pub fn loss(&self, pred: Tensor<3>, target: &SliceTarget) -> Tensor<1> {
+        let n = self.points.len();
+        let weighted = (pred * target.weights.clone()).reshape([n, 3]);
+        let c = self.coefficients(weighted);
+        (c - target.coefficients.clone()).square().mean_dim(0).sum() / self.slices as f32
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -271,5 +410,41 @@ mod tests {
         assert_eq!(op.loss_cpu(&splat.map, &v, &v), 0.0);
         let shifted: Vec<f64> = v.iter().map(|x| x + 0.5).collect();
         assert!(op.loss_cpu(&splat.map, &shifted, &v) > 1e-3);
+    }
+
+    #[test]
+    fn sliced_loss_is_zero_for_the_truth_and_sees_a_peak_change() {
+        let device = Device::flex();
+        let config = FreConfig {
+            lmax: 8,
+            theta_h_slices: vec![0.0, 10.0, 40.0],
+            ..FreConfig::default()
+        };
+        let op = SlicedFre::new(&config, &device);
+        assert_eq!(op.len(), 3 * 4 * 18);
+        // A "material" peaked at θh = 0 and its copy with the peak halved.
+        let peaked = |p: &renderer::brdf_coords::RenderedPoint, k: f32| {
+            let h = p.angles[0];
+            Some([1.0 + k * (-h * h * 50.0).exp(), 0.5, 0.25])
+        };
+        let target = op.target(|p| peaked(p, 4.0), &device);
+        let values = |k: f32| {
+            let v: Vec<f32> = op
+                .points
+                .iter()
+                .flat_map(|q| {
+                    renderer::brdf_coords::rendered_point(q[0], q[1], q[2])
+                        .and_then(|p| peaked(&p, k))
+                        .unwrap_or([7.0; 3])
+                })
+                .collect();
+            Tensor::<3>::from_data(TensorData::new(v, [1, op.len(), 3]), &device)
+        };
+        let same: f32 = op.loss(values(4.0), &target).into_scalar();
+        assert!(same.abs() < 1e-8, "{same}");
+        let halved: f32 = op.loss(values(2.0), &target).into_scalar();
+        assert!(halved > 1e-3, "{halved}");
+        // Outside the domain the weight is 0: values there do not matter.
+        assert_eq!(op.inputs(2).dims(), [2, op.len(), 6]);
     }
 }

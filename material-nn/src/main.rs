@@ -7,7 +7,7 @@ use clap::{ArgGroup, Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use material_nn::config::TrainConfig;
 use material_nn::dataset::MaterialTable;
-use material_nn::inference::TrainedRun;
+use material_nn::inference::{Codec, EncodeSettings, RefineSettings, TrainedRun};
 use material_nn::nbrdf_fit::{self, FitConfig, FitEvent, FitOutcome};
 use material_nn::tabulate::{self, TableOutcome};
 use material_nn::training::{self, Event, Outcome, TrainRequest};
@@ -135,6 +135,8 @@ enum SplitName {
     Train,
     Validation,
     Test,
+    /// Every table of the data directory (e.g. materials from outside the training data).
+    All,
 }
 
 #[derive(Args)]
@@ -145,9 +147,13 @@ struct EvalArgs {
     /// Directory of the tables (default: the run's data directory).
     #[arg(long, value_name = "DIR")]
     data: Option<PathBuf>,
-    /// The materials evaluated.
+    /// The materials evaluated: a split of the run, or `all` tables of the data directory
+    /// (`--data DIR --split all`: materials the model never saw, each encoded first).
     #[arg(long, value_enum, default_value = "test")]
     split: SplitName,
+    /// Output directory (default RUN/eval).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
     /// Comparison points per material.
     #[arg(long, default_value_t = 65_536)]
     samples: usize,
@@ -163,8 +169,9 @@ struct EvalArgs {
     /// Preview scene (a glTF file with a material named "preview").
     #[arg(long, value_name = "PATH", default_value_os_t = default_preview_scene())]
     scene: PathBuf,
-    /// Samples per pixel of the preview renders.
-    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Samples per pixel of the preview renders (at 256 spp the noise of the two renders
+    /// alone limits PSNR to about 36 dB at 128x128).
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     spp: u32,
     /// Size of the preview renders, WxH pixels.
     #[arg(long, value_name = "WxH", default_value = "128x128", value_parser = parse_resolution)]
@@ -172,6 +179,13 @@ struct EvalArgs {
     /// BRDF-space metrics only: render no previews (no PSNR / SSIM).
     #[arg(long)]
     no_images: bool,
+    /// Directions per directional-albedo estimate (decoded against table at 0°, 45°, 75°).
+    #[arg(long, default_value_t = 1 << 17)]
+    albedo_samples: usize,
+    /// Refinement steps of each material's code, as `encode` refines (0: the set encoder's
+    /// codes as they are).
+    #[arg(long, default_value_t = RefineSettings::default().steps)]
+    refine_steps: usize,
 }
 
 /// scenes/material-preview/scene.gltf of the workspace this binary was built in.
@@ -230,14 +244,22 @@ struct ExportArgs {
     /// Store the hypernetwork weights as f16 (half the size).
     #[arg(long)]
     half_weights: bool,
+    /// Refinement steps of each code, decoder frozen (0: the set encoder's codes as they are).
+    #[arg(long, default_value_t = RefineSettings::default().steps)]
+    refine_steps: usize,
 }
 
 #[derive(Args)]
+#[command(group(ArgGroup::new("source").required(true).args(["run", "model"])))]
 #[command(group(ArgGroup::new("input").required(true).args(["table", "samples"])))]
 struct EncodeArgs {
+    /// A latent file that carries its set encoder (written by `export`, e.g.
+    /// scenes/materials/latent.bin).
+    #[arg(long, value_name = "LATENT_BIN")]
+    model: Option<PathBuf>,
     /// Run directory of `train`.
     #[arg(long, value_name = "RUN")]
-    run: PathBuf,
+    run: Option<PathBuf>,
     /// A MERL-layout table to encode.
     #[arg(long, value_name = "FILE")]
     table: Option<PathBuf>,
@@ -245,15 +267,19 @@ struct EncodeArgs {
     #[arg(long, value_name = "CSV")]
     samples: Option<PathBuf>,
     /// Samples drawn from --table.
-    #[arg(long, default_value_t = material_nn::export::ENCODE_SAMPLES)]
+    #[arg(long, default_value_t = material_nn::inference::ENCODE_SAMPLES)]
     count: usize,
     /// Seed of the samples drawn from --table.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Refinement steps of the code, decoder frozen (0: the set encoder's code as it is).
+    #[arg(long, default_value_t = RefineSettings::default().steps)]
+    refine_steps: usize,
     /// Name of the latent code (default: the input's file stem).
     #[arg(long)]
     name: Option<String>,
-    /// Add (or replace) the code in this latent file.
+    /// Add (or replace) the code in this latent file; created from the model (its decoder
+    /// and encoder, this one code) when missing.
     #[arg(long, value_name = "LATENT_BIN")]
     add_to: Option<PathBuf>,
 }
@@ -514,7 +540,29 @@ fn export(args: ExportArgs) -> anyhow::Result<()> {
     } else {
         WeightType::F32
     };
-    let file = material_nn::export::export(&run, &data, &names, weight_type, &args.out)?;
+    let settings = EncodeSettings {
+        seed: run.config.seed,
+        refine: RefineSettings {
+            steps: args.refine_steps,
+            ..RefineSettings::default()
+        },
+        ..EncodeSettings::default()
+    };
+    let bar = progress_bar(names.len(), "encode");
+    let file = material_nn::export::export(
+        &run,
+        &data,
+        &names,
+        weight_type,
+        &settings,
+        &args.out,
+        &mut |name| {
+            bar.set_message(name.to_string());
+            bar.inc(1);
+        },
+    );
+    bar.finish_and_clear();
+    let file = file?;
     let size = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
     println!(
         "{}: {} latent codes, {:.1} MB, in {:.1} s",
@@ -527,38 +575,72 @@ fn export(args: ExportArgs) -> anyhow::Result<()> {
 }
 
 fn encode(args: EncodeArgs) -> anyhow::Result<()> {
-    let run = TrainedRun::load(&args.run)?;
-    let (input, z) = if let Some(table) = &args.table {
-        let t = MaterialTable::read(table)?;
-        (table.clone(), run.encode_table(&t, args.count, args.seed)?)
-    } else if let Some(csv) = &args.samples {
-        let set = material_nn::inference::read_sample_csv(csv, &run.sampler)?;
-        (csv.clone(), run.encode_samples(&set)?)
-    } else {
-        bail!("encode needs --table or --samples");
+    let start = Instant::now();
+    // The codec and the decoder file a new --add-to library starts from.
+    let (codec, model_file) = match (&args.model, &args.run) {
+        (Some(path), _) => {
+            let file = LatentFile::read(path)?;
+            (Codec::from_latent_file(&file, path)?, file)
+        }
+        (None, Some(run)) => {
+            let run = TrainedRun::load(run)?;
+            let file = material_nn::export::latent_file(&run, WeightType::F32);
+            (run.codec, file)
+        }
+        (None, None) => bail!("encode needs --model or --run"),
+    };
+    let (input, set) = match (&args.table, &args.samples) {
+        (Some(table), _) => {
+            let t = MaterialTable::read(table)?;
+            (table, codec.draw(&t, args.count, args.seed)?)
+        }
+        (None, Some(csv)) => (csv, material_nn::inference::read_sample_csv(csv, &codec.sampler)?),
+        (None, None) => bail!("encode needs --table or --samples"),
     };
     let name = match args.name {
         Some(n) => n,
-        None => material_nn::dataset::material_name(&input)?,
+        None => material_nn::dataset::material_name(input)?,
     };
-    if let Some(path) = &args.add_to {
-        let mut file = LatentFile::read(path)?;
-        if file.latent_dim != z.len() {
-            bail!(
-                "{}: latent size {} differs from the run's {}",
-                path.display(),
-                file.latent_dim,
-                z.len()
-            );
+    let library = match &args.add_to {
+        Some(path) if path.exists() => {
+            let file = LatentFile::read(path)?;
+            material_nn::export::check_same_decoder(&file, &model_file, path)?;
+            Some((path, file))
         }
+        Some(path) => Some((
+            path,
+            LatentFile {
+                latents: Vec::new(),
+                ..model_file
+            },
+        )),
+        None => None,
+    };
+    let refine = RefineSettings {
+        steps: args.refine_steps,
+        ..RefineSettings::default()
+    };
+    let refined = codec.encode_and_refine(&set, &refine)?;
+    if let Some((path, mut file)) = library {
         file.latents.retain(|l| l.name != name);
         file.latents.push(NamedLatent {
             name: name.clone(),
-            z: z.clone(),
+            z: refined.z.clone(),
         });
         file.write(path)?;
     }
-    println!("{}", serde_json::json!({ "name": name, "z": z }));
+    println!(
+        "{}",
+        serde_json::json!({
+            "name": name,
+            "z": refined.z,
+            "samples": set.len(),
+            "refine_steps": refine.steps,
+            "loss_encoder": refined.initial_loss,
+            "loss_refined": refined.final_loss,
+            "seconds": start.elapsed().as_secs_f64(),
+        })
+    );
     Ok(())
 }
 
@@ -574,8 +656,12 @@ fn eval(args: EvalArgs) -> anyhow::Result<()> {
         SplitName::Train => run.split.train.clone(),
         SplitName::Validation => run.split.validation.clone(),
         SplitName::Test => run.split.test.clone(),
+        SplitName::All => material_nn::dataset::list_tables(&data)?
+            .iter()
+            .map(|p| material_nn::dataset::material_name(p))
+            .collect::<Result<Vec<_>, _>>()?,
     };
-    let out = args.run.join("eval");
+    let out = args.out.clone().unwrap_or_else(|| args.run.join("eval"));
     let (width, height) = args.resolution;
     let images = (!args.no_images).then(|| eval::ImageSettings {
         scene: args.scene.clone(),
@@ -590,6 +676,14 @@ fn eval(args: EvalArgs) -> anyhow::Result<()> {
         seed: args.seed,
         nbrdf_dir: args.nbrdf.clone(),
         images,
+        encode: EncodeSettings {
+            refine: RefineSettings {
+                steps: args.refine_steps,
+                ..RefineSettings::default()
+            },
+            ..EncodeSettings::default()
+        },
+        albedo_samples: args.albedo_samples,
     };
     std::fs::create_dir_all(&out).with_context(|| out.display().to_string())?;
     let bar = progress_bar(2 * names.len() + args.pairs, "eval");

@@ -83,6 +83,25 @@ impl Mlp {
         h
     }
 
+    /// Layers from plain f32 ones ([d_in, d_out] row-major weights), e.g. read from a
+    /// latent file: the inverse of [`to_dense`](Self::to_dense).
+    pub fn from_dense(layers: &[renderer::latent_file::DenseLayer], device: &Device) -> Self {
+        let layers = layers
+            .iter()
+            .map(|l| Linear {
+                weight: Param::from_tensor(Tensor::from_data(
+                    TensorData::new(l.weight.clone(), [l.d_in, l.d_out]),
+                    device,
+                )),
+                bias: Some(Param::from_tensor(Tensor::from_data(
+                    TensorData::new(l.bias.clone(), [l.d_out]),
+                    device,
+                ))),
+            })
+            .collect();
+        Mlp { layers }
+    }
+
     /// Output width.
     pub fn output_width(&self) -> usize {
         self.layers.last().map_or(0, |l| l.weight.dims()[1])

@@ -4,20 +4,19 @@
 //!
 //! Per material:
 //! - **Samples.** Every step draws `samples_per_step` fresh points θh, θd uniform in [0, π/2],
-//!   φd uniform in [0, 2π), with trilinear look-ups in the table
-//!   ([`MaterialTable::lookup`], unmeasured corners left out; points with no measured corner
-//!   are dropped and redrawn), as [`crate::dataset`] samples. The network input is
-//!   [`renderer::brdf_coords::network_input_from_angles`] of (θh, θd, φd folded into [0, π)):
-//!   the renderer folds φd the same way (reciprocity, [`renderer::brdf_coords::network_input`]),
-//!   so the network only ever sees that half, and the table is symmetric under the fold.
+//!   φd uniform in [0, 2π), kept only inside the rendered domain (wi and wo above the
+//!   horizon) and turned into the renderer's own network input, φd folded into [0, π)
+//!   ([`renderer::brdf_coords::rendered_point`], reciprocity), with trilinear look-ups in
+//!   the table ([`MaterialTable::lookup`], unmeasured corners left out; points with no
+//!   measured corner are dropped and redrawn), as [`crate::dataset`] samples.
 //! - **Target** y = ln(1 + f) per channel (f in 1/sr, clamped ≥ 0), the inverse of the
 //!   renderer's f = max(eᵞ − 1, 0).
 //! - **Loss**: the cos θi-weighted mean squared error, mean over points and RGB of
-//!   cos θi · (y' − y)², cos θi = clamp(wi · n, 0, 1) with wi from (θh, φh = 0, θd, φd).
+//!   cos θi · (y' − y)², cos θi = wi · n of the drawn configuration.
 //!   The original NBRDF uses mean |ln(1 + f' cos θi) − ln(1 + f cos θi)|; we keep the
 //!   network's output in the space the renderer exponentiates and weight the error by how
-//!   much the point contributes to a rendering (∝ cos θi). Points below the horizon (cos θi =
-//!   0) never render and carry no weight; a linear rather than squared cosine keeps grazing
+//!   much the point contributes to a rendering (∝ cos θi). Points below either horizon never
+//!   render and are not drawn; a linear rather than squared cosine keeps grazing
 //!   light (where Fresnel peaks live) in play.
 //! - **Optimiser**: Adam (β 0.9/0.999, ε 1e-8) for `epochs × steps_per_epoch` steps (an
 //!   "epoch" is a fixed number of steps, each on fresh samples; there is no finite data set to
@@ -35,7 +34,7 @@
 //! fitted material's settings, losses and time ([`FitSummary`]).
 
 use crate::checkpoint::write_atomic;
-use crate::dataset::{draw_uniform, list_tables, material_name, MaterialTable, SampleSet};
+use crate::dataset::{draw_points, list_tables, material_name, MaterialTable, SampleSet};
 use crate::error::{Error, Result};
 use crate::model::Nbrdf;
 use crate::training::{optimizer, training_device};
@@ -44,9 +43,6 @@ use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use npyz::WriterBuilder;
 use rand::{Rng, SeedableRng};
-use renderer::brdf_coords::{
-    directions_from_angles, fold_phi_d, network_input_from_angles, HalfDiffAngles,
-};
 use renderer::nbrdf::{tensor_paths, NbrdfNetwork, HIDDEN, INPUTS, OUTPUTS};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -267,23 +263,12 @@ pub fn material_seed(seed: u64, name: &str) -> u64 {
     h ^ seed.wrapping_mul(0x9e37_79b9_7f4a_7c15)
 }
 
-/// `n` uniform points of `table` (see the module documentation) as a [`SampleSet`] whose
-/// values are the targets y = ln(1 + f), φd folded into [0, π). Errors when the table is
-/// (almost) entirely unmeasured.
+/// `n` uniform points of `table` in the rendered domain (see the module documentation) as a
+/// [`SampleSet`] whose values are the targets y = ln(1 + f); inputs as the renderer evaluates
+/// them (φd folded into [0, π)). Errors when the table is (almost) entirely unmeasured.
 pub fn draw_samples(table: &MaterialTable, n: usize, rng: &mut impl Rng) -> Result<SampleSet> {
-    draw_uniform(table, n, rng, |theta_h, theta_d, phi_d, f| {
-        let phi_d = fold_phi_d(phi_d);
-        let (wi, _) = directions_from_angles(&HalfDiffAngles {
-            theta_h,
-            phi_h: 0.0,
-            theta_d,
-            phi_d,
-        });
-        Some((
-            network_input_from_angles(theta_h, theta_d, phi_d),
-            f.map(|v| v.max(0.0).ln_1p()),
-            wi.z.clamp(0.0, 1.0),
-        ))
+    draw_points(table, n, 0.0, rng, |point, f| {
+        Some((point.input, f.map(|v| v.max(0.0).ln_1p()), point.cos_i))
     })
 }
 
@@ -514,9 +499,10 @@ mod tests {
             assert!((s.values[3 * i + 1] - 0.4f32.ln_1p()).abs() < 1e-6);
             // d = (sin θd cos φd, sin θd sin φd, cos θd) with φd ∈ [0, π): dy ≥ 0.
             assert!(s.inputs[6 * i + 4] >= -1e-6);
-            assert!((0.0..=1.0).contains(&s.cos_i[i]));
+            // Only the rendered domain: wi above the horizon (and wo, checked by rendered_point).
+            assert!(s.cos_i[i] > 0.0 && s.cos_i[i] <= 1.0);
         }
-        assert!(s.cos_i.contains(&0.0) && s.cos_i.iter().any(|&c| c > 0.5));
+        assert!(s.cos_i.iter().any(|&c| c < 0.1) && s.cos_i.iter().any(|&c| c > 0.5));
     }
 
     #[test]
@@ -531,7 +517,7 @@ mod tests {
         tensors.write(&prefix).unwrap();
         assert!(network_present(&prefix));
         let loaded = NbrdfNetwork::load(&prefix).unwrap();
-        let x = network_input_from_angles(0.4, 0.7, 1.2);
+        let x = renderer::brdf_coords::network_input_from_angles(0.4, 0.7, 1.2);
         let burn_y = predict(&model, &x, &device);
         let plain_y = loaded.forward(x);
         for c in 0..3 {

@@ -21,7 +21,9 @@ use crate::dataset::{
     list_tables, material_name, MaterialDataset, MaterialTable, SampleSet, Sampler, Split,
 };
 use crate::error::{Error, Result};
-use crate::loss::{reconstruction_loss, FreOperator};
+use crate::config::FreForm;
+use crate::loss::{reconstruction_loss, FreOperator, SliceTarget, SlicedFre};
+use std::collections::HashMap;
 use crate::model::HyperBrdf;
 use burn::module::{Module, ModuleVisitor, Param, ParamId};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
@@ -214,18 +216,64 @@ fn batch_tensors(
     )
 }
 
-/// Forward pass and losses of a batch: (total, data term, L_fre) as tensors.
+/// L_fre of a run in its configured form, on one device.
+pub enum FreLoss {
+    /// The released code's splat of each step's samples.
+    Splat(FreOperator),
+    /// The talk's fixed θh slices, with the fixed part of each material (by name).
+    Slices {
+        /// The slices and grid.
+        op: SlicedFre,
+        /// Each material's weights and coefficients.
+        targets: HashMap<String, SliceTarget>,
+    },
+}
+
+impl FreLoss {
+    /// L_fre of `config` for the materials `tables` (whose slice targets it precomputes).
+    pub fn new(config: &TrainConfig, tables: &[Arc<MaterialTable>], sampler: &Sampler, device: &Device) -> Self {
+        match config.fre.form {
+            FreForm::Splat => FreLoss::Splat(FreOperator::new(&config.fre, device)),
+            FreForm::Slices => {
+                let op = SlicedFre::new(&config.fre, device);
+                let targets = tables
+                    .iter()
+                    .map(|t| {
+                        let target = op.target(
+                            |p| {
+                                let [h, d, f] = p.angles;
+                                sampler.sample_of(p, t.lookup(h, d, f)?).map(|(_, y, _)| y)
+                            },
+                            device,
+                        );
+                        (t.name.clone(), target)
+                    })
+                    .collect();
+                FreLoss::Slices { op, targets }
+            }
+        }
+    }
+}
+
+/// Forward pass and losses of a batch of materials `tables` with sample sets `sets`:
+/// (total, data term, L_fre) as tensors.
 fn batch_loss(
     model: &HyperBrdf,
+    tables: &[&MaterialTable],
     sets: &[SampleSet],
     config: &TrainConfig,
-    fre: Option<&FreOperator>,
+    fre: Option<&FreLoss>,
     device: &Device,
 ) -> Result<(Tensor<1>, Tensor<1>, Option<Tensor<1>>)> {
     let (enc, x, y, cos) = batch_tensors(sets, config.encoder_samples, device);
     let z = model.encode(enc);
     let params = model.decode(z.clone());
     let pred = model.target_forward(&params, x);
+    let b = sets.len();
+    let slice_pred = match fre {
+        Some(FreLoss::Slices { op, .. }) => Some(model.target_forward(&params, op.inputs(b))),
+        _ => None,
+    };
     let (mut total, data) = reconstruction_loss(
         config.rec_form,
         pred.clone(),
@@ -236,26 +284,68 @@ fn batch_loss(
         config.lambda_weights,
         config.lambda_latent,
     );
-    let mut fre_total = None;
-    if let Some(op) = fre {
-        let n = sets[0].len();
-        let b = sets.len();
-        for (i, set) in sets.iter().enumerate() {
-            let splat = op.splat(&set.directions(), device)?;
-            let c = cos.clone().narrow(0, i, 1).reshape([n, 1]);
-            let p = pred.clone().narrow(0, i, 1).reshape([n, 3]) * c.clone();
-            let t = y.clone().narrow(0, i, 1).reshape([n, 3]) * c;
-            let l = op.loss(&splat, p, t) / b as f32;
-            fre_total = Some(match fre_total {
-                Some(acc) => acc + l,
-                None => l,
-            });
-        }
-        if let Some(l) = &fre_total {
-            total = total + l.clone() * config.fre.eta;
-        }
+    let mut fre_total: Option<Tensor<1>> = None;
+    for (i, set) in sets.iter().enumerate() {
+        let l = match fre {
+            None => break,
+            Some(FreLoss::Splat(op)) => {
+                let n = set.len();
+                let splat = op.splat(&set.directions(), device)?;
+                let c = cos.clone().narrow(0, i, 1).reshape([n, 1]);
+                let p = pred.clone().narrow(0, i, 1).reshape([n, 3]) * c.clone();
+                let t = y.clone().narrow(0, i, 1).reshape([n, 3]) * c;
+                op.loss(&splat, p, t)
+            }
+            Some(FreLoss::Slices { op, targets }) => {
+                let name = &tables[i].name;
+                let target = targets.get(name).ok_or_else(|| {
+                    Error::Invalid(format!("no L_fre slice target for material '{name}'"))
+                })?;
+                let p = slice_pred.as_ref().map(|p| p.clone().narrow(0, i, 1));
+                op.loss(p.expect("slice predictions of the slices form"), target)
+            }
+        } / b as f32;
+        fre_total = Some(match fre_total {
+            Some(acc) => acc + l,
+            None => l,
+        });
+    }
+    if let Some(l) = &fre_total {
+        total = total + l.clone() * config.fre.eta;
     }
     Ok((total, data, fre_total))
+}
+
+/// Mean (data term, L_fre) over `tables`, each on a fixed sample set drawn from the run's
+/// seed and the material's position.
+fn mean_losses(
+    model: &HyperBrdf,
+    tables: &[Arc<MaterialTable>],
+    sampler: &Sampler,
+    config: &TrainConfig,
+    fre: Option<&FreLoss>,
+    device: &Device,
+) -> Result<(f64, f64)> {
+    let model = model.valid();
+    let (mut data_sum, mut fre_sum) = (0.0, 0.0);
+    for (i, table) in tables.iter().enumerate() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(
+            config.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ (i as u64 + 1),
+        );
+        let set = sampler.draw(table, config.validation_samples, &mut rng)?;
+        let (_, data, l_fre) = batch_loss(
+            &model,
+            &[table.as_ref()],
+            std::slice::from_ref(&set),
+            config,
+            fre,
+            device,
+        )?;
+        data_sum += data.into_scalar::<f32>() as f64;
+        fre_sum += l_fre.map_or(0.0, |l| l.into_scalar::<f32>() as f64);
+    }
+    let n = tables.len().max(1) as f64;
+    Ok((data_sum / n, fre_sum / n))
 }
 
 /// Mean validation loss (data term + η L_fre) over `tables`, each on a fixed sample set drawn
@@ -265,27 +355,14 @@ pub fn validation_loss(
     tables: &[Arc<MaterialTable>],
     sampler: &Sampler,
     config: &TrainConfig,
-    fre: Option<&FreOperator>,
+    fre: Option<&FreLoss>,
     device: &Device,
 ) -> Result<Option<f64>> {
     if tables.is_empty() {
         return Ok(None);
     }
-    let model = model.valid();
-    let mut sum = 0.0;
-    for (i, table) in tables.iter().enumerate() {
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(
-            config.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ (i as u64 + 1),
-        );
-        let set = sampler.draw(table, config.validation_samples, &mut rng)?;
-        let (_, data, l_fre) = batch_loss(&model, std::slice::from_ref(&set), config, fre, device)?;
-        let mut v = data.into_scalar::<f32>() as f64;
-        if let Some(l) = l_fre {
-            v += config.fre.eta as f64 * l.into_scalar::<f32>() as f64;
-        }
-        sum += v;
-    }
-    Ok(Some(sum / tables.len() as f64))
+    let (data, l_fre) = mean_losses(model, tables, sampler, config, fre, device)?;
+    Ok(Some(data + config.fre.eta as f64 * l_fre))
 }
 
 fn model_bytes(model: &HyperBrdf, path: &Path) -> Result<Vec<u8>> {
@@ -352,6 +429,7 @@ fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
             reference: Arc::new(reference),
             mapping: config.mapping,
             epsilon: config.epsilon,
+            peak_share: config.peak_share,
         },
         config,
         train,
@@ -370,6 +448,7 @@ fn existing_run(data_dir: &Path, run: &RunDir, config: TrainConfig) -> Result<Se
             reference: Arc::new(reference),
             mapping: config.mapping,
             epsilon: config.epsilon,
+            peak_share: config.peak_share,
         },
         config,
         train,
@@ -390,7 +469,12 @@ pub fn train(
     let (setup, mut model, mut optim, mut state) = if req.resume {
         let ckpt = Checkpoint::read(&ckpt_path)?;
         if let Some(c) = &req.config {
-            if *c != ckpt.config {
+            // η chosen by `eta_share` at the start of the run is recorded in the checkpoint.
+            let mut given = c.clone();
+            if given.fre.eta_share.is_some() {
+                given.fre.eta = ckpt.config.fre.eta;
+            }
+            if given != ckpt.config {
                 return Err(Error::invalid_file(
                     &ckpt_path,
                     "the configuration given differs from the checkpoint's (resume without --config)",
@@ -410,9 +494,25 @@ pub fn train(
                 "the run directory already holds a checkpoint: use --resume, or a new --out",
             ));
         }
-        let setup = new_run(req, &run)?;
+        let mut setup = new_run(req, &run)?;
         let mut rng = rand_pcg::Pcg64::seed_from_u64(setup.config.seed);
         let model = HyperBrdf::init(&setup.config.net, &mut rng, &device);
+        if let (true, Some(share)) = (setup.config.uses_fre(), setup.config.fre.eta_share) {
+            // η such that η·L_fre is `share` of the data term with the initial model.
+            let inner = device.clone().without_autodiff();
+            let tables = if setup.validation.tables().is_empty() {
+                setup.train.tables()
+            } else {
+                setup.validation.tables()
+            };
+            let fre = FreLoss::new(&setup.config, tables, &setup.sampler, &inner);
+            let (data, l_fre) =
+                mean_losses(&model, tables, &setup.sampler, &setup.config, Some(&fre), &inner)?;
+            if l_fre > 0.0 && data > 0.0 {
+                setup.config.fre.eta = (share as f64 * data / l_fre) as f32;
+                write_json(&run.config(), &setup.config)?;
+            }
+        }
         let state = TrainState {
             epoch: 0,
             order: Vec::new(),
@@ -435,10 +535,10 @@ pub fn train(
     let inner = device.clone().without_autodiff();
     let fre = config
         .uses_fre()
-        .then(|| FreOperator::new(&config.fre, &device));
+        .then(|| FreLoss::new(&config, setup.train.tables(), &setup.sampler, &device));
     let fre_valid = config
         .uses_fre()
-        .then(|| FreOperator::new(&config.fre, &inner));
+        .then(|| FreLoss::new(&config, setup.validation.tables(), &setup.sampler, &inner));
     on_event(Event::Start {
         total_steps: steps_per_epoch * config.epochs as u64,
         done: state.step,
@@ -472,20 +572,21 @@ pub fn train(
         }
         let end = (state.position + config.materials_per_step).min(state.order.len());
         let mut sets = Vec::with_capacity(end - state.position);
+        let mut tables = Vec::with_capacity(end - state.position);
         for &i in &state.order[state.position..end] {
-            sets.push(setup.sampler.draw(
-                &setup.train.tables()[i],
-                config.samples_per_step,
-                &mut state.rng,
-            )?);
+            let table = setup.train.tables()[i].as_ref();
+            sets.push(setup.sampler.draw(table, config.samples_per_step, &mut state.rng)?);
+            tables.push(table);
         }
-        let (total, data, l_fre) = batch_loss(&model, &sets, &config, fre.as_ref(), &device)?;
+        let (total, data, l_fre) =
+            batch_loss(&model, &tables, &sets, &config, fre.as_ref(), &device)?;
         let grads = total.backward();
         let mut grads = GradientsParams::from_grads(grads, &model);
         if let Some(max) = config.grad_clip_norm {
             clip_global_norm(&mut grads, &model, max);
         }
-        model = optim.step(config.learning_rate, model, grads);
+        let lr = config.learning_rate_at(state.step, steps_per_epoch * config.epochs as u64);
+        model = optim.step(lr, model, grads);
         let losses = [
             total.into_scalar::<f32>() as f64,
             data.into_scalar::<f32>() as f64,
