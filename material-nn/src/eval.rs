@@ -677,11 +677,18 @@ pub fn to_markdown(reconstruction: &[Row], editing: &[Row], images: Option<&str>
         let psnrs: Vec<f64> = rows.iter().filter_map(|r| r.metrics.image.map(|e| e.psnr)).collect();
         let _ = write!(out, "\n### {model}: per material, worst first\n\n");
         if let Some(worst) = psnrs.iter().copied().reduce(f64::min) {
+            let mut sorted = rows.clone();
+            sorted.sort_by(|a, b| {
+                let key = |r: &Row| r.metrics.image.map_or(f64::INFINITY, |e| e.psnr);
+                key(a).total_cmp(&key(b))
+            });
+            let names: Vec<&str> = sorted.iter().take(5).map(|r| r.name.as_str()).collect();
             let _ = writeln!(
                 out,
-                "Preview PSNR mean {:.2} dB, worst {worst:.2} dB over {} materials.\n",
+                "Preview PSNR mean {:.2} dB, worst {worst:.2} dB over {} materials; worst five: {}.\n",
                 psnrs.iter().sum::<f64>() / psnrs.len() as f64,
-                psnrs.len()
+                psnrs.len(),
+                names.join(", ")
             );
         }
         out.push_str(&per_material_markdown(reconstruction, model));

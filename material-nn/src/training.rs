@@ -1,14 +1,19 @@
 //! The training loop of HyperBRDF / FreNBRDF (`material-nn train`).
 //!
 //! One step: for each of `materials_per_step` training materials (the method uses 1) draw a
-//! fresh uniform sample set ([`crate::dataset::Sampler`]), encode its first `encoder_samples`
-//! samples into z, decode z into target-net weights, evaluate the target net on every sample,
-//! and take an Adam step on L_rec (+ η L_fre for FreNBRDF) with the global gradient norm
-//! clipped. An epoch visits every training material once, in an order shuffled by the run's
-//! generator. After each epoch: validation (data term + η L_fre on a fixed sample set per
-//! validation material — the same sets every epoch), early stopping after `patience` epochs
-//! without improvement (on the training loss when there are no validation materials), and a
-//! checkpoint. A stop request (Ctrl-C) ends the run after the current step with a checkpoint.
+//! fresh sample set of the rendered domain ([`crate::dataset::Sampler`]: θh partly with MERL's
+//! spacing, φd folded as the renderer folds it, nothing below either horizon), encode its
+//! first `encoder_samples` samples into z, decode z into target-net weights, evaluate the
+//! target net on every sample, and take an Adam step on L_rec (+ η L_fre for FreNBRDF, in the
+//! configured form: fixed θh slices or the released code's splat) with the global gradient
+//! norm clipped and the learning rate of the configured schedule. With `fre.eta_share`, η is
+//! set before the first step so that η·L_fre is that share of the data term for the initial
+//! model, and recorded in the run's configuration. An epoch visits every training material
+//! once, in an order shuffled by the run's generator. After each epoch: validation (data
+//! term + η L_fre on a fixed sample set per validation material — the same sets every epoch),
+//! early stopping after `patience` epochs without improvement (on the training loss when
+//! there are no validation materials), and a checkpoint. A stop request (Ctrl-C) ends the run
+//! after the current step with a checkpoint.
 //!
 //! Run directory: `config.json`, `split.json`, `run.json` (data directory and materials),
 //! `reference.binary` (f_ref, MERL layout), `checkpoint.bin` (latest), `best.bin` (the
