@@ -224,7 +224,7 @@ fn batch_tensors(
 /// L_fre of a run in its configured form, on one device.
 pub enum FreLoss {
     /// The released code's splat of each step's samples.
-    Splat(FreOperator),
+    Splat(Box<FreOperator>),
     /// The talk's fixed θh slices, with the fixed part of each material (by name).
     Slices {
         /// The slices and grid.
@@ -238,7 +238,7 @@ impl FreLoss {
     /// L_fre of `config` for the materials `tables` (whose slice targets it precomputes).
     pub fn new(config: &TrainConfig, tables: &[Arc<MaterialTable>], sampler: &Sampler, device: &Device) -> Self {
         match config.fre.form {
-            FreForm::Splat => FreLoss::Splat(FreOperator::new(&config.fre, device)),
+            FreForm::Splat => FreLoss::Splat(Box::new(FreOperator::new(&config.fre, device))),
             FreForm::Slices => {
                 let op = SlicedFre::new(&config.fre, device);
                 let targets = tables

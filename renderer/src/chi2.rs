@@ -688,8 +688,6 @@ const ALBEDO_SEED: u64 = 0x05ee_da1b_ed00;
 /// Accuracy (white GGX metal, n = 500,000): about 10⁻³ for α ≥ 0.09 up to θo = 80°, about
 /// 10⁻² at θo = 89°; lobes sharper than α ≈ 0.05 need a much larger `n`.
 pub fn directional_albedo<B: Bxdf + ?Sized>(bxdf: &B, wo: Vec3, n: usize) -> Rgb {
-    let m = (n.max(2) as f64 / 2.0).sqrt().ceil() as usize;
-    let mut rng = Pcg32::seed_from_u64(ALBEDO_SEED);
     let mut sum = DVec3::ZERO;
     let mut add = |wi: Vec3| {
         if wi.z > 0.0 {
@@ -699,6 +697,19 @@ pub fn directional_albedo<B: Bxdf + ?Sized>(bxdf: &B, wo: Vec3, n: usize) -> Rgb
             sum += bxdf.eval(wo, wi).as_dvec3() * (cos_theta / density);
         }
     };
+    let strata = jittered_strata(n, |u, v| {
+        add(sample_cosine_hemisphere(u));
+        add(sample_uniform_hemisphere(v));
+    });
+    (sum / strata as f64).as_vec3()
+}
+
+/// Calls `visit(u, v)` once per stratum of a ⌈√(n/2)⌉² grid over the unit square, with two
+/// points jittered within the stratum (one per technique of a two-technique estimate), from
+/// a fixed seed; returns the number of strata.
+fn jittered_strata(n: usize, mut visit: impl FnMut(Vec2, Vec2)) -> usize {
+    let m = (n.max(2) as f64 / 2.0).sqrt().ceil() as usize;
+    let mut rng = Pcg32::seed_from_u64(ALBEDO_SEED);
     for i in 0..m {
         for j in 0..m {
             let mut jittered = || {
@@ -707,12 +718,12 @@ pub fn directional_albedo<B: Bxdf + ?Sized>(bxdf: &B, wo: Vec3, n: usize) -> Rgb
                     (j as f32 + rng.random::<f32>()) / m as f32,
                 )
             };
-            add(sample_cosine_hemisphere(jittered()));
             let u = jittered();
-            add(sample_uniform_hemisphere(u));
+            let v = jittered();
+            visit(u, v);
         }
     }
-    (sum / (m * m) as f64).as_vec3()
+    m * m
 }
 
 /// Directional albedo ρ(wo) = ∫ f(wo, wi) cos θi dωi of `bxdf` per channel (dimensionless),
@@ -728,8 +739,6 @@ pub fn guided_directional_albedo<B: Bxdf + ?Sized, G: Bxdf + ?Sized>(
     wo: Vec3,
     n: usize,
 ) -> DVec3 {
-    let m = ((n.max(2) / 2) as f64).sqrt().ceil() as usize;
-    let mut rng = Pcg32::seed_from_u64(ALBEDO_SEED);
     let mut sum = DVec3::ZERO;
     let mut add = |wi: Vec3| {
         if wi.z > 0.0 && wi.is_finite() {
@@ -740,22 +749,13 @@ pub fn guided_directional_albedo<B: Bxdf + ?Sized, G: Bxdf + ?Sized>(
             }
         }
     };
-    for i in 0..m {
-        for j in 0..m {
-            let mut jittered = || {
-                Vec2::new(
-                    (i as f32 + rng.random::<f32>()) / m as f32,
-                    (j as f32 + rng.random::<f32>()) / m as f32,
-                )
-            };
-            let (u, v) = (jittered(), jittered());
-            if let Some(s) = guide.sample(wo, u, v.x) {
-                add(s.wi);
-            }
-            add(sample_cosine_hemisphere(v));
+    let strata = jittered_strata(n, |u, v| {
+        if let Some(s) = guide.sample(wo, u, v.x) {
+            add(s.wi);
         }
-    }
-    sum / (2 * m * m) as f64
+        add(sample_cosine_hemisphere(v));
+    });
+    sum / (2 * strata) as f64
 }
 
 /// Uniform direction on the upper hemisphere (density 1 / 2π per steradian).
