@@ -4,6 +4,8 @@
 #   data/merl-fitted/NAME.binary   100 tables, 34,992,012 bytes each (3.5 GB in all)
 #   data/merl-median.binary        their per-bin median (f_ref of the log-relative mapping)
 #   data/synthetic/*.binary        a small family from analytic models, for tests
+#   data/rgl-fitted/NAME.binary    the 51 RGL and data/nielsen-fitted the 8 Nielsen materials
+#                                  (never trained on: the out-of-distribution test of encoding)
 # data/ is git-ignored. Safe to interrupt and re-run: tables already present are skipped and
 # every file is written atomically.
 #
@@ -19,6 +21,13 @@ bin=target/release/material-nn
 if [ ! -f data/merl-median.binary ]; then
     "$bin" tabulate --median-of data/merl-fitted --out data/merl-median.binary
 fi
+
+shared_nbrdf="$(dirname "$nbrdf_dir")"
+for set in rgl-isotropic:rgl-fitted nielsen:nielsen-fitted; do
+    if [ -d "$shared_nbrdf/${set%%:*}" ]; then
+        "$bin" tabulate --nbrdf "$shared_nbrdf/${set%%:*}" --out "data/${set##*:}"
+    fi
+done
 
 mkdir -p data/synthetic
 make_synthetic() {
