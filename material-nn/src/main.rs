@@ -53,10 +53,12 @@ enum Command {
     ///   material-nn export --run runs/frenbrdf --out scenes/materials/latent.bin
     #[command(verbatim_doc_comment)]
     Export(ExportArgs),
-    /// Encode one material (a table or a sparse CSV sample set) into a latent code.
+    /// Encode one material (a table or a sparse CSV sample set) into a latent code: the set
+    /// encoder's code, refined with the decoder frozen; prints it as JSON.
     ///
-    ///   material-nn encode --run runs/frenbrdf --table gold.binary
-    ///   material-nn encode --run runs/frenbrdf --samples measured.csv --name mine --add-to latent.bin
+    ///   material-nn encode --model scenes/materials/latent.bin --table gold.binary --add-to lib.bin
+    ///   material-nn encode --model scenes/materials/latent.bin --samples measured.csv --name mine --add-to lib.bin
+    ///   material-nn encode --run runs/frenbrdf --table gold.binary [--refine-steps 0]
     #[command(verbatim_doc_comment)]
     Encode(EncodeArgs),
     /// Evaluation of a run on its test split: reconstruction and editing (RMSE of cos-weighted
