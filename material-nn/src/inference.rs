@@ -336,8 +336,9 @@ impl TrainedRun {
 
 /// Reads a sparse sample set from CSV: one sample per line `theta_h,theta_d,phi_d,r,g,b`
 /// (radians; f_r in 1/sr); blank lines and lines starting with `#` are skipped, and a first
-/// line that does not parse as numbers is taken as a header. Samples where f_ref is
-/// unmeasured are dropped.
+/// line that does not parse as numbers is taken as a header. Samples outside the rendered
+/// domain (wi or wo at or below the horizon, [`renderer::brdf_coords::rendered_point`]) or
+/// where f_ref is unmeasured are dropped.
 pub fn read_sample_csv(path: &Path, sampler: &Sampler) -> Result<SampleSet> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let mut set = SampleSet::default();
