@@ -105,6 +105,22 @@ pub struct DenseLayer {
 }
 
 impl DenseLayer {
+    /// Checks that the layer maps `d_in` to `d_out` values, holds that many weights and
+    /// biases, and that all are finite; the message says what is wrong.
+    pub fn check(&self, d_in: usize, d_out: usize) -> std::result::Result<(), String> {
+        if self.d_in != d_in
+            || self.d_out != d_out
+            || self.weight.len() != d_in * d_out
+            || self.bias.len() != d_out
+        {
+            return Err("has the wrong shape".to_string());
+        }
+        match self.weight.iter().chain(&self.bias).position(|v| !v.is_finite()) {
+            Some(i) => Err(format!("non-finite weight (value {i})")),
+            None => Ok(()),
+        }
+    }
+
     /// y = x · W + b, optionally followed by ReLU. `x.len()` = d_in, `y.len()` = d_out.
     pub fn forward(&self, x: &[f32], y: &mut [f32], relu: bool) {
         debug_assert!(x.len() == self.d_in && y.len() == self.d_out);
@@ -400,25 +416,9 @@ impl LatentFile {
                 ));
             }
             for (l, layer) in head.layers.iter().enumerate() {
-                if layer.d_in != widths[l]
-                    || layer.d_out != widths[l + 1]
-                    || layer.weight.len() != layer.d_in * layer.d_out
-                    || layer.bias.len() != layer.d_out
-                {
-                    return bad(format!(
-                        "hypernetwork head {t} layer {l} has the wrong shape"
-                    ));
-                }
-                if let Some(i) = layer
-                    .weight
-                    .iter()
-                    .chain(&layer.bias)
-                    .position(|v| !v.is_finite())
-                {
-                    return bad(format!(
-                        "non-finite hypernetwork weight in head {t} layer {l} (value {i})"
-                    ));
-                }
+                layer
+                    .check(widths[l], widths[l + 1])
+                    .map_err(|e| Error::invalid_file(path, format!("hypernetwork head {t} layer {l}: {e}")))?;
             }
         }
         if let Some(encoder) = &self.encoder {
@@ -480,22 +480,9 @@ impl LatentFile {
             ));
         }
         for (l, layer) in encoder.layers.iter().enumerate() {
-            if layer.d_in != widths[l]
-                || layer.weight.len() != layer.d_in * layer.d_out
-                || layer.bias.len() != layer.d_out
-            {
-                return bad(format!("encoder layer {l} has the wrong shape"));
-            }
-            if let Some(i) = layer
-                .weight
-                .iter()
-                .chain(&layer.bias)
-                .position(|v| !v.is_finite())
-            {
-                return bad(format!(
-                    "non-finite encoder weight in layer {l} (value {i})"
-                ));
-            }
+            layer
+                .check(widths[l], widths[l + 1])
+                .map_err(|e| Error::invalid_file(path, format!("encoder layer {l}: {e}")))?;
         }
         Ok(())
     }
@@ -1074,7 +1061,7 @@ pub(crate) mod tests {
         nan.encoder.as_mut().unwrap().layers[1].weight[3] = f32::NAN;
         let e = err(&nan);
         assert!(
-            e.starts_with("dir/latent.bin") && e.contains("non-finite encoder weight in layer 1"),
+            e.starts_with("dir/latent.bin") && e.contains("encoder layer 1: non-finite weight"),
             "{e}"
         );
 
