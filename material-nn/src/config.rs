@@ -27,6 +27,13 @@ pub enum RecForm {
     Code,
 }
 
+/// `start` decayed along a half cosine to `start × final_fraction` as `t` goes from 0 to 1:
+/// the learning-rate schedule of NBRDF fitting and of latent refinement.
+pub fn half_cosine_decay(start: f64, final_fraction: f64, t: f64) -> f64 {
+    let f = final_fraction;
+    start * (f + (1.0 - f) * 0.5 * (1.0 + (std::f64::consts::PI * t).cos()))
+}
+
 /// How the learning rate changes over a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]

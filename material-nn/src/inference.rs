@@ -250,7 +250,7 @@ impl Codec {
         let mut optim = optimizer();
         for step in 0..settings.steps {
             let t = step as f64 / settings.steps as f64;
-            let lr = settings.learning_rate * (0.05 + 0.95 * 0.5 * (1.0 + (std::f64::consts::PI * t).cos()));
+            let lr = crate::config::half_cosine_decay(settings.learning_rate, 0.05, t);
             let (total, data) = objective(&code);
             let grads = GradientsParams::from_grads(total.backward(), &code);
             code = optim.step(lr, code, grads);

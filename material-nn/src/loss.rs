@@ -28,6 +28,7 @@ use crate::error::Result;
 use crate::sh::{coefficient_count, degree_weights, ShGrid};
 use crate::splat::{splat_map, SplatMap};
 use burn::tensor::{Device, Int, Tensor, TensorData};
+use renderer::brdf_coords::{rendered_point, RenderedPoint};
 
 /// L_rec of a batch.
 ///
@@ -103,23 +104,31 @@ pub struct SplatTensors {
     weights: Tensor<3>,
 }
 
+/// The grid of degree `config.lmax`, its upper-hemisphere points and their analysis matrix
+/// with each coefficient's row multiplied by its degree weight: [(L+1)², G] row-major in f64
+/// and as an f32 tensor on `device`. Shared by both forms of L_fre.
+fn weighted_analysis(config: &FreConfig, device: &Device) -> (ShGrid, Vec<usize>, Vec<f64>, Tensor<2>) {
+    let grid = ShGrid::new(config.lmax);
+    let points = grid.upper_hemisphere();
+    let mut analysis = grid.analysis_matrix(&points);
+    let g = points.len();
+    for (row, w) in analysis
+        .chunks_mut(g)
+        .zip(degree_weights(config.lmax, config.degree_sigma))
+    {
+        row.iter_mut().for_each(|v| *v *= w);
+    }
+    let c = coefficient_count(config.lmax);
+    let as_f32: Vec<f32> = analysis.iter().map(|&v| v as f32).collect();
+    let tensor = Tensor::from_data(TensorData::new(as_f32, [c, g]), device);
+    (grid, points, analysis, tensor)
+}
+
 impl FreOperator {
     /// Builds the grid of degree `config.lmax` and its analysis matrix on `device`.
     pub fn new(config: &FreConfig, device: &Device) -> Self {
-        let grid = ShGrid::new(config.lmax);
-        let points = grid.upper_hemisphere();
+        let (grid, points, analysis, analysis_tensor) = weighted_analysis(config, device);
         let targets: Vec<[f64; 3]> = points.iter().map(|&i| grid.direction(i)).collect();
-        let mut analysis = grid.analysis_matrix(&points);
-        let g = points.len();
-        for (row, w) in analysis
-            .chunks_mut(g)
-            .zip(degree_weights(config.lmax, config.degree_sigma))
-        {
-            row.iter_mut().for_each(|v| *v *= w);
-        }
-        let c = coefficient_count(config.lmax);
-        let as_f32: Vec<f32> = analysis.iter().map(|&v| v as f32).collect();
-        let analysis_tensor = Tensor::from_data(TensorData::new(as_f32, [c, g]), device);
         FreOperator {
             config: config.clone(),
             targets,
@@ -203,8 +212,9 @@ impl FreOperator {
 /// L_fre = mean over slices of Σ_RGB mean_lm (c'_s − c_s)².
 #[derive(Clone, Debug)]
 pub struct SlicedFre {
-    /// (θh, θd, φd) of every (slice, grid point), slice-major, with φd unfolded.
-    points: Vec<[f32; 3]>,
+    /// Every (slice, grid point), slice-major: the configuration of the rendered domain, or
+    /// `None` outside it.
+    points: Vec<Option<RenderedPoint>>,
     /// Network inputs of the points, [1, S·G, 6] (zeros outside the domain).
     inputs: Tensor<3>,
     /// Degree-weighted analysis matrix [(L+1)², G].
@@ -225,31 +235,15 @@ pub struct SliceTarget {
 impl SlicedFre {
     /// The grid of degree `config.lmax` at `config.theta_h_slices` (degrees), on `device`.
     pub fn new(config: &FreConfig, device: &Device) -> Self {
-        let grid = ShGrid::new(config.lmax);
-        let upper = grid.upper_hemisphere();
-        let mut analysis = grid.analysis_matrix(&upper);
-        let g = upper.len();
-        for (row, w) in analysis
-            .chunks_mut(g)
-            .zip(degree_weights(config.lmax, config.degree_sigma))
-        {
-            row.iter_mut().for_each(|v| *v *= w);
-        }
-        let c = coefficient_count(config.lmax);
-        let analysis = Tensor::from_data(
-            TensorData::new(analysis.iter().map(|&v| v as f32).collect::<Vec<_>>(), [c, g]),
-            device,
-        );
+        let (grid, upper, _, analysis) = weighted_analysis(config, device);
         let mut points = Vec::new();
         let mut inputs = Vec::new();
         for &deg in &config.theta_h_slices {
             for &i in &upper {
                 let (theta_d, phi_d) = grid.angles(i);
-                let p = [deg.to_radians(), theta_d as f32, phi_d as f32];
-                let x = renderer::brdf_coords::rendered_point(p[0], p[1], p[2])
-                    .map_or([0.0; 6], |r| r.input);
-                points.push(p);
-                inputs.extend_from_slice(&x);
+                let point = rendered_point(deg.to_radians(), theta_d as f32, phi_d as f32);
+                inputs.extend_from_slice(&point.map_or([0.0; 6], |p| p.input));
+                points.push(point);
             }
         }
         let n = points.len();
@@ -258,7 +252,7 @@ impl SlicedFre {
             inputs: Tensor::from_data(TensorData::new(inputs, [1, n, 6]), device),
             analysis,
             slices: config.theta_h_slices.len(),
-            grid: g,
+            grid: upper.len(),
         }
     }
 
@@ -292,17 +286,17 @@ impl SlicedFre {
     /// point of the domain (φd folded), or `None` where it is unmeasured.
     pub fn target(
         &self,
-        value: impl Fn(&renderer::brdf_coords::RenderedPoint) -> Option<[f32; 3]>,
+        value: impl Fn(&RenderedPoint) -> Option<[f32; 3]>,
         device: &Device,
     ) -> SliceTarget {
         let n = self.points.len();
         let mut weights = vec![0f32; n];
         let mut values = vec![0f32; 3 * n];
-        for (i, p) in self.points.iter().enumerate() {
-            let Some(point) = renderer::brdf_coords::rendered_point(p[0], p[1], p[2]) else {
+        for (i, point) in self.points.iter().enumerate() {
+            let Some(point) = point else {
                 continue;
             };
-            if let Some(y) = value(&point) {
+            if let Some(y) = value(point) {
                 weights[i] = point.cos_i;
                 for c in 0..3 {
                     values[3 * i + c] = y[c] * point.cos_i;
@@ -423,7 +417,7 @@ mod tests {
         let op = SlicedFre::new(&config, &device);
         assert_eq!(op.len(), 3 * 4 * 18);
         // A "material" peaked at θh = 0 and its copy with the peak halved.
-        let peaked = |p: &renderer::brdf_coords::RenderedPoint, k: f32| {
+        let peaked = |p: &RenderedPoint, k: f32| {
             let h = p.angles[0];
             Some([1.0 + k * (-h * h * 50.0).exp(), 0.5, 0.25])
         };
@@ -432,11 +426,7 @@ mod tests {
             let v: Vec<f32> = op
                 .points
                 .iter()
-                .flat_map(|q| {
-                    renderer::brdf_coords::rendered_point(q[0], q[1], q[2])
-                        .and_then(|p| peaked(&p, k))
-                        .unwrap_or([7.0; 3])
-                })
+                .flat_map(|q| q.as_ref().and_then(|p| peaked(p, k)).unwrap_or([7.0; 3]))
                 .collect();
             Tensor::<3>::from_data(TensorData::new(v, [1, op.len(), 3]), &device)
         };

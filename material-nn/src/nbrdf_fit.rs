@@ -134,8 +134,7 @@ impl FitConfig {
         } else {
             0.0
         };
-        let f = self.final_learning_rate_fraction;
-        self.learning_rate * (f + (1.0 - f) * 0.5 * (1.0 + (std::f64::consts::PI * t).cos()))
+        crate::config::half_cosine_decay(self.learning_rate, self.final_learning_rate_fraction, t)
     }
 }
 

@@ -228,7 +228,7 @@ pub enum FreLoss {
     /// The talk's fixed θh slices, with the fixed part of each material (by name).
     Slices {
         /// The slices and grid.
-        op: SlicedFre,
+        op: Box<SlicedFre>,
         /// Each material's weights and coefficients.
         targets: HashMap<String, SliceTarget>,
     },
@@ -240,7 +240,7 @@ impl FreLoss {
         match config.fre.form {
             FreForm::Splat => FreLoss::Splat(Box::new(FreOperator::new(&config.fre, device))),
             FreForm::Slices => {
-                let op = SlicedFre::new(&config.fre, device);
+                let op = Box::new(SlicedFre::new(&config.fre, device));
                 let targets = tables
                     .iter()
                     .map(|t| {
@@ -499,25 +499,9 @@ pub fn train(
                 "the run directory already holds a checkpoint: use --resume, or a new --out",
             ));
         }
-        let mut setup = new_run(req, &run)?;
+        let setup = new_run(req, &run)?;
         let mut rng = rand_pcg::Pcg64::seed_from_u64(setup.config.seed);
         let model = HyperBrdf::init(&setup.config.net, &mut rng, &device);
-        if let (true, Some(share)) = (setup.config.uses_fre(), setup.config.fre.eta_share) {
-            // η such that η·L_fre is `share` of the data term with the initial model.
-            let inner = device.clone().without_autodiff();
-            let tables = if setup.validation.tables().is_empty() {
-                setup.train.tables()
-            } else {
-                setup.validation.tables()
-            };
-            let fre = FreLoss::new(&setup.config, tables, &setup.sampler, &inner);
-            let (data, l_fre) =
-                mean_losses(&model, tables, &setup.sampler, &setup.config, Some(&fre), &inner)?;
-            if l_fre > 0.0 && data > 0.0 {
-                setup.config.fre.eta = (share as f64 * data / l_fre) as f32;
-                write_json(&run.config(), &setup.config)?;
-            }
-        }
         let state = TrainState {
             epoch: 0,
             order: Vec::new(),
@@ -534,7 +518,7 @@ pub fn train(
         };
         (setup, model, optimizer(), state)
     };
-    let config = setup.config.clone();
+    let mut config = setup.config.clone();
     let n_train = setup.train.tables().len();
     let steps_per_epoch = n_train.div_ceil(config.materials_per_step) as u64;
     let inner = device.clone().without_autodiff();
@@ -544,6 +528,23 @@ pub fn train(
     let fre_valid = config
         .uses_fre()
         .then(|| FreLoss::new(&config, setup.validation.tables(), &setup.sampler, &inner));
+    if let (false, Some(valid), Some(share)) = (req.resume, &fre_valid, config.fre.eta_share) {
+        // A new run: η such that η·L_fre is `share` of the data term with the initial model,
+        // on the validation materials (the training ones when there are none).
+        let (data, l_fre) = if setup.validation.tables().is_empty() {
+            let tables = setup.train.tables();
+            let fre = FreLoss::new(&config, tables, &setup.sampler, &inner);
+            mean_losses(&model, tables, &setup.sampler, &config, Some(&fre), &inner)?
+        } else {
+            let tables = setup.validation.tables();
+            mean_losses(&model, tables, &setup.sampler, &config, Some(valid), &inner)?
+        };
+        if l_fre > 0.0 && data > 0.0 {
+            config.fre.eta = (share as f64 * data / l_fre) as f32;
+            write_json(&run.config(), &config)?;
+        }
+    }
+    let config = config;
     on_event(Event::Start {
         total_steps: steps_per_epoch * config.epochs as u64,
         done: state.step,
