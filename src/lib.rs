@@ -2,6 +2,7 @@
 //! description to mean and variance images, and the statistical image comparison used by the
 //! regression tests.
 
+pub mod pinned;
 pub mod regression;
 pub mod shapes;
 pub mod ztest;

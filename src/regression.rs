@@ -44,7 +44,9 @@ impl Case {
 
     /// The regression test: with `BLESS` set, renders and writes the reference first
     /// (`render(reference_spp, 12345)`); then renders `render(test_spp, 7)` and panics with
-    /// the metric, writing image, reference, error and p-value images, when it fails.
+    /// the metric, writing image, reference, error and p-value images, when it fails. The
+    /// test render is also a pinned image (see [`crate::pinned`]), which sees changes far
+    /// below the statistical test's noise.
     pub fn check(&self, render: impl Fn(u32, u64) -> Rendered) {
         if std::env::var_os("BLESS").is_some() {
             let (mean_path, var_path) = self.reference_paths();
@@ -66,6 +68,7 @@ impl Case {
                 dir.display()
             );
         }
+        crate::pinned::check(self.name, &img);
     }
 }
 

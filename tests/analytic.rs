@@ -49,6 +49,41 @@ fn white_furnace_lambert() {
     }
 }
 
+/// A grey Lambertian sphere (albedo 0.5) under a uniform environment of radiance 1 reflects
+/// radiance 0.5 everywhere, with Russian roulette from the first bounce on (`rr_depth` 0, so
+/// every path past its first vertex plays it at survival 0.5): a roulette that forgets to
+/// divide by the survival probability, or a Lambert value off by 2 %, fails it. The camera
+/// sees only the sphere.
+#[test]
+fn grey_furnace_with_roulette_from_the_first_bounce() {
+    let albedo = 0.5f32;
+    let mut geometry = Geometry::default();
+    add_sphere(&mut geometry, Vec3::ZERO, 1.0, 32, 64, false, 0);
+    let description = SceneDescription {
+        geometry,
+        materials: vec![lambert("grey", albedo, 0.0)],
+        environment: Some(EnvironmentSpec {
+            source: EnvironmentSource::Constant(Rgb::ONE),
+            strength: 1.0,
+            rotation: 0.0,
+        }),
+        ..SceneDescription::default()
+    };
+    let scene = RenderScene::new(description).expect("scene");
+    let camera = look_at(Vec3::new(0.0, 0.0, 3.5), Vec3::ZERO, 20.0);
+    for strategy in [Strategy::Mis, Strategy::BsdfOnly, Strategy::LightOnly] {
+        let integrator = PathTracer {
+            max_depth: -1,
+            rr_depth: 0,
+            strategy,
+        };
+        let img = render(&scene, &camera, 32, 32, 256, integrator, 3);
+        let mean = mean_rgb(&img.mean);
+        assert!(((mean - Rgb::splat(albedo)) / albedo).abs().max_element() < 0.01, "{strategy:?}: mean {mean}, expected {albedo}");
+        assert_eq!(img.discarded, 0);
+    }
+}
+
 /// Inside a closed sphere whose surface emits Le and reflects with albedo a, the radiance
 /// is Le / (1 − a) in every direction, whatever the estimator.
 #[test]

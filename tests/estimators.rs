@@ -2,9 +2,13 @@
 //! key light, sphere on a ground plane) rendered with MIS, with BSDF sampling only and with
 //! light sampling only has the same image mean within noise (a z-test from the variance
 //! images). A BSDF whose `sample` and `pdf` disagree, or whose weights are wrong, fails it.
+//! The MIS and light-only renders of each are also pinned images
+//! (`tests/references/pinned/preview-*.exr`): the same seed gives the same image, so a 2 %
+//! change of any BSDF's value fails one of them (of `sample`'s value the MIS image, of
+//! `eval`'s, which MIS weighs little on a glossy lobe, the light-only image).
 //! (The neural BSDF's case is in `neural_material.rs`.)
 
-use neural_brdf_tests::{image_mean_z, mean_rgb, render, Rendered};
+use neural_brdf_tests::{image_mean_z, mean_rgb, pinned, render, Rendered};
 use renderer::integrator::{PathTracer, Strategy};
 use renderer::merl::MerlTable;
 use renderer::nbrdf::NbrdfNetwork;
@@ -37,9 +41,13 @@ fn render_with(model: &SurfaceModel, strategy: Strategy, seed: u64) -> Rendered 
 fn check(label: &str, model: SurfaceModel) {
     let mis = render_with(&model, Strategy::Mis, 1);
     assert_eq!(mis.discarded, 0, "{label}");
+    pinned::check(&format!("preview-{label}"), &mis);
     for (strategy, seed) in [(Strategy::BsdfOnly, 2), (Strategy::LightOnly, 3)] {
         let other = render_with(&model, strategy, seed);
         assert_eq!(other.discarded, 0, "{label} {strategy:?}");
+        if strategy == Strategy::LightOnly {
+            pinned::check(&format!("preview-{label}-light-only"), &other);
+        }
         let z = image_mean_z(&mis, &other);
         assert!(z < 4.5, "{label} {strategy:?}: {} vs MIS {}, z = {z}", mean_rgb(&other.mean), mean_rgb(&mis.mean));
     }
