@@ -10,6 +10,7 @@
 
 use neural_brdf_tests::{image_mean_z, mean_rgb, pinned, render, Rendered};
 use renderer::integrator::{PathTracer, Strategy};
+use renderer::material::Binding;
 use renderer::merl::MerlTable;
 use renderer::nbrdf::NbrdfNetwork;
 use renderer::render_scene::RenderScene;
@@ -66,10 +67,10 @@ fn metallic_roughness() {
 #[test]
 fn measured_table_and_network() {
     let net_prefix = root().join("../shared/data/nbrdf/merl/gold-metallic-paint");
-    check("nbrdf", SurfaceModel::Bound(format!("nbrdf:{}", net_prefix.display())));
+    check("nbrdf", SurfaceModel::Bound(Binding::Nbrdf(net_prefix.clone())));
     let dir = tempfile::tempdir().expect("tempdir");
     let table = dir.path().join("gold-metallic-paint.binary");
     let net = NbrdfNetwork::load(&net_prefix).expect("network");
     MerlTable::from_fn(|th, td, pd| net.eval_angles(th, td, pd)).write(&table).expect("table");
-    check("merl", SurfaceModel::Bound(format!("merl:{}", table.display())));
+    check("merl", SurfaceModel::Bound(Binding::Merl(table)));
 }

@@ -5,9 +5,9 @@
 
 use neural_brdf_tests::regression::Case;
 use neural_brdf_tests::{image_mean_z, mean_rgb, render, Rendered};
-use renderer::bsdf::MeasuredBsdf;
 use renderer::integrator::{PathTracer, Strategy};
-use renderer::latent_library::{LatentLibrary, NEURAL_SPEC_PREFIX};
+use renderer::latent_library::LatentLibrary;
+use renderer::material::{Binding, SharedBsdf};
 use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
 use std::path::PathBuf;
@@ -31,15 +31,15 @@ fn render_preview(spp: u32, seed: u64, strategy: Strategy) -> Rendered {
 fn render_preview_towards(spp: u32, seed: u64, strategy: Strategy, t: f32) -> Rendered {
     let mut description = SceneDescription::load(&root().join("scenes/material-preview/scene.gltf")).expect("scene");
     let m = description.materials.iter_mut().find(|m| m.name == "preview").expect("preview material");
-    m.model = SurfaceModel::Bound(format!("{NEURAL_SPEC_PREFIX}alum-bronze"));
+    m.model = SurfaceModel::Bound(Binding::Neural("alum-bronze".into()));
     let camera = description.camera(None).expect("camera").clone();
     let latents = LatentLibrary::load(&[root().join("scenes/materials/latent.bin")]).expect("shipped latents");
     let mut scene = RenderScene::with_latents(description, &latents).expect("scene");
     if t != 0.0 {
         let (a, b) = (latents.latent("alum-bronze").unwrap(), latents.latent("chrome").unwrap());
         let code = renderer::sweep::lerp_code(&a, &b, t).unwrap();
-        for slot in scene.neural_slots() {
-            scene.set_measured(slot, MeasuredBsdf::Neural(latents.decode_code(&code, "edited").unwrap()));
+        for slot in scene.materials.neural_slots() {
+            scene.materials.set_shared(slot, SharedBsdf::Neural(latents.decode_code(&code, "edited").unwrap()));
         }
     }
     let integrator = PathTracer {

@@ -44,7 +44,8 @@ use renderer::bsdf::frenbrdf::{FrenbrdfBsdf, ReferenceValues};
 use renderer::bsdf::merl::MerlBsdf;
 use renderer::bsdf::nbrdf::NbrdfBsdf;
 use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
-use renderer::bsdf::{Bxdf, MeasuredBsdf};
+use renderer::bsdf::Bxdf;
+use renderer::material::{Binding, SharedBsdf};
 use renderer::camera::PinholeCamera;
 use renderer::image_io::ToneMap;
 use renderer::integrator::PathTracer;
@@ -56,7 +57,7 @@ use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
 use renderer::Rgb;
 use glam::Vec3;
-use renderer::chi2::guided_directional_albedo;
+use renderer::testing::chi2::guided_directional_albedo;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -90,7 +91,7 @@ pub const ALBEDO_THETAS: [f32; 3] = [0.0, 45.0, 75.0];
 
 /// The candidate's directional albedo over the table's at [`ALBEDO_THETAS`], both integrated
 /// over the same directions guided by the table's sampler
-/// ([`renderer::chi2::guided_directional_albedo`]); a table channel with no energy gives
+/// ([`renderer::testing::chi2::guided_directional_albedo`]); a table channel with no energy gives
 /// ratio 1 when the candidate has none either.
 pub fn albedo_ratios(candidate: &impl Bxdf, table: &MerlBsdf, samples: usize) -> [[f64; 3]; 3] {
     ALBEDO_THETAS.map(|deg| {
@@ -272,40 +273,12 @@ impl PreviewScene {
                 )
             })?;
         let table = std::path::absolute(table).map_err(|e| Error::io(table, e))?;
-        let spec = format!("merl:{}", table.display());
-        description.materials[index].model = SurfaceModel::Bound(spec.clone());
-        // The slot RenderScene gives each distinct specification of a used material, in
-        // material order (latent codes without a latent file get none).
-        let mut used = vec![false; description.materials.len()];
-        for &m in &description.geometry.material_ids {
-            used[m as usize] = true;
-        }
-        if !used[index] {
-            return Err(Error::invalid_file(
-                path,
-                format!("material '{PREVIEW_MATERIAL}' is on no triangle"),
-            ));
-        }
-        let mut specs: Vec<&String> = Vec::new();
-        for (m, _) in description.materials.iter().zip(&used).filter(|(_, u)| **u) {
-            if let SurfaceModel::Bound(s) = &m.model {
-                if !s.starts_with(renderer::latent_library::NEURAL_SPEC_PREFIX)
-                    && !specs.contains(&s)
-                {
-                    specs.push(s);
-                }
-            }
-        }
-        let slot = specs.iter().position(|s| **s == spec).unwrap_or(usize::MAX);
-        let expected = specs.len();
+        description.materials[index].model = SurfaceModel::Bound(Binding::Merl(table));
         let camera = description.camera(None)?.clone();
         let scene = RenderScene::new(description)?;
-        if slot >= scene.measured_count() || scene.measured_count() != expected {
-            return Err(Error::invalid_file(
-                path,
-                format!("cannot find the measured BRDF bound to '{PREVIEW_MATERIAL}'"),
-            ));
-        }
+        let slot = scene.materials.shared_slot(PREVIEW_MATERIAL).ok_or_else(|| {
+            Error::invalid_file(path, format!("material '{PREVIEW_MATERIAL}' is on no triangle"))
+        })?;
         Ok(PreviewScene {
             camera: PinholeCamera::new(&camera, settings.width, settings.height),
             scene,
@@ -318,8 +291,8 @@ impl PreviewScene {
     }
 
     /// Renders the scene with `bsdf` on the preview material: linear radiance, row-major.
-    pub fn render(&mut self, bsdf: MeasuredBsdf) -> Vec<Rgb> {
-        self.scene.set_measured(self.slot, bsdf);
+    pub fn render(&mut self, bsdf: SharedBsdf) -> Vec<Rgb> {
+        self.scene.materials.set_shared(self.slot, bsdf);
         let renderer = Renderer {
             scene: &self.scene,
             camera: self.camera.clone(),
@@ -462,13 +435,13 @@ pub fn evaluate(
         };
         if let Some((scene, dir)) = &mut preview {
             let dir = dir.as_deref();
-            let table_image = scene.render(MeasuredBsdf::Merl(table_bsdf));
+            let table_image = scene.render(SharedBsdf::Merl(table_bsdf));
             scene.write_png(dir, &format!("{name}-table.png"), &table_image)?;
-            let image = scene.render(MeasuredBsdf::Neural(neural));
+            let image = scene.render(SharedBsdf::Neural(neural));
             scene.write_png(dir, &format!("{name}-{model}.png"), &image)?;
             latent.image = Some(scene.error(&image, &table_image));
             if let (Some(m), Some(bsdf)) = (&mut nbrdf, nbrdf_bsdf) {
-                let image = scene.render(MeasuredBsdf::Nbrdf(bsdf));
+                let image = scene.render(SharedBsdf::Nbrdf(bsdf));
                 scene.write_png(dir, &format!("{name}-{NBRDF_MODEL}.png"), &image)?;
                 m.image = Some(scene.error(&image, &table_image));
             }

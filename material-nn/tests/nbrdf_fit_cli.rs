@@ -8,7 +8,8 @@ mod common;
 use common::{error_line, make_tables, material_nn, path_str};
 use material_nn::nbrdf_fit::{self, FitConfig, FitOutcome, FitSummary};
 use renderer::analytic::AnalyticBrdf;
-use renderer::bsdf::MeasuredBsdf;
+use renderer::latent_library::LatentLibrary;
+use renderer::material::{Binding, SharedBsdf};
 use renderer::nbrdf::{tensor_paths, NbrdfNetwork};
 use renderer::Rgb;
 use std::path::{Path, PathBuf};
@@ -107,10 +108,10 @@ fn fits_load_in_the_renderer_lower_the_loss_and_resume() {
             );
         }
         // What `render --bind M=nbrdf:OUT/NAME` loads.
-        let spec = format!("nbrdf:{}", prefix.display());
+        let binding = Binding::parse(&format!("nbrdf:{}", prefix.display()), std::path::Path::new("")).unwrap();
         assert!(matches!(
-            MeasuredBsdf::load(&spec).unwrap(),
-            MeasuredBsdf::Nbrdf(_)
+            SharedBsdf::open(&binding, &LatentLibrary::default()).unwrap(),
+            SharedBsdf::Nbrdf(_)
         ));
     }
 

@@ -12,15 +12,13 @@
 use crate::bsdf::frenbrdf::{FrenbrdfBsdf, ReferenceValues};
 use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use crate::latent_file::LatentFile;
+use crate::material::Binding;
 use crate::scene::{SceneDescription, SurfaceModel};
 use crate::target_net::TargetNet;
 use crate::{Error, Result};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
-
-/// The prefix of binding specifications that name a latent code: `neural:NAME`.
-pub const NEURAL_SPEC_PREFIX: &str = "neural:";
 
 /// One file of the library.
 #[derive(Debug)]
@@ -139,7 +137,7 @@ impl LatentLibrary {
         let mut bound = Vec::new();
         for m in &mut description.materials {
             if !matches!(m.model, SurfaceModel::Bound(_)) && names.contains(&m.name) {
-                m.model = SurfaceModel::Bound(format!("{NEURAL_SPEC_PREFIX}{}", m.name));
+                m.model = SurfaceModel::Bound(Binding::Neural(m.name.clone()));
                 bound.push(m.name.clone());
             }
         }

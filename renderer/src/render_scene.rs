@@ -1,39 +1,26 @@
-//! A scene prepared for rendering: the BVH, the lights, the bound BSDFs and everything
-//! the integrator looks up per hit. Only what the scene uses is built: measured BSDFs are
-//! loaded and latent codes decoded only for materials some triangle uses, and the
-//! environment's sampling structures exist only when the scene has an environment.
+//! A scene prepared for rendering: the BVH, the lights, the materials with their BSDFs
+//! ([`SceneMaterials`]) and everything the integrator looks up per hit. Only what the scene
+//! uses is built: BSDFs made from data are opened and latent codes decoded only for materials
+//! some triangle uses, and the environment's sampling structures exist only when the scene
+//! has an environment.
 
 use crate::accel::{interpolate_point, Bvh, Hit};
-use crate::bsdf::{Bsdf, Lambert, MeasuredBsdf, MetallicRoughness};
+use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
+use crate::latent_library::LatentLibrary;
 use crate::lights::environment::Environment;
-use crate::latent_library::{LatentLibrary, NEURAL_SPEC_PREFIX};
 use crate::lights::LightSet;
-use crate::scene::{Geometry, Material, SceneDescription, SurfaceModel, Texture};
+use crate::material::SceneMaterials;
+use crate::scene::{Geometry, SceneDescription};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
-use std::collections::HashMap;
-
-/// How a material scatters, after binding specifications were resolved.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Surface {
-    Lambert,
-    MetallicRoughness,
-    /// Index into [`RenderScene::measured`].
-    Measured(usize),
-}
 
 /// Everything the integrator needs, built once from a [`SceneDescription`].
 pub struct RenderScene {
     pub geometry: Geometry,
-    pub materials: Vec<Material>,
-    surfaces: Vec<Surface>,
-    pub textures: Vec<Texture>,
-    measured: Vec<MeasuredBsdf>,
-    /// Materials that ask for a latent code while no latent file was given: (material,
-    /// latent name); they render with their glTF parameters.
-    unbound_neural: Vec<(String, String)>,
+    /// The materials and their BSDFs.
+    pub materials: SceneMaterials,
     pub bvh: Bvh,
     /// What a hit reads of its triangle, gathered once per triangle.
     hit_records: Vec<HitRecord>,
@@ -76,10 +63,10 @@ pub struct SurfacePoint {
 }
 
 impl RenderScene {
-    /// Builds the BVH, resolves bound BSDFs (loading each distinct specification once), loads
-    /// the environment and builds the light set. Without latent files, materials bound to a
-    /// latent code (`neural:NAME`) fall back to their glTF parameters
-    /// ([`RenderScene::unbound_neural`]).
+    /// Builds the BVH, opens the bound BSDFs (each distinct binding once), loads the
+    /// environment and builds the light set. Without latent files, materials bound to a
+    /// latent code fall back to their glTF parameters
+    /// ([`SceneMaterials::unbound_neural`]).
     pub fn new(description: SceneDescription) -> Result<Self> {
         Self::with_latents(description, &LatentLibrary::default())
     }
@@ -100,35 +87,6 @@ impl RenderScene {
         for &m in &geometry.material_ids {
             used[m as usize] = true;
         }
-        let mut measured = Vec::new();
-        let mut loaded: HashMap<String, usize> = HashMap::new();
-        let mut unbound_neural = Vec::new();
-        let mut surfaces = Vec::with_capacity(materials.len());
-        for (material, &is_used) in materials.iter().zip(&used) {
-            surfaces.push(match &material.model {
-                SurfaceModel::Lambert => Surface::Lambert,
-                SurfaceModel::MetallicRoughness => Surface::MetallicRoughness,
-                SurfaceModel::Bound(spec) if is_used && latents.is_empty() && spec.starts_with(NEURAL_SPEC_PREFIX) => {
-                    unbound_neural.push((material.name.clone(), spec[NEURAL_SPEC_PREFIX.len()..].to_string()));
-                    Surface::MetallicRoughness
-                }
-                SurfaceModel::Bound(spec) if is_used => {
-                    let index = match loaded.get(spec) {
-                        Some(&i) => i,
-                        None => {
-                            measured.push(match spec.strip_prefix(NEURAL_SPEC_PREFIX) {
-                                Some(name) => MeasuredBsdf::Neural(latents.decode(name)?),
-                                None => MeasuredBsdf::load(spec)?,
-                            });
-                            loaded.insert(spec.clone(), measured.len() - 1);
-                            measured.len() - 1
-                        }
-                    };
-                    Surface::Measured(index)
-                }
-                SurfaceModel::Bound(_) => Surface::Lambert,
-            });
-        }
         let bvh = Bvh::build((0..geometry.triangle_count()).map(|i| geometry.triangle_positions(i)));
         let hit_records = (0..geometry.triangle_count())
             .map(|i| {
@@ -147,10 +105,12 @@ impl RenderScene {
                 }
             })
             .collect();
+        let emission: Vec<Rgb> = materials.iter().map(|m| m.emission).collect();
+        let materials = SceneMaterials::prepare(materials, textures, &used, latents)?;
         let (bounds_centre, bounds_radius) = bounding_sphere(&geometry);
         let environment = environment.as_ref().map(Environment::load).transpose()?;
         let emissive = (0..geometry.triangle_count()).filter_map(|i| {
-            let e = materials[geometry.material_ids[i] as usize].emission;
+            let e = emission[geometry.material_ids[i] as usize];
             (e.max_element() > 0.0).then(|| (i as u32, geometry.triangle_positions(i), e))
         });
         let lights = LightSet::new(
@@ -163,59 +123,12 @@ impl RenderScene {
         Ok(RenderScene {
             geometry,
             materials,
-            surfaces,
-            textures,
-            measured,
-            unbound_neural,
             bvh,
             hit_records,
             lights,
             bounds_centre,
             bounds_radius,
         })
-    }
-
-    /// Number of distinct measured BSDFs loaded.
-    pub fn measured_count(&self) -> usize {
-        self.measured.len()
-    }
-
-    /// The distinct measured (and neural) BSDFs in use.
-    pub fn measured(&self) -> &[MeasuredBsdf] {
-        &self.measured
-    }
-
-    /// Indices (into [`RenderScene::measured`]) of the decoded latent codes in use.
-    pub fn neural_slots(&self) -> Vec<usize> {
-        (0..self.measured.len())
-            .filter(|&i| matches!(self.measured[i], MeasuredBsdf::Neural(_)))
-            .collect()
-    }
-
-    /// Replaces the measured BSDF at `slot` (e.g. by another latent code in an editing
-    /// sweep); every material bound to it follows.
-    ///
-    /// # Panics
-    /// If `slot` is out of range.
-    pub fn set_measured(&mut self, slot: usize, bsdf: MeasuredBsdf) {
-        self.measured[slot] = bsdf;
-    }
-
-    /// Materials that asked for a latent code without a latent file: (material, latent).
-    pub fn unbound_neural(&self) -> &[(String, String)] {
-        &self.unbound_neural
-    }
-
-    /// Evaluations of the decoded latent codes whose value was clamped to 0 (see
-    /// [`crate::bsdf::frenbrdf::FrenbrdfBsdf::clamped_count`]).
-    pub fn clamped_bsdf_values(&self) -> u64 {
-        self.measured
-            .iter()
-            .map(|m| match m {
-                MeasuredBsdf::Neural(b) => b.clamped_count(),
-                _ => 0,
-            })
-            .sum()
     }
 
     /// The surface point of a hit of a ray with direction `direction`; `None` for a
@@ -270,28 +183,14 @@ impl RenderScene {
     /// a single-sided material).
     #[inline]
     pub fn bsdf(&self, sp: &SurfacePoint) -> Option<Bsdf<'_>> {
-        let material = &self.materials[sp.material as usize];
-        if !sp.front_face && !material.double_sided {
-            return None;
-        }
-        let base = match material.base_color_texture {
-            Some(t) => material.base_color * self.textures[t].lookup(self.uv(sp)),
-            None => material.base_color,
-        };
-        Some(match self.surfaces[sp.material as usize] {
-            Surface::Lambert => Bsdf::Lambert(Lambert { albedo: base }),
-            Surface::MetallicRoughness => {
-                Bsdf::MetallicRoughness(MetallicRoughness::new(base, material.metallic, material.roughness))
-            }
-            Surface::Measured(i) => Bsdf::Measured(&self.measured[i]),
-        })
+        self.materials.bsdf(sp.material, sp.front_face, || self.uv(sp))
     }
 
     /// Radiance emitted at a surface point toward the ray that hit it (front side only).
     #[inline]
     pub fn emission(&self, sp: &SurfacePoint) -> Rgb {
         if sp.front_face {
-            self.materials[sp.material as usize].emission
+            self.materials.emission(sp.material)
         } else {
             Rgb::ZERO
         }

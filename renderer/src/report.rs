@@ -46,7 +46,8 @@
 use crate::camera::PinholeCamera;
 use crate::image_io::{write_png_rgb8, write_text, ToneMap};
 use crate::integrator::PathTracer;
-use crate::latent_library::{LatentLibrary, NEURAL_SPEC_PREFIX};
+use crate::latent_library::LatentLibrary;
+use crate::material::Binding;
 use crate::metrics::{display_values, ImageError};
 use crate::render::{Budget, Renderer};
 use crate::render_scene::RenderScene;
@@ -64,7 +65,7 @@ use std::time::Duration;
 pub struct Representation {
     /// Name in the table, plot and CSV.
     pub label: String,
-    /// Binding of the material: a specification (`merl:…`, `nbrdf:…`) or, with `latent`, a
+    /// Binding of the material: a [`Binding`] (`merl:…`, `nbrdf:…`) or, with `latent`, a
     /// latent name; `{name}` is replaced by the material.
     pub bind: String,
     /// Latent file the binding's name is looked up in.
@@ -187,10 +188,10 @@ pub fn run(config: &ReportConfig, cancel: &AtomicBool, progress: &Progress) -> R
         max_depth: config.max_depth,
         ..PathTracer::default()
     };
-    let scene_with = |spec: String, latents: &LatentLibrary| -> Result<RenderScene> {
+    let scene_with = |binding: Binding, latents: &LatentLibrary| -> Result<RenderScene> {
         let mut description = base.clone();
         for m in description.materials.iter_mut().filter(|m| m.name == config.material) {
-            m.model = SurfaceModel::Bound(spec.clone());
+            m.model = SurfaceModel::Bound(binding.clone());
         }
         RenderScene::with_latents(description, latents)
     };
@@ -210,7 +211,7 @@ pub fn run(config: &ReportConfig, cancel: &AtomicBool, progress: &Progress) -> R
     let mut done = 0usize;
     let mut curves = Vec::new();
     for name in &config.materials {
-        let reference_scene = scene_with(config.reference.replace("{name}", name), &LatentLibrary::default())?;
+        let reference_scene = scene_with(Binding::parse(&config.reference.replace("{name}", name), Path::new(""))?, &LatentLibrary::default())?;
         let renderer = Renderer {
             scene: &reference_scene,
             camera: PinholeCamera::new(&camera, w, h),
@@ -225,9 +226,9 @@ pub fn run(config: &ReportConfig, cancel: &AtomicBool, progress: &Progress) -> R
         let reference = film.mean();
         done += 1;
         for (r, latents) in &representations {
-            let spec = r.bind.replace("{name}", name);
-            let spec = if r.latent.is_some() { format!("{NEURAL_SPEC_PREFIX}{spec}") } else { spec };
-            let scene = match scene_with(spec, latents) {
+            let bind = r.bind.replace("{name}", name);
+            let binding = if r.latent.is_some() { Ok(Binding::Neural(bind)) } else { Binding::parse(&bind, Path::new("")) };
+            let scene = match binding.and_then(|b| scene_with(b, latents)) {
                 Err(e) if r.optional => {
                     progress(&format!("note: skipping {} for {name}: {e}", r.label), done as f64 / renders as f64);
                     done += 1;

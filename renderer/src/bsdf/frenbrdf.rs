@@ -8,12 +8,12 @@
 //! finite. Zero below either horizon. Importance sampling uses a [`TabulatedSampler`] fitted
 //! to the decoded BSDF at construction, with an exact pdf.
 
-use super::tabulated_sampling::{TabulatedSampler, TabulatedSamplerConfig};
-use super::{BsdfSample, Bxdf};
+use super::tabulated_sampling::{TabulatedBrdf, TabulatedSampler, TabulatedSamplerConfig};
+
 use crate::latent_file::MappingForm;
 use crate::target_net::TargetNet;
 use crate::Rgb;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
@@ -75,10 +75,6 @@ impl FrenbrdfBsdf {
         &self.net
     }
 
-    /// The importance sampler fitted to this BSDF.
-    pub fn sampler(&self) -> &TabulatedSampler {
-        &self.sampler
-    }
 
     /// Evaluations (since construction) in which the mapping gave a negative value that was
     /// clamped to 0 in at least one channel.
@@ -116,9 +112,9 @@ fn eval_decoded(
     (Rgb::from_array(f), clamped)
 }
 
-impl Bxdf for FrenbrdfBsdf {
+impl TabulatedBrdf for FrenbrdfBsdf {
     #[inline]
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+    fn value(&self, wo: Vec3, wi: Vec3) -> Rgb {
         let (f, clamped) = eval_decoded(&self.net, &self.reference, self.mapping, self.epsilon, wo, wi);
         if clamped {
             let slot = rayon::current_thread_index().unwrap_or(0) % COUNTER_SLOTS;
@@ -127,20 +123,16 @@ impl Bxdf for FrenbrdfBsdf {
         f
     }
 
-    #[inline]
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.sampler.pdf(wo, wi)
-    }
-
-    fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
-        self.sampler.sample_bsdf(wo, u, uc, |wi| self.eval(wo, wi))
+    fn sampler(&self) -> &TabulatedSampler {
+        &self.sampler
     }
 }
 
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::bsdf::measured::tests::{
+    use crate::bsdf::Bxdf;
+    use crate::testing::bsdfs::{
         check_chi2, check_stability, merl_fitted_table, CHI2_MATERIALS, CHI2_THETAS,
     };
     use crate::latent_library::{LatentCode, LatentLibrary};
@@ -223,8 +215,8 @@ pub(crate) mod tests {
             );
             for deg in [0.0f32, 45.0, 75.0] {
                 let wo = unit(deg.to_radians(), 0.0);
-                let a = crate::chi2::guided_directional_albedo(&decoded, &table, wo, 40_000);
-                let b = crate::chi2::guided_directional_albedo(&table, &table, wo, 40_000);
+                let a = crate::testing::chi2::guided_directional_albedo(&decoded, &table, wo, 40_000);
+                let b = crate::testing::chi2::guided_directional_albedo(&table, &table, wo, 40_000);
                 let ratio = a / b;
                 if (ratio - glam::DVec3::ONE).abs().max_element() > 0.3 {
                     failures.push(format!("{name} θo={deg}°: decoded/table {ratio:.3}"));

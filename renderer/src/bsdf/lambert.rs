@@ -80,7 +80,7 @@ impl Bxdf for Lambert {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chi2::{self, Chi2Config};
+    use crate::testing::chi2::{self, Chi2Config};
 
     /// Number of chi-square tests in this module, for the Šidák correction.
     const CHI2_TESTS: usize = 2;

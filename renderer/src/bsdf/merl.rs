@@ -12,11 +12,11 @@
 //! # Ok::<(), renderer::Error>(())
 //! ```
 
-use super::tabulated_sampling::{TabulatedSampler, TabulatedSamplerConfig};
-use super::{BsdfSample, Bxdf};
+use super::tabulated_sampling::{TabulatedBrdf, TabulatedSampler, TabulatedSamplerConfig};
+
 use crate::merl::{self, MerlTable};
 use crate::{Result, Rgb};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use std::path::Path;
 
 /// How a [`MerlBsdf`] reads between bin centres.
@@ -87,10 +87,6 @@ impl MerlBsdf {
         self.interpolation
     }
 
-    /// The importance sampler fitted to this table.
-    pub fn sampler(&self) -> &TabulatedSampler {
-        &self.sampler
-    }
 }
 
 /// Look-up in render values (f_r per bin, within-channel index order).
@@ -131,26 +127,22 @@ fn eval_values(values: &[[f32; 3]], interpolation: Interpolation, wo: Vec3, wi: 
     lookup_values(values, interpolation, th, td, pd)
 }
 
-impl Bxdf for MerlBsdf {
+impl TabulatedBrdf for MerlBsdf {
     #[inline]
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+    fn value(&self, wo: Vec3, wi: Vec3) -> Rgb {
         eval_values(&self.values, self.interpolation, wo, wi)
     }
 
-    #[inline]
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.sampler.pdf(wo, wi)
-    }
-
-    fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
-        self.sampler.sample_bsdf(wo, u, uc, |wi| self.eval(wo, wi))
+    fn sampler(&self) -> &TabulatedSampler {
+        &self.sampler
     }
 }
 
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::bsdf::measured::tests::{
+    use crate::bsdf::Bxdf;
+    use crate::testing::bsdfs::{
         check_chi2, check_stability, merl_fitted_table, CHI2_THETAS,
     };
 
@@ -231,7 +223,7 @@ pub(crate) mod tests {
 
     #[test]
     fn sampling_passes_chi2() {
-        for name in crate::bsdf::measured::tests::CHI2_MATERIALS {
+        for name in crate::testing::bsdfs::CHI2_MATERIALS {
             let bsdf = MerlBsdf::new(
                 &merl_fitted_table(name),
                 Interpolation::Trilinear,

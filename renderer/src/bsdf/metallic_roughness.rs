@@ -282,7 +282,7 @@ impl Bxdf for MetallicRoughness {
 mod tests {
     use super::*;
     use crate::bsdf::microfacet::MIN_ALPHA;
-    use crate::chi2::{self, Chi2Config, Chi2Domain};
+    use crate::testing::chi2::{self, Chi2Config, Chi2Domain};
     use glam::DVec3;
     use std::f32::consts::PI;
     use std::f64::consts::PI as PI64;

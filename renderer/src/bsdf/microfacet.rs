@@ -275,7 +275,7 @@ pub fn fresnel_schlick(f0: Rgb, cos_theta: f32) -> Rgb {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chi2::{self, Chi2Config};
+    use crate::testing::chi2::{self, Chi2Config};
     use std::f64::consts::PI as PI64;
 
     /// Number of chi-square tests in this module, for the Šidák correction.

@@ -7,15 +7,17 @@
 //! crate are opaque reflectors: they return zero value and zero density when `wo` or `wi`
 //! lies below the horizon (z ≤ 0).
 //!
-//! The integrator sees only [`Bsdf`], an enum over the kinds (static dispatch in the hot
-//! loop); each kind lives in a file of its own.
+//! The integrator sees only [`Bsdf`], the one enum over the kinds (static dispatch in the
+//! hot loop); each kind lives in a file of its own. The BSDFs made from data (MERL table,
+//! NBRDF network, decoded latent code) share one implementation of sampling and density,
+//! [`tabulated_sampling::TabulatedBrdf`]; which BSDF a material gets is decided in
+//! [`crate::material`].
 
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
 pub mod frenbrdf;
 pub mod lambert;
-pub mod measured;
 pub mod merl;
 pub mod metallic_roughness;
 pub mod microfacet;
@@ -23,7 +25,6 @@ pub mod nbrdf;
 pub mod tabulated_sampling;
 
 pub use lambert::Lambert;
-pub use measured::MeasuredBsdf;
 pub use metallic_roughness::MetallicRoughness;
 
 /// One direction drawn by [`Bxdf::sample`].
@@ -63,13 +64,18 @@ pub trait Bxdf {
     }
 }
 
-/// A BSDF at one shading point: the enum the integrator dispatches on.
+/// A BSDF at one shading point: the enum the integrator dispatches on. The BSDFs made from
+/// data are shared by the scene (they live as long as it does) and taken by reference.
 #[derive(Clone, Copy, Debug)]
 pub enum Bsdf<'a> {
     Lambert(Lambert),
     MetallicRoughness(MetallicRoughness),
-    /// A measured BSDF shared by the scene (its tables live as long as the scene).
-    Measured(&'a MeasuredBsdf),
+    /// A MERL-layout table.
+    Merl(&'a merl::MerlBsdf),
+    /// An NBRDF network.
+    Nbrdf(&'a nbrdf::NbrdfBsdf),
+    /// A decoded FreNBRDF/HyperBRDF latent code.
+    Neural(&'a frenbrdf::FrenbrdfBsdf),
 }
 
 macro_rules! dispatch {
@@ -77,7 +83,9 @@ macro_rules! dispatch {
         match $self {
             Bsdf::Lambert($b) => $e,
             Bsdf::MetallicRoughness($b) => $e,
-            Bsdf::Measured($b) => $e,
+            Bsdf::Merl($b) => $e,
+            Bsdf::Nbrdf($b) => $e,
+            Bsdf::Neural($b) => $e,
         }
     };
 }

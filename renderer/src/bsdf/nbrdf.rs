@@ -13,11 +13,11 @@
 //! # Ok::<(), renderer::Error>(())
 //! ```
 
-use super::tabulated_sampling::{TabulatedSampler, TabulatedSamplerConfig};
-use super::{BsdfSample, Bxdf};
+use super::tabulated_sampling::{TabulatedBrdf, TabulatedSampler, TabulatedSamplerConfig};
+
 use crate::nbrdf::NbrdfNetwork;
 use crate::{Result, Rgb};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use std::path::Path;
 
 /// An NBRDF network as a BSDF.
@@ -57,32 +57,24 @@ impl NbrdfBsdf {
         &self.network
     }
 
-    /// The importance sampler fitted to this network.
-    pub fn sampler(&self) -> &TabulatedSampler {
-        &self.sampler
-    }
 }
 
-impl Bxdf for NbrdfBsdf {
+impl TabulatedBrdf for NbrdfBsdf {
     #[inline]
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+    fn value(&self, wo: Vec3, wi: Vec3) -> Rgb {
         eval_network(&self.network, wo, wi)
     }
 
-    #[inline]
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.sampler.pdf(wo, wi)
-    }
-
-    fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
-        self.sampler.sample_bsdf(wo, u, uc, |wi| self.eval(wo, wi))
+    fn sampler(&self) -> &TabulatedSampler {
+        &self.sampler
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::measured::tests::{
+    use crate::bsdf::Bxdf;
+    use crate::testing::bsdfs::{
         check_chi2, check_stability, nbrdf_bsdf, CHI2_MATERIALS, CHI2_THETAS,
     };
 

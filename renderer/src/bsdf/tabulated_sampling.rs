@@ -33,11 +33,42 @@
 //! The BRDF is never asked for a density: only its values enter the fit.
 
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, Distribution1D};
-use crate::bsdf::BsdfSample;
+use crate::bsdf::{BsdfSample, Bxdf};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::f32::consts::{FRAC_PI_2, PI};
+
+/// A BRDF given by its values and importance-sampled by a [`TabulatedSampler`] fitted to
+/// them (MERL tables, NBRDF networks, decoded latent codes). Implementing this implements
+/// [`Bxdf`]: `eval` is the value, `pdf` the sampler's exact density, and `sample` draws from
+/// the sampler and packs the value at the drawn direction.
+pub trait TabulatedBrdf {
+    /// f_r(wo, wi) in 1/sr, without the cosine; zero below either horizon.
+    fn value(&self, wo: Vec3, wi: Vec3) -> Rgb;
+
+    /// The sampler fitted to [`TabulatedBrdf::value`].
+    fn sampler(&self) -> &TabulatedSampler;
+}
+
+impl<T: TabulatedBrdf> Bxdf for T {
+    #[inline]
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        self.value(wo, wi)
+    }
+
+    #[inline]
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.sampler().pdf(wo, wi)
+    }
+
+    fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
+        let sampler = self.sampler();
+        let wi = sampler.sample(wo, u, uc)?;
+        let pdf = sampler.pdf(wo, wi);
+        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample { wi, f: self.value(wo, wi), pdf })
+    }
+}
 
 /// Resolution and mixture of a [`TabulatedSampler`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -293,15 +324,6 @@ impl TabulatedSampler {
         (k, (s - k as f32).clamp(0.0, 1.0))
     }
 
-    /// Draws `wi` and packs it with the BSDF value `eval(wi)` and this sampler's density, as
-    /// every BSDF sampled by a tabulated sampler returns it.
-    #[inline]
-    pub fn sample_bsdf(&self, wo: Vec3, u: Vec2, uc: f32, eval: impl FnOnce(Vec3) -> Rgb) -> Option<BsdfSample> {
-        let wi = self.sample(wo, u, uc)?;
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample { wi, f: eval(wi), pdf })
-    }
-
     /// Draws wi given `wo` (local frame, z > 0) from a 2D sample `u` and a 1D sample `uc`
     /// (which picks cosine lobe, θo node and the sign of φh − φo). `None` when `wo` is below
     /// the horizon or the drawn reflection is. The density of the result is [`Self::pdf`].
@@ -543,20 +565,20 @@ mod tests {
 
     #[test]
     fn chi2_passes_and_detects_a_mismatched_density() {
-        let config = crate::chi2::Chi2Config::default()
+        let config = crate::testing::chi2::Chi2Config::default()
             .with_sample_count(200_000)
-            .with_domain(crate::chi2::Chi2Domain::ThetaPhi)
+            .with_domain(crate::testing::chi2::Chi2Domain::ThetaPhi)
             .with_test_count(2);
         let sampled = TabulatedSampler::new(ggx_brdf(0.1), &TabulatedSamplerConfig::default());
         let other = TabulatedSampler::new(ggx_brdf(0.13), &TabulatedSamplerConfig::default());
         let wo = Vec3::new(0.5, 0.3, 0.81).normalize();
-        let good = crate::chi2::test_sampler(
+        let good = crate::testing::chi2::test_sampler(
             |u, uc| sampled.sample(wo, u, uc),
             |wi| sampled.pdf(wo, wi),
             &config,
         );
         assert!(good.passed(), "{good}");
-        let bad = crate::chi2::test_sampler(
+        let bad = crate::testing::chi2::test_sampler(
             |u, uc| sampled.sample(wo, u, uc),
             |wi| other.pdf(wo, wi),
             &config,

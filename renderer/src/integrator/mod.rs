@@ -226,23 +226,13 @@ impl PathTracer {
     /// and the path throughput `beta`.
     #[inline(always)]
     fn scatter(&self, scene: &RenderScene, vertex: &Vertex, beta: Rgb) -> Scattered {
+        let Vertex { sp, bsdf, wo, u, uc, .. } = *vertex;
         let light = vertex
             .light
-            .and_then(|(index, select_pdf)| scene.lights.sample_chosen(index, select_pdf, vertex.sp.p, vertex.u_light));
-        match &vertex.bsdf {
-            Bsdf::Lambert(b) => self.scatter_with(b, vertex, light, beta),
-            Bsdf::MetallicRoughness(b) => self.scatter_with(b, vertex, light, beta),
-            Bsdf::Measured(b) => self.scatter_with(*b, vertex, light, beta),
-        }
-    }
-
-    /// [`Self::scatter`] for one BSDF kind and the sampled light.
-    #[inline(always)]
-    fn scatter_with<B: Bxdf>(&self, bsdf: &B, vertex: &Vertex, light: Option<LightSample>, beta: Rgb) -> Scattered {
-        let Vertex { sp, wo, u, uc, .. } = *vertex;
+            .and_then(|(index, select_pdf)| scene.lights.sample_chosen(index, select_pdf, sp.p, vertex.u_light));
         let shadow = light
             .filter(|l| l.is_delta || self.strategy != Strategy::BsdfOnly)
-            .and_then(|ls| self.light_term(bsdf, &sp, wo, beta, &ls));
+            .and_then(|ls| self.light_term(&bsdf, &sp, wo, beta, &ls));
         let next = bsdf.sample(wo, u, uc).and_then(|bs| continuation(&sp, &bs, beta));
         Scattered { shadow, next }
     }

@@ -21,12 +21,12 @@
 //! - Material `extras` choose the [`SurfaceModel`] (at most one of these keys):
 //!   - `{"bsdf": "diffuse"}` → [`SurfaceModel::Lambert`]; `{"bsdf": "metallic-roughness"}`
 //!     → [`SurfaceModel::MetallicRoughness`] (the default without extras);
-//!   - `{"brdf": "SPEC"}` → [`SurfaceModel::Bound`] with the specification string, e.g.
-//!     `merl:materials/alum-bronze.binary` or `nbrdf:networks/alum-bronze`. For the kinds
-//!     in [`PATH_SPEC_KINDS`] a relative path after the `kind:` prefix is resolved against
-//!     the glTF file's directory (see [`resolve_spec`]); other strings are kept as given;
-//!   - `{"neural": "NAME"}` → [`SurfaceModel::Bound`]`("neural:NAME")`, a latent code of
-//!     the material file chosen at render time.
+//!   - `{"brdf": "BINDING"}` → [`SurfaceModel::Bound`] with the [`Binding`] written there,
+//!     e.g. `merl:materials/alum-bronze.binary` or `nbrdf:networks/alum-bronze`, a relative
+//!     path resolved against the glTF file's directory; a binding that does not parse is an
+//!     error naming the file and the material;
+//!   - `{"neural": "NAME"}` → [`SurfaceModel::Bound`]`(`[`Binding::Neural`]`)`, a latent
+//!     code of the material file chosen at render time.
 //! - Perspective cameras instanced by nodes (`yfov`, `aspectRatio`); `camera_to_world` is
 //!   the node's world transform without its scale. A camera is named after the camera
 //!   object, else its node, else `camera<index>`. Orthographic cameras are skipped; a file
@@ -53,6 +53,7 @@ use super::{
     smooth_vertex_normals, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Material,
     PunctualLight, SceneDescription, SurfaceModel, Texture,
 };
+use crate::material::Binding;
 use crate::{Error, Result, Rgb};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::camera::Projection;
@@ -63,10 +64,6 @@ use glam::{Mat3, Mat4, Vec2, Vec3};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
-
-/// Kinds of binding specification (`kind:argument`) whose argument is a file path or path
-/// prefix; a relative one given in a glTF file is resolved against that file's directory.
-pub const PATH_SPEC_KINDS: [&str; 2] = ["merl", "nbrdf"];
 
 /// Loads a `.gltf` or `.glb` file (see the module documentation for what is read).
 pub fn load(path: &Path) -> Result<SceneDescription> {
@@ -167,24 +164,6 @@ fn parse_and_validate(bytes: &[u8], path: &Path) -> Result<Gltf> {
     }
     let document = Document::from_json(json).map_err(|e| invalid(&e))?;
     Ok(Gltf { document, blob })
-}
-
-/// Resolves a binding specification found in a glTF file whose directory is `base`: for the
-/// kinds in [`PATH_SPEC_KINDS`] (`merl:`, `nbrdf:`) a relative path after the prefix is
-/// joined to `base`; absolute paths, other kinds (e.g. `neural:NAME`) and strings without a
-/// `kind:` prefix are returned unchanged.
-pub fn resolve_spec(spec: &str, base: &Path) -> String {
-    match spec.split_once(':') {
-        Some((kind, rest))
-            if PATH_SPEC_KINDS.contains(&kind)
-                && !rest.is_empty()
-                && Path::new(rest).is_relative()
-                && !base.as_os_str().is_empty() =>
-        {
-            format!("{kind}:{}", base.join(rest).display())
-        }
-        _ => spec.to_string(),
-    }
 }
 
 /// Reads every buffer of the document: the GLB binary chunk, `data:` URIs, or files relative
@@ -799,18 +778,20 @@ fn surface_model(
             )),
         },
         Some("brdf") => {
-            let spec = string("brdf")?;
-            if spec.is_empty() {
+            let text = string("brdf")?;
+            if text.is_empty() {
                 return Err(format!("material '{material}' extras: 'brdf' is empty"));
             }
-            Ok(SurfaceModel::Bound(resolve_spec(spec, base)))
+            Binding::parse(text, base)
+                .map(SurfaceModel::Bound)
+                .map_err(|e| format!("material '{material}' extras: {e}"))
         }
         Some("neural") => {
             let name = string("neural")?;
             if name.is_empty() {
                 return Err(format!("material '{material}' extras: 'neural' is empty"));
             }
-            Ok(SurfaceModel::Bound(format!("neural:{name}")))
+            Ok(SurfaceModel::Bound(Binding::Neural(name.to_string())))
         }
         _ => Ok(SurfaceModel::MetallicRoughness),
     }
@@ -1351,11 +1332,11 @@ mod tests {
             models,
             vec![
                 &SurfaceModel::Lambert,
-                &SurfaceModel::Bound(format!("merl:{}", table.display())),
-                &SurfaceModel::Bound("nbrdf:/abs/net".into()),
-                &SurfaceModel::Bound("neural:gold-paint".into()),
+                &SurfaceModel::Bound(Binding::Merl(table)),
+                &SurfaceModel::Bound(Binding::Nbrdf("/abs/net".into())),
+                &SurfaceModel::Bound(Binding::Neural("gold-paint".into())),
                 &SurfaceModel::MetallicRoughness,
-                &SurfaceModel::Bound("neural:blue-fabric".into()),
+                &SurfaceModel::Bound(Binding::Neural("blue-fabric".into())),
             ]
         );
         assert_eq!(scene.geometry.material_ids, vec![0, 1, 2, 3, 4, 5]);
@@ -1367,25 +1348,8 @@ mod tests {
         );
         let unknown = material_doc(json!([{"name": "y", "extras": {"bsdf": "glass"}}]));
         expect_error(&unknown, "unknown bsdf 'glass'");
-    }
-
-    #[test]
-    fn resolve_spec_only_touches_relative_paths_of_path_kinds() {
-        let base = Path::new("/scenes/a");
-        assert_eq!(
-            resolve_spec("merl:x.binary", base),
-            "merl:/scenes/a/x.binary"
-        );
-        assert_eq!(
-            resolve_spec("merl:/abs/x.binary", base),
-            "merl:/abs/x.binary"
-        );
-        assert_eq!(resolve_spec("neural:x/y", base), "neural:x/y");
-        assert_eq!(resolve_spec("plain", base), "plain");
-        assert_eq!(
-            resolve_spec("merl:x.binary", Path::new("")),
-            "merl:x.binary"
-        );
+        let bad = material_doc(json!([{"name": "z", "extras": {"brdf": "phong:x"}}]));
+        expect_error(&bad, "material 'z' extras: BRDF binding kind 'phong:x' not found");
     }
 
     #[test]
@@ -1679,7 +1643,7 @@ mod tests {
             .expect("preview material");
         assert_eq!(
             scene.materials[preview].model,
-            SurfaceModel::Bound("neural:alum-bronze".to_string()),
+            SurfaceModel::Bound(Binding::Neural("alum-bronze".to_string())),
             "the preview binds the shipped latent code by its extras"
         );
         assert!(

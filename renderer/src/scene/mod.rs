@@ -1,6 +1,7 @@
 //! Scene descriptions as loaded from files (glTF, OBJ), before acceleration structures and
 //! light samplers are built. Everything is in world space, y up, scene units.
 
+use crate::material::Binding;
 use crate::{Error, Result, Rgb};
 use glam::{Mat4, Vec2, Vec3};
 use std::path::{Path, PathBuf};
@@ -116,9 +117,9 @@ pub enum SurfaceModel {
     Lambert,
     /// glTF metallic-roughness (GGX specular over a Lambertian base).
     MetallicRoughness,
-    /// A measured or neural BRDF, bound by a specification string such as
-    /// `merl:path/alum-bronze.binary`; resolved when the scene is prepared for rendering.
-    Bound(String),
+    /// A BSDF made from data (MERL table, NBRDF network, latent code), opened when the scene
+    /// is prepared for rendering ([`crate::material`]).
+    Bound(Binding),
 }
 
 /// A surface material.

@@ -13,7 +13,8 @@ use renderer::image_io::{write_image, ImageFormat, ToneMap};
 use renderer::integrator::PathTracer;
 use renderer::metrics::{display_values, ImageError};
 use renderer::render::{Budget, RenderStats, Renderer};
-use renderer::latent_library::{LatentLibrary, NEURAL_SPEC_PREFIX};
+use renderer::latent_library::LatentLibrary;
+use renderer::material::Binding;
 use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
 use renderer::sweep::SweepSpec;
@@ -139,8 +140,9 @@ struct StatsFile<'a> {
     render: &'a RenderStats,
 }
 
-/// Applies `--bind` to the scene's materials: a value with `:` is a specification, one
-/// without names a latent code (which needs a latent file).
+/// Applies `--bind` to the scene's materials: a value with `:` is a [`Binding`] (relative
+/// paths from the current directory), one without names a latent code (which needs a latent
+/// file).
 fn bind_materials(description: &mut SceneDescription, binds: &[(String, String)], latents: &LatentLibrary) -> Result<()> {
     for (material, value) in binds {
         let names: Vec<String> = description.materials.iter().map(|m| m.name.clone()).collect();
@@ -152,15 +154,15 @@ fn bind_materials(description: &mut SceneDescription, binds: &[(String, String)]
             }
             .into());
         };
-        let spec = if value.contains(':') {
-            value.clone()
+        let binding = if value.contains(':') {
+            Binding::parse(value, Path::new(""))?
         } else if latents.is_empty() {
             bail!("invalid value for --bind: {material}={value}: a latent name needs --material FILE");
         } else {
             latents.latent(value)?;
-            format!("{NEURAL_SPEC_PREFIX}{value}")
+            Binding::Neural(value.clone())
         };
-        m.model = SurfaceModel::Bound(spec);
+        m.model = SurfaceModel::Bound(binding);
     }
     Ok(())
 }
@@ -288,7 +290,7 @@ fn run(args: Args) -> Result<()> {
         None => None,
     };
     let mut scene = RenderScene::with_latents(description, &latents)?;
-    for (material, latent) in scene.unbound_neural() {
+    for (material, latent) in scene.materials.unbound_neural() {
         eprintln!("note: material '{material}' binds latent '{latent}' but no --material file was given: rendering its glTF parameters");
     }
     let load_seconds = load_start.elapsed().as_secs_f64();
@@ -332,7 +334,7 @@ fn run(args: Args) -> Result<()> {
         let json = serde_json::to_string_pretty(&StatsFile {
             scene: &args.scene,
             load_seconds,
-            clamped_bsdf_values: scene.clamped_bsdf_values(),
+            clamped_bsdf_values: scene.materials.clamped_bsdf_values(),
             render: &stats,
         })?;
         renderer::image_io::write_text(path, &(json + "\n"))?;

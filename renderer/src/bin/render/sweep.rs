@@ -9,9 +9,9 @@ use super::{summary, Job};
 use anyhow::{bail, Context, Result};
 use renderer::bsdf::merl::{Interpolation, MerlBsdf};
 use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
-use renderer::bsdf::MeasuredBsdf;
 use renderer::image_io::{to_srgb8, write_image, write_png_rgb8, write_text};
 use renderer::latent_library::LatentLibrary;
+use renderer::material::SharedBsdf;
 use renderer::merl::MerlTable;
 use renderer::metrics::{display_values, ImageError};
 use renderer::render_scene::RenderScene;
@@ -20,7 +20,7 @@ use renderer::Rgb;
 
 /// Renders the sweep (see the module documentation).
 pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &SweepSpec) -> Result<()> {
-    let slots = scene.neural_slots();
+    let slots = scene.materials.neural_slots();
     if slots.is_empty() {
         bail!(
             "invalid value for --sweep: no material of the scene is bound to a latent code (bind one with --bind MATERIAL={})",
@@ -47,7 +47,7 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
         let code = lerp_code(&a, &b, t)?;
         let label = format!("{}>{}@{t:.2}", spec.from, spec.to);
         for &slot in &slots {
-            scene.set_measured(slot, MeasuredBsdf::Neural(latents.decode_code(&code, &label)?));
+            scene.materials.set_shared(slot, SharedBsdf::Neural(latents.decode_code(&code, &label)?));
         }
         let (film, stats, _) = job.render(scene);
         if stats.interrupted {
@@ -67,7 +67,7 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
             let blend = blend_tables(ta, tb, t as f64);
             let bsdf = MerlBsdf::new(&blend, Interpolation::default(), &TabulatedSamplerConfig::default());
             for &slot in &slots {
-                scene.set_measured(slot, MeasuredBsdf::Merl(bsdf.clone()));
+                scene.materials.set_shared(slot, SharedBsdf::Merl(bsdf.clone()));
             }
             let (film, stats, _) = job.render(scene);
             if stats.interrupted {

@@ -34,7 +34,7 @@
 //! ```
 //! use glam::Vec3;
 //! use renderer::bsdf::Lambert;
-//! use renderer::chi2::{self, Chi2Config};
+//! use renderer::testing::chi2::{self, Chi2Config};
 //! use renderer::Rgb;
 //!
 //! let config = Chi2Config::default().with_sample_count(100_000);

@@ -1,0 +1,333 @@
+//! Material → BSDF: the one place that decides which BSDF a material's surface gets.
+//!
+//! A [`Material`] says how it scatters with a [`SurfaceModel`]: Lambert and glTF
+//! metallic-roughness are built per shading point from the material's (textured) parameters;
+//! a [`Binding`] names a BSDF made from data (a MERL table, an NBRDF network, a latent code),
+//! opened once into a [`SharedBsdf`] that every shading point of the materials bound to it
+//! shares. [`SceneMaterials`] holds a scene's materials prepared this way: it opens only what
+//! some triangle uses, each distinct binding once.
+
+pub mod binding;
+
+pub use binding::{Binding, BINDING_FORMS};
+
+use crate::bsdf::frenbrdf::FrenbrdfBsdf;
+use crate::bsdf::merl::MerlBsdf;
+use crate::bsdf::nbrdf::NbrdfBsdf;
+use crate::bsdf::{Bsdf, Lambert, MetallicRoughness};
+use crate::latent_library::LatentLibrary;
+use crate::scene::{Material, SurfaceModel, Texture};
+use crate::{Error, Result, Rgb};
+use glam::Vec2;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// A BSDF made from data, opened once and shared by every shading point of the materials
+/// bound to it.
+///
+/// The NBRDF variant holds its weights inline (≈ 3.5 KB) so evaluation needs no pointer
+/// chase; scenes hold a handful of these, by reference.
+#[derive(Debug)]
+#[allow(clippy::large_enum_variant)]
+pub enum SharedBsdf {
+    /// A MERL-layout table.
+    Merl(MerlBsdf),
+    /// An NBRDF network.
+    Nbrdf(NbrdfBsdf),
+    /// A decoded FreNBRDF/HyperBRDF latent code.
+    Neural(FrenbrdfBsdf),
+}
+
+impl SharedBsdf {
+    /// Opens the BSDF a binding names; a latent code is decoded from `latents` (an unknown
+    /// name lists the available ones; an empty library is an error saying a latent file is
+    /// needed). Errors name the offending file or name.
+    pub fn open(binding: &Binding, latents: &LatentLibrary) -> Result<Self> {
+        Ok(match binding {
+            Binding::Merl(path) => SharedBsdf::Merl(MerlBsdf::load(resolve_merl_path(path))?),
+            Binding::Nbrdf(path) => SharedBsdf::Nbrdf(NbrdfBsdf::load(resolve_nbrdf_prefix(path)?)?),
+            Binding::Neural(name) if latents.is_empty() => {
+                return Err(Error::InvalidArgument {
+                    flag: format!("BRDF binding '{binding}'"),
+                    reason: format!("latent code '{name}' needs a latent file (render --material FILE)"),
+                })
+            }
+            Binding::Neural(name) => SharedBsdf::Neural(latents.decode(name)?),
+        })
+    }
+
+    /// The BSDF for shading.
+    #[inline]
+    pub fn as_bsdf(&self) -> Bsdf<'_> {
+        match self {
+            SharedBsdf::Merl(b) => Bsdf::Merl(b),
+            SharedBsdf::Nbrdf(b) => Bsdf::Nbrdf(b),
+            SharedBsdf::Neural(b) => Bsdf::Neural(b),
+        }
+    }
+}
+
+/// `PATH`, or `PATH.binary` when only that exists.
+fn resolve_merl_path(path: &Path) -> PathBuf {
+    if path.exists() {
+        return path.to_path_buf();
+    }
+    let mut with_extension = path.as_os_str().to_owned();
+    with_extension.push(".binary");
+    let with_extension = PathBuf::from(with_extension);
+    if with_extension.is_file() {
+        with_extension
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// The network prefix an `nbrdf:` path names (see [`binding`]).
+fn resolve_nbrdf_prefix(path: &Path) -> Result<PathBuf> {
+    let text = path.to_string_lossy();
+    for name in crate::nbrdf::TENSOR_NAMES {
+        if let Some(prefix) = text.strip_suffix(&format!("_{name}.npy")) {
+            return Ok(PathBuf::from(prefix));
+        }
+    }
+    if crate::nbrdf::tensor_paths(path)[0].is_file() {
+        return Ok(path.to_path_buf());
+    }
+    if path.is_dir() {
+        let names = crate::nbrdf::list_networks(path)?;
+        if let [name] = &names[..] {
+            return Ok(path.join(name));
+        }
+        return Err(Error::invalid_file(path, format!("a directory of {} NBRDF networks: name one as DIR/MATERIAL", names.len())));
+    }
+    if let Some(dir) = path.parent().filter(|d| d.is_dir()) {
+        let available = crate::nbrdf::list_networks(dir)?;
+        if !available.is_empty() {
+            return Err(Error::UnknownName {
+                what: "NBRDF network",
+                name: path.display().to_string(),
+                available,
+            });
+        }
+    }
+    // Loading reports the missing `_fc1.npy` with its path.
+    Ok(path.to_path_buf())
+}
+
+/// How a prepared material scatters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    Lambert,
+    MetallicRoughness,
+    /// Index into [`SceneMaterials::shared`].
+    Shared(usize),
+}
+
+/// A scene's materials prepared for shading (see the module documentation).
+pub struct SceneMaterials {
+    materials: Vec<Material>,
+    textures: Vec<Texture>,
+    kinds: Vec<Kind>,
+    shared: Vec<SharedBsdf>,
+    /// Materials that bind a latent code while no latent file was given: (material, latent
+    /// name); they render with their glTF parameters.
+    unbound_neural: Vec<(String, String)>,
+}
+
+impl SceneMaterials {
+    /// Opens the bindings of the materials marked `used` (each distinct binding once, latent
+    /// codes from `latents`). Without latent files a material bound to a latent code falls
+    /// back to its glTF metallic-roughness parameters ([`SceneMaterials::unbound_neural`]);
+    /// unused bound materials get nothing opened.
+    pub fn prepare(materials: Vec<Material>, textures: Vec<Texture>, used: &[bool], latents: &LatentLibrary) -> Result<Self> {
+        let mut shared = Vec::new();
+        let mut opened: HashMap<&Binding, usize> = HashMap::new();
+        let mut unbound_neural = Vec::new();
+        let mut kinds = Vec::with_capacity(materials.len());
+        for (material, &is_used) in materials.iter().zip(used) {
+            kinds.push(match &material.model {
+                SurfaceModel::Lambert => Kind::Lambert,
+                SurfaceModel::MetallicRoughness => Kind::MetallicRoughness,
+                SurfaceModel::Bound(_) if !is_used => Kind::Lambert,
+                SurfaceModel::Bound(Binding::Neural(name)) if latents.is_empty() => {
+                    unbound_neural.push((material.name.clone(), name.clone()));
+                    Kind::MetallicRoughness
+                }
+                SurfaceModel::Bound(binding) => Kind::Shared(match opened.get(binding) {
+                    Some(&i) => i,
+                    None => {
+                        shared.push(SharedBsdf::open(binding, latents)?);
+                        opened.insert(binding, shared.len() - 1);
+                        shared.len() - 1
+                    }
+                }),
+            });
+        }
+        Ok(SceneMaterials {
+            materials,
+            textures,
+            kinds,
+            shared,
+            unbound_neural,
+        })
+    }
+
+    /// The materials, in scene order.
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    /// The textures the materials index.
+    pub fn textures(&self) -> &[Texture] {
+        &self.textures
+    }
+
+    /// The BSDF of `material` at a point seen from its front (`front_face`) or back, with
+    /// texture coordinates from `uv` (called only when the material has a texture); `None`
+    /// where the surface does not scatter (the back of a single-sided material).
+    #[inline]
+    pub fn bsdf(&self, material: u32, front_face: bool, uv: impl FnOnce() -> Vec2) -> Option<Bsdf<'_>> {
+        let m = &self.materials[material as usize];
+        if !front_face && !m.double_sided {
+            return None;
+        }
+        let base = match m.base_color_texture {
+            Some(t) => m.base_color * self.textures[t].lookup(uv()),
+            None => m.base_color,
+        };
+        Some(match self.kinds[material as usize] {
+            Kind::Lambert => Bsdf::Lambert(Lambert { albedo: base }),
+            Kind::MetallicRoughness => Bsdf::MetallicRoughness(MetallicRoughness::new(base, m.metallic, m.roughness)),
+            Kind::Shared(i) => self.shared[i].as_bsdf(),
+        })
+    }
+
+    /// Radiance `material` emits from its front side, W/(m² sr).
+    #[inline]
+    pub fn emission(&self, material: u32) -> Rgb {
+        self.materials[material as usize].emission
+    }
+
+    /// The distinct shared BSDFs in use.
+    pub fn shared(&self) -> &[SharedBsdf] {
+        &self.shared
+    }
+
+    /// The slot (index into [`SceneMaterials::shared`]) of the BSDF the material called
+    /// `name` is bound to; `None` when there is no such material or it has none (not bound,
+    /// or on no triangle).
+    pub fn shared_slot(&self, name: &str) -> Option<usize> {
+        let i = self.materials.iter().position(|m| m.name == name)?;
+        match self.kinds[i] {
+            Kind::Shared(slot) => Some(slot),
+            _ => None,
+        }
+    }
+
+    /// Slots of the decoded latent codes in use.
+    pub fn neural_slots(&self) -> Vec<usize> {
+        (0..self.shared.len()).filter(|&i| matches!(self.shared[i], SharedBsdf::Neural(_))).collect()
+    }
+
+    /// Replaces the BSDF at `slot` (e.g. by another latent code in an editing sweep); every
+    /// material bound to it follows.
+    ///
+    /// # Panics
+    /// If `slot` is out of range.
+    pub fn set_shared(&mut self, slot: usize, bsdf: SharedBsdf) {
+        self.shared[slot] = bsdf;
+    }
+
+    /// Materials that bind a latent code without a latent file: (material, latent).
+    pub fn unbound_neural(&self) -> &[(String, String)] {
+        &self.unbound_neural
+    }
+
+    /// Evaluations of the decoded latent codes whose value was clamped to 0 (see
+    /// [`FrenbrdfBsdf::clamped_count`]).
+    pub fn clamped_bsdf_values(&self) -> u64 {
+        self.shared
+            .iter()
+            .map(|m| match m {
+                SharedBsdf::Neural(b) => b.clamped_count(),
+                _ => 0,
+            })
+            .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::Bxdf;
+    use crate::merl::MerlTable;
+    use crate::nbrdf::tests::data_dir;
+    use glam::Vec3;
+
+    fn open(text: &str, base: &Path) -> Result<SharedBsdf> {
+        SharedBsdf::open(&Binding::parse(text, base)?, &LatentLibrary::default())
+    }
+
+    fn unit(theta: f32, phi: f32) -> Vec3 {
+        Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    }
+
+    #[test]
+    fn bindings_open_tables_and_networks() {
+        let dir = data_dir().join("merl");
+        for name in ["alum-bronze", "alum-bronze_fc3.npy"] {
+            let text = format!("nbrdf:{}", dir.join(name).display());
+            assert!(matches!(open(&text, Path::new("")).unwrap(), SharedBsdf::Nbrdf(_)), "{text}");
+        }
+        assert!(matches!(open("nbrdf:merl/chrome", &data_dir()).unwrap(), SharedBsdf::Nbrdf(_)));
+
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("grey.binary");
+        MerlTable::from_fn(|_, _, _| Rgb::splat(0.1)).write(&path).unwrap();
+        assert!(matches!(open(&format!("merl:{}", path.display()), Path::new("")).unwrap(), SharedBsdf::Merl(_)));
+        let b = open("merl:grey", tmp.path()).unwrap();
+        let f = b.as_bsdf().eval(Vec3::Z, Vec3::new(0.6, 0.0, 0.8));
+        assert!((f - Rgb::splat(0.1)).abs().max_element() < 1e-6, "{f}");
+    }
+
+    #[test]
+    fn bad_bindings_name_the_file_or_name() {
+        let msg = open("merl:/nonexistent/x.binary", Path::new("")).unwrap_err().to_string();
+        assert!(msg.contains("/nonexistent/x.binary"), "{msg}");
+
+        let e = open(&format!("nbrdf:{}", data_dir().join("merl/alum-bronz").display()), Path::new("")).unwrap_err();
+        let msg = e.to_string();
+        assert!(matches!(e, Error::UnknownName { .. }) && msg.contains("alum-bronz'") && msg.contains("alum-bronze,"), "{msg}");
+
+        let msg = open(&format!("nbrdf:{}", data_dir().join("merl").display()), Path::new("")).unwrap_err().to_string();
+        assert!(msg.contains("100 NBRDF networks"), "{msg}");
+
+        let msg = open("nbrdf:/nonexistent/dir/x", Path::new("")).unwrap_err().to_string();
+        assert!(msg.contains("/nonexistent/dir/x_fc1.npy"), "{msg}");
+
+        let msg = open("neural:gold", Path::new("")).unwrap_err().to_string();
+        assert!(msg.contains("neural:gold") && msg.contains("needs a latent file"), "{msg}");
+
+        let tmp = tempfile::tempdir().unwrap();
+        let bad = tmp.path().join("short.binary");
+        let mut bytes: Vec<u8> = [90i32, 90, 180].iter().flat_map(|d| d.to_le_bytes()).collect();
+        bytes.extend_from_slice(&[0u8; 88]);
+        std::fs::write(&bad, bytes).unwrap();
+        let msg = open(&format!("merl:{}", bad.display()), Path::new("")).unwrap_err().to_string();
+        assert!(msg.contains("short.binary") && msg.contains("truncated"), "{msg}");
+    }
+
+    #[test]
+    fn the_shared_bsdf_is_the_inner_bsdf() {
+        let b = open(&format!("nbrdf:{}", data_dir().join("merl/alum-bronze").display()), Path::new("")).unwrap();
+        let SharedBsdf::Nbrdf(inner) = &b else {
+            panic!("expected an NBRDF");
+        };
+        let (wo, wi) = (unit(0.5, 0.2), unit(0.7, 2.5));
+        let u = glam::Vec2::new(0.3, 0.6);
+        assert_eq!(b.as_bsdf().eval(wo, wi), inner.eval(wo, wi));
+        assert_eq!(b.as_bsdf().pdf(wo, wi), inner.pdf(wo, wi));
+        assert_eq!(b.as_bsdf().eval_pdf(wo, wi), (inner.eval(wo, wi), inner.pdf(wo, wi)));
+        assert_eq!(b.as_bsdf().sample(wo, u, 0.7), inner.sample(wo, u, 0.7));
+    }
+}

@@ -1,0 +1,7 @@
+//! Testing support for BSDFs, used by this crate's unit tests and by other crates' tests and
+//! evaluations: statistical checks of any [`crate::bsdf::Bxdf`] ([`chi2`]) and, in unit
+//! tests, the checks shared by the BSDFs made from data (`bsdfs`).
+
+#[cfg(test)]
+pub(crate) mod bsdfs;
+pub mod chi2;
