@@ -20,7 +20,7 @@ TABLE=data/merl-fitted/$NAME.binary
 LATENT=scenes/materials/latent.bin
 SCENE=scenes/material-preview/scene.gltf
 [ -f "$TABLE" ] || { echo "error: $TABLE missing: run assets-scripts/make_merl_tables.sh" >&2; exit 2; }
-cargo build --release -q -p renderer --bin render
+cargo build --release -q -p render-cli --bin render
 RENDER=target/release/render
 OUT=$(mktemp -d)
 trap 'rm -rf "$OUT"' EXIT

@@ -9,7 +9,7 @@
 //! the part of the image it covers. `BLESS=1` rewrites the pinned image, on purpose.
 
 use crate::Rendered;
-use renderer::image_io::{read_image, write_exr};
+use renderer::formats::image_io::{read_image, write_exr};
 use renderer::Rgb;
 use std::path::PathBuf;
 

@@ -3,7 +3,7 @@
 //! (see [`crate::ztest`]). `BLESS=1` re-renders the reference first, on purpose.
 
 use crate::{ztest, Rendered};
-use renderer::image_io::{read_image, write_exr};
+use renderer::formats::image_io::{read_image, write_exr};
 use renderer::Rgb;
 use std::path::{Path, PathBuf};
 

@@ -11,8 +11,8 @@
 use neural_brdf_tests::{image_mean_z, mean_rgb, pinned, render, Rendered};
 use renderer::integrator::{PathTracer, Strategy};
 use renderer::material::Binding;
-use renderer::merl::MerlTable;
-use renderer::nbrdf::NbrdfNetwork;
+use renderer::formats::merl::MerlTable;
+use renderer::neural::nbrdf::NbrdfNetwork;
 use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
 use std::path::PathBuf;

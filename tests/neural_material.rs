@@ -6,7 +6,7 @@
 use neural_brdf_tests::regression::Case;
 use neural_brdf_tests::{image_mean_z, mean_rgb, render, Rendered};
 use renderer::integrator::{PathTracer, Strategy};
-use renderer::latent_library::LatentLibrary;
+use renderer::neural::latent_library::LatentLibrary;
 use renderer::material::{Binding, SharedBsdf};
 use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
@@ -37,7 +37,7 @@ fn render_preview_towards(spp: u32, seed: u64, strategy: Strategy, t: f32) -> Re
     let mut scene = RenderScene::with_latents(description, &latents).expect("scene");
     if t != 0.0 {
         let (a, b) = (latents.latent("alum-bronze").unwrap(), latents.latent("chrome").unwrap());
-        let code = renderer::sweep::lerp_code(&a, &b, t).unwrap();
+        let code = a.lerp(&b, t).unwrap();
         for slot in scene.materials.neural_slots() {
             scene.materials.set_shared(slot, SharedBsdf::Neural(latents.decode_code(&code, "edited").unwrap()));
         }

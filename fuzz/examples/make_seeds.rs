@@ -8,8 +8,9 @@
 //! `NBRDF_DIR` (optional) is a directory of NBRDF `.npy` networks; its `alum-bronze_*.npy`
 //! tensors are added to the `npy` corpus.
 
-use renderer::latent_file::{LatentFile, MappingForm, WeightType};
-use renderer::nbrdf::TENSOR_NAMES;
+use renderer::formats::latent_file::{LatentFile, WeightType};
+use renderer::neural::mapping::MappingForm;
+use renderer::neural::nbrdf::TENSOR_NAMES;
 use renderer_fuzz::{
     latent_mode2_input, merl_header, valid_npy_tensors, CORNELL_BIN, MTL_SEPARATOR,
 };

@@ -1,4 +1,4 @@
-//! `latent.bin` bytes through `renderer::latent_file::LatentFile::from_bytes`; the first
+//! `latent.bin` bytes through `renderer::formats::latent_file::LatentFile::from_bytes`; the first
 //! byte picks how the rest becomes a file (as it is, with its checksum fixed, or with the
 //! 8.7 MB f_ref table filled in at a `FREF` marker: see `renderer_fuzz::latent_bytes`). A
 //! file that loads must decode every latent code into a target net that runs (and, when
@@ -7,8 +7,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use renderer::latent_file::LatentFile;
-use renderer::target_net::TargetNet;
+use renderer::formats::latent_file::LatentFile;
+use renderer::neural::target_net::TargetNet;
 use renderer_fuzz::{check_file_error, fuzz_path, latent_bytes};
 
 fuzz_target!(|data: &[u8]| {

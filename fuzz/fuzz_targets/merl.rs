@@ -1,11 +1,11 @@
-//! MERL `.binary` bytes through `renderer::merl::MerlTable::from_bytes`: the input as it is
+//! MERL `.binary` bytes through `renderer::formats::merl::MerlTable::from_bytes`: the input as it is
 //! (header and size checks, which must reject wrong sizes before allocating), then, when it
 //! starts with the valid header and a whole number of values, the full-size file it stands
 //! for (`renderer_fuzz::merl_full_size`) so the value checks run too.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use renderer::merl::MerlTable;
+use renderer::formats::merl::MerlTable;
 use renderer_fuzz::{check_file_error, merl_full_size};
 
 fuzz_target!(|data: &[u8]| {

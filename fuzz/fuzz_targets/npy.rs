@@ -1,11 +1,11 @@
 //! One NBRDF `.npy` tensor: the first byte (mod 6) picks which (fc1, b1, fc2, b2, fc3, b3),
-//! the rest is the file. It goes through `renderer::nbrdf::tensor_from_bytes` and, in place
+//! the rest is the file. It goes through `renderer::neural::nbrdf::tensor_from_bytes` and, in place
 //! of that tensor among five valid ones, `NbrdfNetwork::from_npy_bytes`; a network that
 //! loads must evaluate to finite, non-negative values.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use renderer::nbrdf::{tensor_from_bytes, NbrdfNetwork, TENSOR_NAMES};
+use renderer::neural::nbrdf::{tensor_from_bytes, NbrdfNetwork, TENSOR_NAMES};
 use renderer_fuzz::{check_file_error, fuzz_path, split_npy_input, valid_npy_tensors};
 
 fuzz_target!(|data: &[u8]| {

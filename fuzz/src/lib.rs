@@ -2,8 +2,8 @@
 //! in-memory files the scene loaders may ask for (nothing is read from disk), and the check
 //! every failed load must pass (a file error naming a file). See `docs/fuzzing.md`.
 
-use renderer::latent_file::LatentFile;
-use renderer::merl::{BIN_COUNT, FILE_BYTES, HEADER_BYTES, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
+use renderer::formats::latent_file::LatentFile;
+use renderer::formats::merl::{BIN_COUNT, FILE_BYTES, HEADER_BYTES, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

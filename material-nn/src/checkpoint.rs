@@ -5,13 +5,13 @@
 //!
 //! Layout (little-endian): magic `"MNNCKPT\0"`, version u32, then three sections each as
 //! length u64 + bytes (state JSON, model burnpack, optimiser burnpack), then an FNV-1a 64
-//! checksum of every preceding byte. Written atomically: `PATH.partial`, synced, renamed.
+//! checksum of every preceding byte. Written atomically (`renderer::support::write_atomically`).
 
 use crate::config::TrainConfig;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
-use std::io::Write;
-use std::path::{Path, PathBuf};
+
+use std::path::Path;
 
 /// The 8 bytes every checkpoint starts with.
 pub const MAGIC: [u8; 8] = *b"MNNCKPT\0";
@@ -84,11 +84,6 @@ struct Header {
     state: TrainState,
 }
 
-fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
 
 impl Checkpoint {
     /// Serialises the checkpoint.
@@ -106,7 +101,7 @@ impl Checkpoint {
             out.extend_from_slice(&(section.len() as u64).to_le_bytes());
             out.extend_from_slice(section);
         }
-        let sum = fnv1a64(&out);
+        let sum = renderer::support::fnv1a64(&out);
         out.extend_from_slice(&sum.to_le_bytes());
         Ok(out)
     }
@@ -130,7 +125,7 @@ impl Checkpoint {
         let (body, tail) = bytes.split_at(bytes.len() - 8);
         let mut sum = [0u8; 8];
         sum.copy_from_slice(tail);
-        if fnv1a64(body) != u64::from_le_bytes(sum) {
+        if renderer::support::fnv1a64(body) != u64::from_le_bytes(sum) {
             return Err(bad(
                 "checksum mismatch: the checkpoint is corrupt or truncated",
             ));
@@ -176,21 +171,10 @@ impl Checkpoint {
     /// Writes the checkpoint atomically (temporary file in the same directory, synced,
     /// renamed over `path`).
     pub fn write(&self, path: &Path) -> Result<()> {
-        write_atomic(path, &self.to_bytes()?)
+        Ok(renderer::support::write_bytes_atomically(path, &self.to_bytes()?)?)
     }
 }
 
-/// Writes `bytes` to `path` atomically: `PATH.partial`, synced, renamed.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let mut partial = path.as_os_str().to_owned();
-    partial.push(".partial");
-    let partial = PathBuf::from(partial);
-    let mut file = std::fs::File::create(&partial).map_err(|e| Error::io(&partial, e))?;
-    file.write_all(bytes)
-        .and_then(|_| file.sync_all())
-        .map_err(|e| Error::io(&partial, e))?;
-    std::fs::rename(&partial, path).map_err(|e| Error::io(path, e))
-}
 
 #[cfg(test)]
 mod tests {

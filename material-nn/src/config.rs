@@ -3,7 +3,7 @@
 //! checkpoint; a JSON file given with `--config` may set any subset of the fields.
 
 use crate::error::{Error, Result};
-use renderer::latent_file::MappingForm;
+use renderer::neural::mapping::MappingForm;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 

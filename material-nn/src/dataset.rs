@@ -1,7 +1,7 @@
 //! Materials as training data: MERL-layout tables from a directory, the split by material,
 //! the reference BRDF f_ref, and uniform samples with log-relative mapped values.
 //!
-//! - A data directory holds `NAME.binary` tables (MERL layout, read by [`renderer::merl`]);
+//! - A data directory holds `NAME.binary` tables (MERL layout, read by [`renderer::formats::merl`]);
 //!   the material's name is the file stem. Tables are kept in memory as f32 f_r (1/sr),
 //!   bin-major RGB (17.5 MB each); negative entries are unmeasured.
 //! - Split: the names, sorted, are shuffled with the run's seed and cut by the configured
@@ -24,8 +24,8 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use renderer::brdf_coords::{rendered_point, RenderedPoint};
-use renderer::latent_file::MappingForm;
-use renderer::merl::{lookup_trilinear_measured, MerlTable, BIN_COUNT, SCALE};
+use renderer::neural::mapping::MappingForm;
+use renderer::formats::merl::{lookup_trilinear_measured, MerlTable, BIN_COUNT, SCALE};
 use serde::{Deserialize, Serialize};
 use std::f32::consts::{FRAC_PI_2, TAU};
 use std::path::{Path, PathBuf};
@@ -43,21 +43,7 @@ pub struct MaterialTable {
 impl MaterialTable {
     /// From a MERL table (values scaled to 1/sr; beyond-f32 values clamped).
     pub fn from_merl(name: impl Into<String>, table: &MerlTable) -> Self {
-        let raw = table.raw();
-        let values = (0..BIN_COUNT)
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|i| {
-                [0, 1, 2].map(|c| {
-                    let v = raw[c * BIN_COUNT + i];
-                    if v < 0.0 {
-                        -1.0
-                    } else {
-                        (v * SCALE[c]).min(f32::MAX as f64) as f32
-                    }
-                })
-            })
-            .collect();
+        let values = table.measured_values();
         MaterialTable {
             name: name.into(),
             values,

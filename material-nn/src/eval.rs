@@ -40,18 +40,18 @@ use burn::tensor::Device;
 use rand::{Rng, SeedableRng};
 use renderer::brdf_coords::rendered_point;
 use crate::dataset::draw_angles;
-use renderer::bsdf::frenbrdf::{FrenbrdfBsdf, ReferenceValues};
+use renderer::bsdf::neural::{NeuralBsdf, ReferenceValues};
 use renderer::bsdf::merl::MerlBsdf;
 use renderer::bsdf::nbrdf::NbrdfBsdf;
 use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use renderer::bsdf::Bxdf;
 use renderer::material::{Binding, SharedBsdf};
 use renderer::camera::PinholeCamera;
-use renderer::image_io::ToneMap;
+use renderer::formats::image_io::ToneMap;
 use renderer::integrator::PathTracer;
-use renderer::latent_file::{LatentFile, WeightType};
+use renderer::formats::latent_file::{LatentFile, WeightType};
 use renderer::metrics::{display_values, ImageError};
-use renderer::nbrdf::NbrdfNetwork;
+use renderer::neural::nbrdf::NbrdfNetwork;
 use renderer::render::{Budget, Renderer};
 use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
@@ -327,7 +327,7 @@ impl PreviewScene {
     /// Writes `image` as a PNG (clamp tone map) to `dir/file`.
     fn write_png(&self, dir: Option<&Path>, file: &str, image: &[Rgb]) -> Result<()> {
         if let Some(dir) = dir {
-            renderer::image_io::write_png(
+            renderer::formats::image_io::write_png(
                 &dir.join(file),
                 self.width,
                 self.height,
@@ -343,7 +343,7 @@ impl PreviewScene {
 /// The NBRDF prefix `dir/name`, checked to hold a network.
 fn nbrdf_prefix(dir: &Path, name: &str) -> Result<PathBuf> {
     let prefix = dir.join(name);
-    let fc1 = renderer::nbrdf::tensor_paths(&prefix)[0].clone();
+    let fc1 = renderer::neural::nbrdf::tensor_paths(&prefix)[0].clone();
     if !fc1.is_file() {
         return Err(Error::invalid_file(
             fc1,
@@ -501,9 +501,9 @@ fn neural_bsdf(
     reference: &ReferenceValues,
     name: &str,
     z: &[f32],
-) -> Result<FrenbrdfBsdf> {
-    let net = renderer::target_net::TargetNet::new(&file.decode(z))?;
-    Ok(FrenbrdfBsdf::new(
+) -> Result<NeuralBsdf> {
+    let net = renderer::neural::target_net::TargetNet::new(&file.decode(z))?;
+    Ok(NeuralBsdf::new(
         name,
         net,
         reference.clone(),

@@ -1,5 +1,5 @@
 //! `material-nn export`: a trained run → one self-contained `latent.bin`
-//! ([`renderer::latent_file`]): the hypernetwork's weights, the set encoder (so that
+//! ([`renderer::formats::latent_file`]): the hypernetwork's weights, the set encoder (so that
 //! `material-nn encode --model latent.bin` needs no run directory), f_ref as f16, the latent
 //! codes of the chosen materials (encoded and refined as `encode` does) and the names of the
 //! training materials.
@@ -9,7 +9,8 @@ use crate::error::{Error, Result};
 use crate::inference::{EncodeSettings, TrainedRun};
 use half::f16;
 use rayon::prelude::*;
-use renderer::latent_file::{Encoder, LatentFile, Mlp, NamedLatent, WeightType};
+use renderer::formats::latent_file::{LatentFile, NamedLatent, WeightType};
+use renderer::neural::mlp::{Encoder, Mlp};
 use std::path::Path;
 
 /// The decoder part of a latent file (no latent codes yet).

@@ -26,7 +26,7 @@ use burn::module::{Module, Param};
 use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use rand::SeedableRng;
-use renderer::latent_file::LatentFile;
+use renderer::formats::latent_file::LatentFile;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -146,7 +146,7 @@ impl Codec {
                 .map(|h| Mlp::from_dense(&h.layers, &device))
                 .collect(),
         };
-        let values = (0..renderer::merl::BIN_COUNT).map(|i| file.f_ref(i)).collect();
+        let values = (0..renderer::formats::merl::BIN_COUNT).map(|i| file.f_ref(i)).collect();
         let sampler = Sampler {
             reference: Arc::new(MaterialTable {
                 name: "reference".to_string(),
@@ -380,7 +380,7 @@ mod tests {
     use super::*;
     use crate::config::ModelConfig;
     use renderer::analytic::AnalyticBrdf;
-    use renderer::merl::{MerlTable, BIN_COUNT};
+    use renderer::formats::merl::{MerlTable, BIN_COUNT};
     use renderer::Rgb;
 
     fn small_codec() -> Codec {
@@ -399,7 +399,7 @@ mod tests {
                 name: "reference".to_string(),
                 values: vec![[0.1; 3]; BIN_COUNT],
             }),
-            mapping: renderer::latent_file::MappingForm::Code,
+            mapping: renderer::neural::mapping::MappingForm::Code,
             epsilon: 0.002,
             peak_share: 0.5,
         };

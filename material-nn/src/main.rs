@@ -12,7 +12,7 @@ use material_nn::nbrdf_fit::{self, FitConfig, FitEvent, FitOutcome};
 use material_nn::tabulate::{self, TableOutcome};
 use material_nn::training::{self, Event, Outcome, TrainRequest};
 use renderer::analytic::AnalyticBrdf;
-use renderer::latent_file::{LatentFile, NamedLatent, WeightType};
+use renderer::formats::latent_file::{LatentFile, NamedLatent, WeightType};
 use renderer::Rgb;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -176,7 +176,7 @@ struct EvalArgs {
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     spp: u32,
     /// Size of the preview renders, WxH pixels.
-    #[arg(long, value_name = "WxH", default_value = "128x128", value_parser = parse_resolution)]
+    #[arg(long, value_name = "WxH", default_value = "128x128", value_parser = renderer::support::parse_resolution)]
     resolution: (u32, u32),
     /// BRDF-space metrics only: render no previews (no PSNR / SSIM).
     #[arg(long)]
@@ -196,18 +196,6 @@ fn default_preview_scene() -> PathBuf {
         .parent()
         .map_or_else(PathBuf::new, PathBuf::from)
         .join("scenes/material-preview/scene.gltf")
-}
-
-fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
-    let parsed = s
-        .split_once(['x', 'X'])
-        .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)));
-    match parsed {
-        Some((w, h)) if w > 0 && h > 0 && w <= 16384 && h <= 16384 => Ok((w, h)),
-        _ => Err(format!(
-            "'{s}': expected WxH with 1 to 16384 pixels each, e.g. 128x128"
-        )),
-    }
 }
 
 #[derive(Args)]
@@ -455,7 +443,7 @@ fn tabulate(args: TabulateArgs) -> anyhow::Result<()> {
     if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).with_context(|| parent.display().to_string())?;
     }
-    tabulate::write_table_atomic(&table, &args.out)?;
+    table.write(&args.out)?;
     println!(
         "{}: written in {:.1} s",
         args.out.display(),

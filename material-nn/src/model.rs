@@ -9,7 +9,7 @@
 //!   by 1e-2 → [B, numel];
 //! - target net: x [B, N, 6] → 60 → 60 → 60 → 60 → 3 with ReLU between, linear output y
 //!   [B, N, 3]; W reshaped row-major to [d_in, d_out] so that h' = h · W + b, the layout of
-//!   [`renderer::latent_file`].
+//!   [`renderer::formats::latent_file`].
 //!
 //! Initial weights come from the run's own seeded generator (not burn's), so a run is
 //! reproducible: weights and biases U(−k, k) with k = 1/√d_in (PyTorch's `nn.Linear`).
@@ -85,7 +85,7 @@ impl Mlp {
 
     /// Layers from plain f32 ones ([d_in, d_out] row-major weights), e.g. read from a
     /// latent file: the inverse of [`to_dense`](Self::to_dense).
-    pub fn from_dense(layers: &[renderer::latent_file::DenseLayer], device: &Device) -> Self {
+    pub fn from_dense(layers: &[renderer::neural::mlp::DenseLayer], device: &Device) -> Self {
         let layers = layers
             .iter()
             .map(|l| Linear {
@@ -108,7 +108,7 @@ impl Mlp {
     }
 
     /// The layers as plain f32 ([d_in, d_out] row-major weights), for export.
-    pub fn to_dense(&self) -> Vec<renderer::latent_file::DenseLayer> {
+    pub fn to_dense(&self) -> Vec<renderer::neural::mlp::DenseLayer> {
         self.layers
             .iter()
             .map(|l| {
@@ -118,7 +118,7 @@ impl Mlp {
                     .bias
                     .as_ref()
                     .map_or_else(|| vec![0.0; d_out], |b| to_vec(b.val()));
-                renderer::latent_file::DenseLayer {
+                renderer::neural::mlp::DenseLayer {
                     d_in,
                     d_out,
                     weight,
@@ -245,7 +245,7 @@ impl Nbrdf {
 mod tests {
     use super::*;
     use rand::SeedableRng;
-    use renderer::latent_file::Mlp as PlainMlp;
+    use renderer::neural::mlp::Mlp as PlainMlp;
 
     #[test]
     fn default_sizes_match_the_method() {
@@ -303,7 +303,7 @@ mod tests {
                 .target_layers()
                 .iter()
                 .enumerate()
-                .map(|(k, &(d_in, d_out))| renderer::latent_file::DenseLayer {
+                .map(|(k, &(d_in, d_out))| renderer::neural::mlp::DenseLayer {
                     d_in,
                     d_out,
                     weight: outputs[2 * k].clone(),

@@ -1,6 +1,6 @@
 //! `material-nn nbrdf-fit`: the per-material NBRDF baseline (Sztrajman et al. 2021) trained in
 //! burn, one 6 → 21 → 21 → 3 MLP per MERL-layout table, written as the six `.npy` tensors the
-//! renderer loads ([`renderer::nbrdf::NbrdfNetwork::load`], `render --bind M=nbrdf:OUT/NAME`).
+//! renderer loads ([`renderer::neural::nbrdf::NbrdfNetwork::load`], `render --bind M=nbrdf:OUT/NAME`).
 //!
 //! Per material:
 //! - **Samples.** Every step draws `samples_per_step` fresh points θh, θd uniform in [0, π/2],
@@ -33,7 +33,7 @@
 //! six files all exist is skipped, so an interrupted run resumes. `fit.json` records each
 //! fitted material's settings, losses and time ([`FitSummary`]).
 
-use crate::checkpoint::write_atomic;
+use renderer::support::write_bytes_atomically;
 use crate::dataset::{draw_points, list_tables, material_name, MaterialTable, SampleSet};
 use crate::error::{Error, Result};
 use crate::model::Nbrdf;
@@ -43,7 +43,7 @@ use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use npyz::WriterBuilder;
 use rand::{Rng, SeedableRng};
-use renderer::nbrdf::{tensor_paths, NbrdfNetwork, HIDDEN, INPUTS, OUTPUTS};
+use renderer::neural::nbrdf::{tensor_paths, NbrdfNetwork, HIDDEN, INPUTS, OUTPUTS};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -179,7 +179,7 @@ impl FitSummary {
     pub fn write(&self, path: &Path) -> Result<()> {
         let text = serde_json::to_string_pretty(self)
             .map_err(|e| Error::invalid_file(path, format!("cannot serialise: {e}")))?;
-        write_atomic(path, text.as_bytes())
+        Ok(write_bytes_atomically(path, text.as_bytes())?)
     }
 }
 
@@ -228,7 +228,7 @@ impl NbrdfTensors {
         for i in (1..6).chain([0]) {
             let bytes = npy_bytes(TENSOR_SHAPES[i], &self.tensors[i])
                 .map_err(|e| Error::io(&paths[i], e))?;
-            write_atomic(&paths[i], &bytes)?;
+            write_bytes_atomically(&paths[i], &bytes)?;
         }
         Ok(())
     }
@@ -254,12 +254,7 @@ pub fn network_present(prefix: &Path) -> bool {
 
 /// A stable seed for material `name` under base seed `seed` (FNV-1a of the name, mixed).
 pub fn material_seed(seed: u64, name: &str) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in name.bytes() {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h ^ seed.wrapping_mul(0x9e37_79b9_7f4a_7c15)
+    renderer::support::fnv1a64(name.as_bytes()) ^ seed.wrapping_mul(0x9e37_79b9_7f4a_7c15)
 }
 
 /// `n` uniform points of `table` in the rendered domain (see the module documentation) as a
@@ -472,7 +467,7 @@ pub fn fit_all(
 mod tests {
     use super::*;
     use crate::model::to_vec;
-    use renderer::merl::BIN_COUNT;
+    use renderer::formats::merl::BIN_COUNT;
 
     /// y' [n, 3] of a burn model at inputs [n, 6].
     fn predict(model: &Nbrdf, inputs: &[f32], device: &Device) -> Vec<f32> {

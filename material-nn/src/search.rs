@@ -112,7 +112,7 @@ pub fn search(
             t.failure.as_deref().unwrap_or("").replace(',', ";")
         );
     }
-    crate::checkpoint::write_atomic(&dir.join("search.csv"), csv.as_bytes())?;
+    renderer::support::write_bytes_atomically(&dir.join("search.csv"), csv.as_bytes())?;
     if let Some(best) = trials.first().filter(|t| t.score.is_finite()) {
         let config = TrainConfig {
             learning_rate: best.learning_rate,
@@ -120,7 +120,7 @@ pub fn search(
         };
         let text =
             serde_json::to_string_pretty(&config).map_err(|e| Error::Invalid(e.to_string()))?;
-        crate::checkpoint::write_atomic(&dir.join("best-config.json"), text.as_bytes())?;
+        renderer::support::write_bytes_atomically(&dir.join("best-config.json"), text.as_bytes())?;
     }
     Ok(trials)
 }

@@ -1,38 +1,20 @@
 //! MERL-layout tables made from other BRDF representations: NBRDF networks evaluated at the
 //! bin centres, the per-bin median of a set of tables (the f_ref of the log-relative mapping,
-//! Nielsen et al. 2015) and analytic models. Files are written atomically (a temporary
-//! `NAME.partial` in the same directory, synced, then renamed), so an interrupted run never
-//! leaves a partial table under a final name.
+//! Nielsen et al. 2015) and analytic models. Files are written atomically
+//! ([`MerlTable::write`]), so an interrupted run never leaves a partial
+//! table under a final name.
 
 use crate::{Error, Result};
 use rayon::prelude::*;
 use renderer::analytic::AnalyticBrdf;
-use renderer::merl::{MerlReader, MerlTable, BIN_COUNT, FILE_BYTES};
-use renderer::nbrdf::{list_networks, NbrdfNetwork};
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use renderer::formats::merl::{MerlReader, MerlTable, BIN_COUNT, FILE_BYTES};
+use renderer::neural::nbrdf::{list_networks, NbrdfNetwork};
+
+
 use std::path::{Path, PathBuf};
 
 /// Extension of MERL table files.
 pub const TABLE_EXTENSION: &str = "binary";
-
-/// Writes a table to `path` atomically: `path` + `.partial` is written, synced and renamed.
-pub fn write_table_atomic(table: &MerlTable, path: &Path) -> Result<()> {
-    let mut partial = path.as_os_str().to_owned();
-    partial.push(".partial");
-    let partial = PathBuf::from(partial);
-    let file = File::create(&partial).map_err(|e| Error::io(&partial, e))?;
-    let mut w = BufWriter::with_capacity(1 << 20, file);
-    table
-        .write_to(&mut w)
-        .and_then(|_| w.flush())
-        .map_err(|e| Error::io(&partial, e))?;
-    let file = w
-        .into_inner()
-        .map_err(|e| Error::io(&partial, e.into_error()))?;
-    file.sync_all().map_err(|e| Error::io(&partial, e))?;
-    std::fs::rename(&partial, path).map_err(|e| Error::io(path, e))
-}
 
 /// The table of an NBRDF network: f_r at every bin centre (φd ∈ (0, π), as the networks were
 /// trained), including the configurations below the horizon, where the network extrapolates.
@@ -118,7 +100,7 @@ pub fn tabulate_networks(
                 TableOutcome::Skipped(path)
             } else {
                 let network = NbrdfNetwork::load(nbrdf_dir.join(name))?;
-                write_table_atomic(&table_from_network(&network), &path)?;
+                table_from_network(&network).write(&path)?;
                 TableOutcome::Written(path)
             };
             progress(&outcome);
@@ -210,7 +192,7 @@ pub fn median_table(paths: &[PathBuf], progress: impl Fn(usize, usize)) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
-    use renderer::merl::{bin_centre, bin_index};
+    use renderer::formats::merl::{bin_centre, bin_index};
     use renderer::Rgb;
 
     fn data_dir() -> PathBuf {
@@ -238,7 +220,7 @@ mod tests {
                 }
             });
             let p = dir.path().join(format!("t{k}.binary"));
-            write_table_atomic(&t, &p).unwrap();
+            t.write(&p).unwrap();
             paths.push(p);
         }
         let median = median_table(&paths, |_, _| {}).unwrap();
@@ -272,7 +254,8 @@ mod tests {
         let first = tabulate_networks(&data_dir(), &names, out.path(), |_| {}).unwrap();
         let path = out.path().join("chrome.binary");
         assert_eq!(first, vec![TableOutcome::Written(path.clone())]);
-        assert!(!out.path().join("chrome.binary.partial").exists());
+        let leftovers: Vec<_> = std::fs::read_dir(out.path()).unwrap().map(|e| e.unwrap().file_name()).filter(|n| n.to_string_lossy().contains("partial")).collect();
+        assert!(leftovers.is_empty(), "{leftovers:?}");
         let table = MerlTable::read(&path).unwrap();
         let net = NbrdfNetwork::load(data_dir().join("chrome")).unwrap();
         let i = bin_index(0, 17, 0);

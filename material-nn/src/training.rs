@@ -20,7 +20,8 @@
 //! checkpoint of the best epoch). Everything random comes from one seeded generator whose
 //! state is checkpointed, so a resumed run ends with the same weights as an uninterrupted one.
 
-use crate::checkpoint::{write_atomic, Checkpoint, EpochRecord, TrainState};
+use crate::checkpoint::{Checkpoint, EpochRecord, TrainState};
+use renderer::support::write_bytes_atomically;
 use crate::config::TrainConfig;
 use crate::dataset::{
     list_tables, material_name, MaterialDataset, MaterialTable, SampleSet, Sampler, Split,
@@ -91,7 +92,7 @@ pub fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
 fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
     let text = serde_json::to_string_pretty(value)
         .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
-    write_atomic(path, text.as_bytes())
+    Ok(write_bytes_atomically(path, text.as_bytes())?)
 }
 
 /// What `train` was asked to do.
@@ -419,7 +420,7 @@ fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
     let validation = MaterialDataset::load(&req.data_dir, &split.validation)?;
     let reference = MaterialTable::median("reference", train.tables())?;
     std::fs::create_dir_all(&run.0).map_err(|e| Error::io(&run.0, e))?;
-    crate::tabulate::write_table_atomic(&reference.to_merl()?, &run.reference())?;
+    reference.to_merl()?.write(run.reference())?;
     write_json(&run.config(), &config)?;
     write_json(&run.split(), &split)?;
     write_json(

@@ -34,7 +34,7 @@ fn analytic_and_median_tables_are_written() {
         assert!(out.status.success(), "{out:?}");
         assert_eq!(
             std::fs::metadata(path).unwrap().len(),
-            renderer::merl::FILE_BYTES
+            renderer::formats::merl::FILE_BYTES
         );
     }
     let median = dir.path().join("median.binary");
@@ -47,12 +47,12 @@ fn analytic_and_median_tables_are_written() {
         path_str(&b),
     ]);
     assert!(out.status.success(), "{out:?}");
-    let m = renderer::merl::MerlTable::read(&median).unwrap();
+    let m = renderer::formats::merl::MerlTable::read(&median).unwrap();
     let (ta, tb) = (
-        renderer::merl::MerlTable::read(&a).unwrap(),
-        renderer::merl::MerlTable::read(&b).unwrap(),
+        renderer::formats::merl::MerlTable::read(&a).unwrap(),
+        renderer::formats::merl::MerlTable::read(&b).unwrap(),
     );
-    let i = renderer::merl::bin_index(30, 40, 50);
+    let i = renderer::formats::merl::bin_index(30, 40, 50);
     let (va, vb, vm) = (ta.value(i), tb.value(i), m.value(i));
     assert!((vm[0] - 0.5 * (va[0] + vb[0])).abs() < 1e-12, "{vm:?}");
 }

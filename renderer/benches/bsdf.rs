@@ -12,10 +12,10 @@ use renderer::bsdf::merl::{Interpolation, MerlBsdf};
 use renderer::bsdf::nbrdf::NbrdfBsdf;
 use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use renderer::bsdf::{Bxdf, Lambert, MetallicRoughness};
-use renderer::latent_library::LatentLibrary;
-use renderer::merl::MerlTable;
-use renderer::nbrdf::NbrdfNetwork;
-use renderer::target_net::{Kernel, TargetNet, INPUTS, OUTPUTS};
+use renderer::neural::latent_library::LatentLibrary;
+use renderer::formats::merl::MerlTable;
+use renderer::neural::nbrdf::NbrdfNetwork;
+use renderer::neural::target_net::{Kernel, TargetNet, INPUTS, OUTPUTS};
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -100,7 +100,7 @@ fn inputs() -> Vec<[f32; INPUTS]> {
 fn target_net(c: &mut Criterion) {
     let lib = latents();
     let code = lib.latent(MATERIAL).expect("latent");
-    let file = renderer::latent_file::LatentFile::read(repo().join("scenes/materials/latent.bin")).expect("file");
+    let file = renderer::formats::latent_file::LatentFile::read(repo().join("scenes/materials/latent.bin")).expect("file");
     let mlp = file.decode(&code.z);
     let xs = inputs();
     let mut ys = vec![[0.0; OUTPUTS]; xs.len()];
@@ -181,7 +181,7 @@ fn flop_utilisation(_: &mut Criterion) {
         return;
     };
     let lib = latents();
-    let file = renderer::latent_file::LatentFile::read(repo().join("scenes/materials/latent.bin")).expect("file");
+    let file = renderer::formats::latent_file::LatentFile::read(repo().join("scenes/materials/latent.bin")).expect("file");
     let net = TargetNet::new(&file.decode(&lib.latent(MATERIAL).expect("latent").z)).expect("net");
     let xs = inputs();
     let mut ys = vec![[0.0; OUTPUTS]; xs.len()];

@@ -96,8 +96,8 @@ impl ImageError {
 }
 
 /// An image's 8-bit sRGB display values (as f32 triples in [0, 255]) under a tone map.
-pub fn display_values(image: &[Rgb], tone_map: crate::image_io::ToneMap, exposure: f32) -> Vec<Rgb> {
-    crate::image_io::to_srgb8(image, tone_map, exposure)
+pub fn display_values(image: &[Rgb], tone_map: crate::formats::image_io::ToneMap, exposure: f32) -> Vec<Rgb> {
+    crate::formats::image_io::to_srgb8(image, tone_map, exposure)
         .chunks_exact(3)
         .map(|c| Rgb::new(c[0] as f32, c[1] as f32, c[2] as f32))
         .collect()

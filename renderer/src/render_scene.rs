@@ -8,7 +8,7 @@ use crate::accel::{interpolate_point, Bvh, Hit};
 use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::latent_library::LatentLibrary;
+use crate::neural::latent_library::LatentLibrary;
 use crate::lights::environment::Environment;
 use crate::lights::LightSet;
 use crate::material::SceneMaterials;

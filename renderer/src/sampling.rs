@@ -65,21 +65,6 @@ pub fn uniform_sphere_pdf() -> f32 {
     0.25 * FRAC_1_PI
 }
 
-/// Uniform direction in a cone around +z with the given cosine of its half-angle.
-#[inline]
-pub fn sample_uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
-    let cos_theta = (1.0 - u.x) + u.x * cos_max;
-    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let phi = 2.0 * PI * u.y;
-    Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
-}
-
-/// Density of [`sample_uniform_cone`] in 1/sr.
-#[inline]
-pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
-    1.0 / (2.0 * PI * (1.0 - cos_max))
-}
-
 /// Uniform barycentric coordinates (b1, b2) on a triangle (Heitz 2019, low distortion).
 #[inline]
 pub fn sample_uniform_triangle(u: Vec2) -> Vec2 {

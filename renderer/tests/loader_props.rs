@@ -9,9 +9,9 @@
 
 use proptest::prelude::*;
 use proptest::test_runner::Config;
-use renderer::latent_file::{LatentFile, WeightType};
-use renderer::merl::{MerlTable, BIN_COUNT, FILE_BYTES, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
-use renderer::nbrdf::{tensor_from_bytes, NbrdfNetwork, TENSOR_NAMES};
+use renderer::formats::latent_file::{LatentFile, WeightType};
+use renderer::formats::merl::{MerlTable, BIN_COUNT, FILE_BYTES, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
+use renderer::neural::nbrdf::{tensor_from_bytes, NbrdfNetwork, TENSOR_NAMES};
 use renderer::scene::{gltf, obj, SceneDescription};
 use renderer::Error;
 use serde_json::{json, Value};

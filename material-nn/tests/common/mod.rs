@@ -5,7 +5,7 @@
 use material_nn::checkpoint::Checkpoint;
 use material_nn::training::load_model;
 use renderer::analytic::AnalyticBrdf;
-use renderer::merl::MerlTable;
+use renderer::formats::merl::MerlTable;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

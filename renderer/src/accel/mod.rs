@@ -10,6 +10,7 @@ mod triangle_pack;
 
 pub use policy::TracePolicy;
 
+use crate::support::cpu::{has_avx2_fma, has_avx512f};
 use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::cwbvh::node::CwBvhNode;
 use triangle_pack::{PackHit, TrianglePack, LANES};
@@ -471,22 +472,9 @@ impl Bvh {
 /// Whether this CPU traces packets (AVX-512F; their single-ray subtrees take AVX2 and FMA).
 #[inline]
 fn packets_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx512f") && has_avx2_fma()
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    has_avx512f() && has_avx2_fma()
 }
 
-/// Whether this CPU runs the AVX2 + FMA traversal (detected once, then cached by std).
-#[cfg(target_arch = "x86_64")]
-#[inline]
-fn has_avx2_fma() -> bool {
-    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-}
 
 /// The obvhs ray for a ray. Negative zeros in the direction become positive zeros: obvhs
 /// derives the traversal octant from sign bits and misses everything along an axis-aligned

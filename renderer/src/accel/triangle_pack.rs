@@ -233,7 +233,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_equals_portable_bit_for_bit() {
-        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
+        if !crate::support::cpu::has_avx2_fma() {
             return;
         }
         let mut s = Sampler::new(4, 5, 6);

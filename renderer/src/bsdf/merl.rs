@@ -1,4 +1,4 @@
-//! Tabulated measured BRDF in the MERL layout ([`crate::merl`]).
+//! Tabulated measured BRDF in the MERL layout ([`crate::formats::merl`]).
 //!
 //! The table is converted once to f32 f_r values (scale applied, unmeasured entries set to 0)
 //! and looked up at the isotropic angles (θh, θd, φd folded into [0, π)) of (wi, wo), so the
@@ -14,7 +14,7 @@
 
 use super::tabulated_sampling::{TabulatedBrdf, TabulatedSampler, TabulatedSamplerConfig};
 
-use crate::merl::{self, MerlTable};
+use crate::formats::merl::{self, MerlTable};
 use crate::{Result, Rgb};
 use glam::Vec3;
 use std::path::Path;

@@ -16,12 +16,12 @@
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
-pub mod frenbrdf;
 pub mod lambert;
 pub mod merl;
 pub mod metallic_roughness;
 pub mod microfacet;
 pub mod nbrdf;
+pub mod neural;
 pub mod tabulated_sampling;
 
 pub use lambert::Lambert;
@@ -75,7 +75,7 @@ pub enum Bsdf<'a> {
     /// An NBRDF network.
     Nbrdf(&'a nbrdf::NbrdfBsdf),
     /// A decoded FreNBRDF/HyperBRDF latent code.
-    Neural(&'a frenbrdf::FrenbrdfBsdf),
+    Neural(&'a neural::NeuralBsdf),
 }
 
 macro_rules! dispatch {

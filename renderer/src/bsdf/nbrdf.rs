@@ -1,4 +1,4 @@
-//! NBRDF network ([`crate::nbrdf`]) as a BSDF, evaluated natively per shading point.
+//! NBRDF network ([`crate::neural::nbrdf`]) as a BSDF, evaluated natively per shading point.
 //!
 //! The network sees (sin θh, 0, cos θh, d) of (wi, wo) with φd folded into [0, π)
 //! ([`crate::brdf_coords::network_input`]), which makes the BSDF reciprocal by construction at
@@ -15,7 +15,7 @@
 
 use super::tabulated_sampling::{TabulatedBrdf, TabulatedSampler, TabulatedSamplerConfig};
 
-use crate::nbrdf::NbrdfNetwork;
+use crate::neural::nbrdf::NbrdfNetwork;
 use crate::{Result, Rgb};
 use glam::Vec3;
 use std::path::Path;

@@ -109,11 +109,11 @@ impl DiffuseLanes {
     pub fn scatter(&self, light_only: bool, out: &mut DiffuseScattered) {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
+            if crate::support::cpu::has_avx512f() {
                 // SAFETY: the CPU has AVX-512F.
                 return unsafe { self.scatter_avx512(light_only, out) };
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
+            if crate::support::cpu::has_avx2() {
                 // SAFETY: the CPU has AVX2.
                 return unsafe { self.scatter_avx2(light_only, out) };
             }

@@ -11,11 +11,11 @@ pub mod binding;
 
 pub use binding::{Binding, BINDING_FORMS};
 
-use crate::bsdf::frenbrdf::FrenbrdfBsdf;
+use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::{Bsdf, Lambert, MetallicRoughness};
-use crate::latent_library::LatentLibrary;
+use crate::neural::latent_library::LatentLibrary;
 use crate::scene::{Material, SurfaceModel, Texture};
 use crate::{Error, Result, Rgb};
 use glam::Vec2;
@@ -35,7 +35,7 @@ pub enum SharedBsdf {
     /// An NBRDF network.
     Nbrdf(NbrdfBsdf),
     /// A decoded FreNBRDF/HyperBRDF latent code.
-    Neural(FrenbrdfBsdf),
+    Neural(NeuralBsdf),
 }
 
 impl SharedBsdf {
@@ -85,23 +85,23 @@ fn resolve_merl_path(path: &Path) -> PathBuf {
 /// The network prefix an `nbrdf:` path names (see [`binding`]).
 fn resolve_nbrdf_prefix(path: &Path) -> Result<PathBuf> {
     let text = path.to_string_lossy();
-    for name in crate::nbrdf::TENSOR_NAMES {
+    for name in crate::neural::nbrdf::TENSOR_NAMES {
         if let Some(prefix) = text.strip_suffix(&format!("_{name}.npy")) {
             return Ok(PathBuf::from(prefix));
         }
     }
-    if crate::nbrdf::tensor_paths(path)[0].is_file() {
+    if crate::neural::nbrdf::tensor_paths(path)[0].is_file() {
         return Ok(path.to_path_buf());
     }
     if path.is_dir() {
-        let names = crate::nbrdf::list_networks(path)?;
+        let names = crate::neural::nbrdf::list_networks(path)?;
         if let [name] = &names[..] {
             return Ok(path.join(name));
         }
         return Err(Error::invalid_file(path, format!("a directory of {} NBRDF networks: name one as DIR/MATERIAL", names.len())));
     }
     if let Some(dir) = path.parent().filter(|d| d.is_dir()) {
-        let available = crate::nbrdf::list_networks(dir)?;
+        let available = crate::neural::nbrdf::list_networks(dir)?;
         if !available.is_empty() {
             return Err(Error::UnknownName {
                 what: "NBRDF network",
@@ -244,7 +244,7 @@ impl SceneMaterials {
     }
 
     /// Evaluations of the decoded latent codes whose value was clamped to 0 (see
-    /// [`FrenbrdfBsdf::clamped_count`]).
+    /// [`NeuralBsdf::clamped_count`]).
     pub fn clamped_bsdf_values(&self) -> u64 {
         self.shared
             .iter()
@@ -260,8 +260,8 @@ impl SceneMaterials {
 mod tests {
     use super::*;
     use crate::bsdf::Bxdf;
-    use crate::merl::MerlTable;
-    use crate::nbrdf::tests::data_dir;
+    use crate::formats::merl::MerlTable;
+    use crate::neural::nbrdf::tests::data_dir;
     use glam::Vec3;
 
     fn open(text: &str, base: &Path) -> Result<SharedBsdf> {

@@ -52,12 +52,6 @@ impl Geometry {
         )
     }
 
-    /// Replaces [`Geometry::normals`] by area-weighted smooth vertex normals
-    /// (see [`smooth_vertex_normals`]).
-    pub fn compute_vertex_normals(&mut self) {
-        self.normals = smooth_vertex_normals(&self.positions, &self.triangles);
-    }
-
     /// Appends `other`, offsetting its vertex indices; its material ids are kept as they are.
     ///
     /// Fails, naming `source`, when the vertex count would no longer fit the `u32` indices.

@@ -9,8 +9,8 @@ use crate::Rgb;
 use glam::{Vec2, Vec3};
 use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use crate::testing::chi2::{self, Chi2Config, Chi2Domain};
-use crate::merl::MerlTable;
-use crate::nbrdf::tests::merl_network;
+use crate::formats::merl::MerlTable;
+use crate::neural::nbrdf::tests::merl_network;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -86,7 +86,7 @@ fn unit(theta: f32, phi: f32) -> Vec3 {
 #[test]
 fn measured_brdfs_do_not_create_energy() {
     use crate::bsdf::merl::{Interpolation, MerlBsdf};
-    let latents = crate::bsdf::frenbrdf::tests::shipped_latents();
+    let latents = crate::bsdf::neural::tests::shipped_latents();
     for name in CHI2_MATERIALS {
         let table = MerlBsdf::new(&merl_fitted_table(name), Interpolation::Trilinear, &TabulatedSamplerConfig::default());
         let network = nbrdf_bsdf(name);

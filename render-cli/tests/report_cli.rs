@@ -3,8 +3,8 @@
 mod common;
 
 use common::{assert_clean_failure, render, repo_file};
-use renderer::merl::MerlTable;
-use renderer::nbrdf::NbrdfNetwork;
+use renderer::formats::merl::MerlTable;
+use renderer::neural::nbrdf::NbrdfNetwork;
 
 #[test]
 fn tiny_report_writes_csv_plot_and_table() {

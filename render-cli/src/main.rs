@@ -3,21 +3,23 @@
 //! Errors are reported once, here, as one line on stderr with exit code 2; no output file
 //! is written when the render cannot start, and files are replaced atomically.
 
+mod contact_sheet;
+mod report;
 mod sweep;
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 use renderer::camera::PinholeCamera;
-use renderer::image_io::{write_image, ImageFormat, ToneMap};
+use renderer::formats::image_io::{write_image, ImageFormat, ToneMap};
 use renderer::integrator::PathTracer;
 use renderer::metrics::{display_values, ImageError};
 use renderer::render::{Budget, RenderStats, Renderer};
-use renderer::latent_library::LatentLibrary;
+use renderer::neural::latent_library::LatentLibrary;
 use renderer::material::Binding;
 use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
-use renderer::sweep::SweepSpec;
+use sweep::SweepSpec;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -37,7 +39,7 @@ struct Args {
     #[arg(long, allow_negative_numbers = true, value_parser = parse_seconds)]
     time: Option<f64>,
     /// Image size as WIDTHxHEIGHT (default: 512 wide, height from the camera's aspect ratio).
-    #[arg(long, value_parser = parse_resolution)]
+    #[arg(long, value_parser = renderer::support::parse_resolution)]
     resolution: Option<(u32, u32)>,
     /// Longest light path in segments, as Mitsuba 3's max_depth: 1 = emitters seen
     /// directly, 2 = direct lighting, ...; -1 = unlimited.
@@ -107,18 +109,6 @@ fn parse_finite(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() => Ok(v),
         _ => Err(format!("'{s}' is not a finite number")),
-    }
-}
-
-fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
-    let err = || format!("'{s}' is not WIDTHxHEIGHT with both in 1..=16384");
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
-    let w: u32 = w.trim().parse().map_err(|_| err())?;
-    let h: u32 = h.trim().parse().map_err(|_| err())?;
-    if (1..=16384).contains(&w) && (1..=16384).contains(&h) {
-        Ok((w, h))
-    } else {
-        Err(err())
     }
 }
 
@@ -281,7 +271,7 @@ fn run(args: Args) -> Result<()> {
     });
     let reference = match &args.reference {
         Some(path) => {
-            let (w, h, pixels) = renderer::image_io::read_image(path)?;
+            let (w, h, pixels) = renderer::formats::image_io::read_image(path)?;
             if (w, h) != (width, height) {
                 bail!("{}: reference is {w}x{h} but the render is {width}x{height}", path.display());
             }
@@ -327,7 +317,7 @@ fn run(args: Args) -> Result<()> {
 
     let (film, stats, error_rows) = job.render(&scene);
     if let Some(path) = &args.error_log {
-        renderer::image_io::write_text(path, &error_rows)?;
+        renderer::formats::image_io::write_text(path, &error_rows)?;
     }
     write_image(&args.output, width, height, &film.mean(), job.tone_map, args.exposure)?;
     if let Some(path) = &args.stats {
@@ -337,7 +327,7 @@ fn run(args: Args) -> Result<()> {
             clamped_bsdf_values: scene.materials.clamped_bsdf_values(),
             render: &stats,
         })?;
-        renderer::image_io::write_text(path, &(json + "\n"))?;
+        renderer::formats::image_io::write_text(path, &(json + "\n"))?;
     }
     if stats.interrupted {
         eprintln!("interrupted: wrote {} with {:.1} spp", args.output.display(), stats.spp);
@@ -378,7 +368,7 @@ struct ReportArgs {
 }
 
 fn run_report(args: ReportArgs) -> Result<()> {
-    let config = renderer::report::ReportConfig::read(&args.config)?;
+    let config = report::ReportConfig::read(&args.config)?;
     let cancel = Arc::new(AtomicBool::new(false));
     {
         let cancel = cancel.clone();
@@ -397,7 +387,7 @@ fn run_report(args: ReportArgs) -> Result<()> {
         }
         bar.set_position((fraction * 1000.0) as u64);
     };
-    let curves = renderer::report::run(&config, &cancel, &progress)?;
+    let curves = report::run(&config, &cancel, &progress)?;
     bar.finish_and_clear();
     for c in &curves {
         let last = c.points.last();

@@ -4,8 +4,9 @@
 //! under the requested name.
 
 use crate::error::{Error, Result};
+use crate::support::write_via_temporary;
 use crate::Rgb;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// How linear radiance becomes display values for 8-bit output.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -59,35 +60,15 @@ pub fn to_srgb8(pixels: &[Rgb], tone_map: ToneMap, exposure: f32) -> Vec<u8> {
         .collect()
 }
 
-fn temporary_path(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    path.with_file_name(format!(".{name}.partial-{}", std::process::id()))
-}
-
-/// Runs `write` on a temporary file next to `path`, then renames it into place.
-fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let tmp = temporary_path(path);
-    match write(&tmp) {
-        Ok(()) => std::fs::rename(&tmp, path).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            Error::io(path, e)
-        }),
-        Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
-            Err(e)
-        }
-    }
-}
-
 /// Writes a text file (statistics, logs) atomically.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
-    write_atomically(path, |tmp| std::fs::write(tmp, text).map_err(|e| Error::io(path, e)))
+    write_via_temporary(path, |tmp| std::fs::write(tmp, text).map_err(|e| Error::io(path, e)))
 }
 
 /// Writes a linear f32 RGB OpenEXR file.
 pub fn write_exr(path: &Path, width: u32, height: u32, pixels: &[Rgb]) -> Result<()> {
     assert_eq!(pixels.len(), width as usize * height as usize);
-    write_atomically(path, |tmp| {
+    write_via_temporary(path, |tmp| {
         exr::prelude::write_rgb_file(tmp, width as usize, height as usize, |x, y| {
             let p = pixels[x + y * width as usize];
             (p.x, p.y, p.z)
@@ -103,7 +84,7 @@ pub fn write_png(path: &Path, width: u32, height: u32, pixels: &[Rgb], tone_map:
 
 /// Writes 8-bit RGB pixels (row-major, 3 bytes each) as a PNG, atomically.
 pub fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb8: &[u8]) -> Result<()> {
-    write_atomically(path, |tmp| {
+    write_via_temporary(path, |tmp| {
         image::save_buffer_with_format(tmp, rgb8, width, height, image::ColorType::Rgb8, image::ImageFormat::Png)
             .map_err(|e| Error::invalid_file(path, format!("cannot write PNG: {e}")))
     })

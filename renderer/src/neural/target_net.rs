@@ -14,7 +14,7 @@
 //! accumulator sets (even and odd inputs); a batch of [`BATCH`] points shares every weight
 //! load between the points' chains and runs close to the FMA throughput.
 
-use crate::latent_file::Mlp;
+use crate::neural::mlp::Mlp;
 use crate::{Error, Result};
 
 /// Input width of the target net.
@@ -42,12 +42,13 @@ pub enum Kernel {
 impl Kernel {
     /// The fastest kernel this CPU runs.
     pub fn detect() -> Self {
+        use crate::support::cpu::{has_avx2_fma, has_avx512f};
         #[cfg(target_arch = "x86_64")]
         {
-            if std::is_x86_feature_detected!("avx512f") {
+            if has_avx512f() {
                 return Kernel::Avx512;
             }
-            if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            if has_avx2_fma() {
                 return Kernel::Avx2Fma;
             }
         }
@@ -86,7 +87,7 @@ pub struct TargetNet {
 struct Activations([f32; MAX_WIDTH]);
 
 impl TargetNet {
-    /// Packs a decoded MLP (see [`crate::latent_file::LatentFile::decode`]) for the fastest
+    /// Packs a decoded MLP (see [`crate::formats::latent_file::LatentFile::decode`]) for the fastest
     /// kernel of this CPU. Errors unless it maps [`INPUTS`] to [`OUTPUTS`] values through at
     /// least one hidden layer no wider than [`MAX_WIDTH`], with finite weights.
     pub fn new(mlp: &Mlp) -> Result<Self> {
@@ -335,7 +336,7 @@ mod simd {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::latent_file::DenseLayer;
+    use crate::neural::mlp::DenseLayer;
     use rand::{Rng, SeedableRng};
 
     /// A random MLP of the given widths (weights ~ U(−s, s) with s = 1/√d_in).

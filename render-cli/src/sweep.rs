@@ -9,13 +9,13 @@ use super::{summary, Job};
 use anyhow::{bail, Context, Result};
 use renderer::bsdf::merl::{Interpolation, MerlBsdf};
 use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
-use renderer::image_io::{to_srgb8, write_image, write_png_rgb8, write_text};
-use renderer::latent_library::LatentLibrary;
+use renderer::formats::image_io::{to_srgb8, write_image, write_png_rgb8, write_text};
+use renderer::neural::latent_library::LatentLibrary;
 use renderer::material::SharedBsdf;
-use renderer::merl::MerlTable;
+use renderer::formats::merl::MerlTable;
 use renderer::metrics::{display_values, ImageError};
 use renderer::render_scene::RenderScene;
-use renderer::sweep::{blend_tables, contact_sheet, lerp_code, SheetFrame, SweepSpec};
+use crate::contact_sheet::{contact_sheet, SheetFrame};
 use renderer::Rgb;
 
 /// Renders the sweep (see the module documentation).
@@ -44,7 +44,7 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
     let mut csv = String::from("frame,t,rmse,psnr,ssim\n");
     let times = spec.times();
     for (k, &t) in times.iter().enumerate() {
-        let code = lerp_code(&a, &b, t)?;
+        let code = a.lerp(&b, t)?;
         let label = format!("{}>{}@{t:.2}", spec.from, spec.to);
         for &slot in &slots {
             scene.materials.set_shared(slot, SharedBsdf::Neural(latents.decode_code(&code, &label)?));
@@ -64,7 +64,7 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
         });
         let mut line = format!("frame {}/{} t={t:.3}: {}", k + 1, times.len(), summary(&stats));
         if let Some((ta, tb)) = &tables {
-            let blend = blend_tables(ta, tb, t as f64);
+            let blend = ta.blend(tb, t as f64);
             let bsdf = MerlBsdf::new(&blend, Interpolation::default(), &TabulatedSamplerConfig::default());
             for &slot in &slots {
                 scene.materials.set_shared(slot, SharedBsdf::Merl(bsdf.clone()));
@@ -99,4 +99,54 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
     }
     eprintln!("wrote {} frames and contact-sheet.png to {}", times.len(), dir.display());
     Ok(())
+}
+
+/// A sweep from latent A to latent B in `steps` frames (`render --sweep A:B:STEPS`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SweepSpec {
+    pub from: String,
+    pub to: String,
+    pub steps: usize,
+}
+
+impl std::str::FromStr for SweepSpec {
+    type Err = String;
+
+    /// Parses `A:B:STEPS` with STEPS in 2..=1000.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let err = || format!("'{s}' is not A:B:STEPS (two latent names and 2 to 1000 frames)");
+        let (names, steps) = s.rsplit_once(':').ok_or_else(err)?;
+        let (from, to) = names.rsplit_once(':').ok_or_else(err)?;
+        let steps: usize = steps.trim().parse().map_err(|_| err())?;
+        if from.is_empty() || to.is_empty() || !(2..=1000).contains(&steps) {
+            return Err(err());
+        }
+        Ok(SweepSpec {
+            from: from.to_string(),
+            to: to.to_string(),
+            steps,
+        })
+    }
+}
+
+impl SweepSpec {
+    /// The interpolation parameters of the frames: k / (steps − 1), from 0 to 1.
+    pub fn times(&self) -> Vec<f32> {
+        (0..self.steps).map(|k| k as f32 / (self.steps - 1) as f32).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_sweep_specs() {
+        let s: SweepSpec = "alum-bronze:chrome:5".parse().unwrap();
+        assert_eq!(s.times(), vec![0.0, 0.25, 0.5, 0.75, 1.0]);
+        assert_eq!((s.from.as_str(), s.to.as_str()), ("alum-bronze", "chrome"));
+        for bad in ["a:b", "a:b:1", "a:b:x", ":b:3", "a::3", "a:b:100000"] {
+            assert!(bad.parse::<SweepSpec>().is_err(), "{bad}");
+        }
+    }
 }

@@ -43,16 +43,16 @@
 //! optional = true                          # skipped (with a note) when its file is missing
 //! ```
 
-use crate::camera::PinholeCamera;
-use crate::image_io::{write_png_rgb8, write_text, ToneMap};
-use crate::integrator::PathTracer;
-use crate::latent_library::LatentLibrary;
-use crate::material::Binding;
-use crate::metrics::{display_values, ImageError};
-use crate::render::{Budget, Renderer};
-use crate::render_scene::RenderScene;
-use crate::scene::{SceneDescription, SurfaceModel};
-use crate::{Error, Result};
+use renderer::camera::PinholeCamera;
+use renderer::formats::image_io::{write_png_rgb8, write_text, ToneMap};
+use renderer::integrator::PathTracer;
+use renderer::neural::latent_library::LatentLibrary;
+use renderer::material::Binding;
+use renderer::metrics::{display_values, ImageError};
+use renderer::render::{Budget, Renderer};
+use renderer::render_scene::RenderScene;
+use renderer::scene::{SceneDescription, SurfaceModel};
+use renderer::{Error, Result};
 use serde::Deserialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -244,7 +244,7 @@ pub fn run(config: &ReportConfig, cancel: &AtomicBool, progress: &Progress) -> R
             };
             let mut points = Vec::new();
             let mut measuring = Duration::ZERO;
-            let mut after_pass = |film: &crate::film::Film, elapsed: Duration| {
+            let mut after_pass = |film: &renderer::film::Film, elapsed: Duration| {
                 let start = std::time::Instant::now();
                 let image = film.mean();
                 let error = ImageError::between(&image, &reference, w as usize, h as usize, |img| display_values(img, ToneMap::Clamp, 0.0));

@@ -3,22 +3,21 @@
 //! f_r(wo, wi) = inverse mapping of the net's output y at the 6D input of (wi, wo) (φd folded,
 //! so the BSDF is reciprocal by construction), with f_ref looked up trilinearly in the file's
 //! reference table at the same (θh, θd, φd), exactly as training looked it up
-//! ([`crate::merl::lookup_trilinear_measured`]). Values the mapping sends below zero are
-//! clamped to 0 and counted ([`FrenbrdfBsdf::clamped_count`]); y is capped so f_r stays
+//! ([`crate::formats::merl::lookup_trilinear_measured`]). Values the mapping sends below zero are
+//! clamped to 0 and counted ([`NeuralBsdf::clamped_count`]); y is capped so f_r stays
 //! finite. Zero below either horizon. Importance sampling uses a [`TabulatedSampler`] fitted
 //! to the decoded BSDF at construction, with an exact pdf.
 
 use super::tabulated_sampling::{TabulatedBrdf, TabulatedSampler, TabulatedSamplerConfig};
 
-use crate::latent_file::MappingForm;
-use crate::target_net::TargetNet;
+use crate::neural::mapping::MappingForm;
+use crate::neural::target_net::TargetNet;
 use crate::Rgb;
 use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-/// Largest y used: e^80 ≈ 5.5e34 times a reference below ~1e3 keeps f_r finite.
-const MAX_LOG_VALUE: f32 = 80.0;
+use crate::neural::mapping::MAX_LOG_VALUE;
 /// Clamp counters, one per worker thread slot, each on its own cache line.
 const COUNTER_SLOTS: usize = 16;
 
@@ -32,7 +31,7 @@ pub type ReferenceValues = Arc<Vec<[f32; 3]>>;
 
 /// A decoded latent code as a BSDF.
 #[derive(Debug)]
-pub struct FrenbrdfBsdf {
+pub struct NeuralBsdf {
     name: String,
     net: TargetNet,
     reference: ReferenceValues,
@@ -42,7 +41,7 @@ pub struct FrenbrdfBsdf {
     clamped: [PaddedCounter; COUNTER_SLOTS],
 }
 
-impl FrenbrdfBsdf {
+impl NeuralBsdf {
     /// Wraps a decoded target net with the file's reference and mapping, and fits the
     /// importance sampler (≈ 0.1 M evaluations, parallel).
     pub fn new(
@@ -54,7 +53,7 @@ impl FrenbrdfBsdf {
         sampling: &TabulatedSamplerConfig,
     ) -> Self {
         let sampler = TabulatedSampler::new(|wo, wi| eval_decoded(&net, &reference, mapping, epsilon, wo, wi).0, sampling);
-        FrenbrdfBsdf {
+        NeuralBsdf {
             name: name.into(),
             net,
             reference,
@@ -98,12 +97,12 @@ fn eval_decoded(
     }
     let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles(wi, wo);
     let y = net.forward(x);
-    let f_ref = crate::merl::lookup_trilinear_measured(reference, theta_h, theta_d, phi_d).unwrap_or([0.0; 3]);
+    let f_ref = crate::formats::merl::lookup_trilinear_measured(reference, theta_h, theta_d, phi_d).unwrap_or([0.0; 3]);
     let mut clamped = false;
     let f = [0, 1, 2].map(|c| {
         let v = mapping.inverse(y[c].min(MAX_LOG_VALUE), f_ref[c], epsilon);
         if v >= 0.0 {
-            v.min(crate::merl::MAX_RENDER_VALUE)
+            v.min(crate::formats::merl::MAX_RENDER_VALUE)
         } else {
             clamped = true;
             0.0
@@ -112,7 +111,7 @@ fn eval_decoded(
     (Rgb::from_array(f), clamped)
 }
 
-impl TabulatedBrdf for FrenbrdfBsdf {
+impl TabulatedBrdf for NeuralBsdf {
     #[inline]
     fn value(&self, wo: Vec3, wi: Vec3) -> Rgb {
         let (f, clamped) = eval_decoded(&self.net, &self.reference, self.mapping, self.epsilon, wo, wi);
@@ -135,7 +134,7 @@ pub(crate) mod tests {
     use crate::testing::bsdfs::{
         check_chi2, check_stability, merl_fitted_table, CHI2_MATERIALS, CHI2_THETAS,
     };
-    use crate::latent_library::{LatentCode, LatentLibrary};
+    use crate::neural::latent_library::{LatentCode, LatentLibrary};
     use std::sync::OnceLock;
 
     /// The shipped latent file, read once per test process.

@@ -26,12 +26,16 @@
 //! set [`Encoder`] maps measured samples to a latent code (ReLU after every layer, its last
 //! included, then the mean over the samples). Version 1 files have no encoder section and read
 //! with `encoder: None`; writing always writes [`VERSION`].
+//!
+//! This module is the format only: the forward passes (hypernetwork, encoder, target net) are
+//! in [`crate::neural`].
 
-use crate::merl::{BIN_COUNT, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
+use crate::formats::merl::{BIN_COUNT, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
+use crate::neural::mapping::MappingForm;
+use crate::neural::mlp::{DenseLayer, Encoder, Mlp};
 use crate::{Error, Result};
 use half::f16;
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The 8 bytes every latent file starts with.
 pub const MAGIC: [u8; 8] = *b"FRENBRDF";
@@ -42,46 +46,6 @@ const OLDEST_VERSION: u32 = 1;
 /// Upper bound on any one width, latent size or name length (sanity limit of the reader).
 const MAX_DIM: usize = 1 << 20;
 
-/// The log-relative mapping between f_r and the network's output y (per channel, ε > 0,
-/// f_ref the reference BRDF at the same coordinates).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum MappingForm {
-    /// The talk's form: y = ln((f + ε) / (f_ref + ε)); f = e^y (f_ref + ε) − ε.
-    Talk,
-    /// The authors' code: y = ln(1 + (f + ε) / (f_ref + ε)); f = (e^y − 1)(f_ref + ε) − ε.
-    Code,
-}
-
-impl MappingForm {
-    /// y of a BRDF value `f` (1/sr, ≥ 0) given `f_ref` (1/sr, ≥ 0).
-    #[inline]
-    pub fn forward(self, f: f32, f_ref: f32, epsilon: f32) -> f32 {
-        let r = (f + epsilon) / (f_ref + epsilon);
-        match self {
-            MappingForm::Talk => r.ln(),
-            MappingForm::Code => r.ln_1p(),
-        }
-    }
-
-    /// f_r (1/sr) of a mapped value `y`; not clamped (callers clamp to ≥ 0).
-    #[inline]
-    pub fn inverse(self, y: f32, f_ref: f32, epsilon: f32) -> f32 {
-        let e = match self {
-            MappingForm::Talk => y.exp(),
-            MappingForm::Code => y.exp_m1(),
-        };
-        e * (f_ref + epsilon) - epsilon
-    }
-
-    fn code(self) -> u8 {
-        match self {
-            MappingForm::Talk => 0,
-            MappingForm::Code => 1,
-        }
-    }
-}
-
 /// Element type of the hypernetwork weights in the file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum WeightType {
@@ -89,125 +53,6 @@ pub enum WeightType {
     F32,
     /// 2 bytes per weight (halves the decoder's size; relative rounding ≈ 5e-4).
     F16,
-}
-
-/// One dense layer y = x · W + b.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DenseLayer {
-    /// Input width.
-    pub d_in: usize,
-    /// Output width.
-    pub d_out: usize,
-    /// W, [d_in, d_out] row-major.
-    pub weight: Vec<f32>,
-    /// b, [d_out].
-    pub bias: Vec<f32>,
-}
-
-impl DenseLayer {
-    /// Checks that the layer maps `d_in` to `d_out` values, holds that many weights and
-    /// biases, and that all are finite; the message says what is wrong.
-    pub fn check(&self, d_in: usize, d_out: usize) -> std::result::Result<(), String> {
-        if self.d_in != d_in
-            || self.d_out != d_out
-            || self.weight.len() != d_in * d_out
-            || self.bias.len() != d_out
-        {
-            return Err("has the wrong shape".to_string());
-        }
-        match self.weight.iter().chain(&self.bias).position(|v| !v.is_finite()) {
-            Some(i) => Err(format!("non-finite weight (value {i})")),
-            None => Ok(()),
-        }
-    }
-
-    /// y = x · W + b, optionally followed by ReLU. `x.len()` = d_in, `y.len()` = d_out.
-    pub fn forward(&self, x: &[f32], y: &mut [f32], relu: bool) {
-        debug_assert!(x.len() == self.d_in && y.len() == self.d_out);
-        y.copy_from_slice(&self.bias);
-        // `max(1)`: a layer without outputs has no weights to walk (and `chunks_exact(0)`
-        // panics).
-        for (xi, row) in x.iter().zip(self.weight.chunks_exact(self.d_out.max(1))) {
-            if *xi != 0.0 {
-                for (yo, w) in y.iter_mut().zip(row) {
-                    *yo += xi * w;
-                }
-            }
-        }
-        if relu {
-            y.iter_mut().for_each(|v| *v = v.max(0.0));
-        }
-    }
-}
-
-/// A multilayer perceptron: ReLU after every layer but the last.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Mlp {
-    /// Layers, input first.
-    pub layers: Vec<DenseLayer>,
-}
-
-impl Mlp {
-    /// The output for one input (`x.len()` = first layer's d_in).
-    pub fn forward(&self, x: &[f32]) -> Vec<f32> {
-        let mut h = x.to_vec();
-        for (i, layer) in self.layers.iter().enumerate() {
-            let mut y = vec![0.0; layer.d_out];
-            layer.forward(&h, &mut y, i + 1 < self.layers.len());
-            h = y;
-        }
-        h
-    }
-}
-
-/// The set encoder of the trained model: per sample [6D network input ‖ 3 mapped values] →
-/// layers → z, ReLU after every layer (its last included, so z ≥ 0), z = mean over the
-/// samples.
-///
-/// A sample is the target net's input of [`crate::brdf_coords::network_input`] (6 values)
-/// followed by the mapped value y = [`MappingForm::forward`] of the measured f_r (1/sr) per
-/// RGB channel, with the file's mapping, ε and f_ref at the same coordinates.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Encoder {
-    /// Layers, input first: 9 → hidden... → latent_dim (9 128 128 128 latent_dim by default).
-    pub layers: Vec<DenseLayer>,
-    /// Share (in [0, 1]) of the points whose θh was drawn with MERL's spacing θh = u²·π/2
-    /// (u uniform in [0, 1)) when the encoder was trained; the others have θh uniform in
-    /// [0, π/2]. Encoding must draw its samples the same way.
-    pub peak_share: f32,
-}
-
-impl Encoder {
-    /// Width of one encoder sample: 6D network input ‖ 3 mapped values.
-    pub const INPUT_WIDTH: usize = 9;
-
-    /// Width of the encoder's output, z (latent_dim in a valid file).
-    pub fn output_width(&self) -> usize {
-        self.layers.last().map_or(Self::INPUT_WIDTH, |l| l.d_out)
-    }
-
-    /// The reference forward pass in f32: every layer with ReLU on each sample, then the mean
-    /// over the samples (summed in f64). No samples give zeros of the output width.
-    ///
-    /// # Panics
-    /// If the layers do not chain (a file read by [`LatentFile::read`] is consistent).
-    pub fn encode(&self, samples: &[[f32; 9]]) -> Vec<f32> {
-        let width = self.output_width();
-        let mut sum = vec![0.0f64; width];
-        for sample in samples {
-            let mut h = sample.to_vec();
-            for layer in &self.layers {
-                let mut y = vec![0.0; layer.d_out];
-                layer.forward(&h, &mut y, true);
-                h = y;
-            }
-            sum.iter_mut()
-                .zip(&h)
-                .for_each(|(s, v)| *s += f64::from(*v));
-        }
-        let n = samples.len().max(1) as f64;
-        sum.into_iter().map(|s| (s / n) as f32).collect()
-    }
 }
 
 /// A named latent code.
@@ -274,33 +119,6 @@ impl LatentFile {
     #[inline]
     pub fn f_ref(&self, bin: usize) -> [f32; 3] {
         self.f_ref[bin].map(f16::to_f32)
-    }
-
-    /// Decodes a latent code into the target net (hypernetwork forward pass in f32): one MLP
-    /// with ReLU after every hidden layer and a linear output y.
-    ///
-    /// # Panics
-    /// If `z.len()` differs from `latent_dim` (a file read by [`LatentFile::read`] is
-    /// consistent; check user-made codes first).
-    pub fn decode(&self, z: &[f32]) -> Mlp {
-        assert_eq!(z.len(), self.latent_dim, "latent code size");
-        let outputs: Vec<Vec<f32>> = self
-            .hypernetwork
-            .iter()
-            .map(|head| head.forward(z))
-            .collect();
-        let layers = self
-            .target_layers()
-            .into_iter()
-            .enumerate()
-            .map(|(k, (d_in, d_out))| DenseLayer {
-                d_in,
-                d_out,
-                weight: outputs[2 * k].clone(),
-                bias: outputs[2 * k + 1].clone(),
-            })
-            .collect();
-        Mlp { layers }
     }
 
     /// A tiny file for tests, fuzzing seeds and examples: target net 6-4-3, latent size 2,
@@ -553,7 +371,7 @@ impl LatentFile {
         self.training_materials
             .iter()
             .for_each(|n| put_str(&mut w, n));
-        let sum = fnv1a64(&w);
+        let sum = crate::support::fnv1a64(&w);
         w.extend_from_slice(&sum.to_le_bytes());
         w
     }
@@ -578,7 +396,7 @@ impl LatentFile {
         }
         let (body, tail) = bytes.split_at(bytes.len() - 8);
         let stored = u64::from_le_bytes(tail.try_into().map_err(|_| bad("truncated".into()))?);
-        if fnv1a64(body) != stored {
+        if crate::support::fnv1a64(body) != stored {
             return Err(bad(
                 "checksum mismatch: the file is corrupt or truncated".to_string()
             ));
@@ -683,19 +501,11 @@ impl LatentFile {
         Self::from_bytes(&bytes, path)
     }
 
-    /// Validates and writes the file atomically (a temporary `PATH.partial` in the same
-    /// directory, synced, then renamed over `path`).
+    /// Validates and writes the file atomically ([`crate::support::write_atomically`]).
     pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
         let path = path.as_ref();
         self.validate(path)?;
-        let mut partial = path.as_os_str().to_owned();
-        partial.push(".partial");
-        let partial = PathBuf::from(partial);
-        let mut file = std::fs::File::create(&partial).map_err(|e| Error::io(&partial, e))?;
-        file.write_all(&self.to_bytes())
-            .and_then(|_| file.sync_all())
-            .map_err(|e| Error::io(&partial, e))?;
-        std::fs::rename(&partial, path).map_err(|e| Error::io(path, e))
+        crate::support::write_bytes_atomically(path, &self.to_bytes())
     }
 }
 
@@ -708,15 +518,6 @@ fn put_str(w: &mut Vec<u8>, s: &str) {
     w.extend_from_slice(s.as_bytes());
 }
 
-/// FNV-1a, 64 bit.
-fn fnv1a64(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for &b in bytes {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
-}
 
 /// Fixed pseudo-random numbers in [−0.5, 0.5) (an LCG) for the synthetic files.
 fn pseudo_random(mut seed: u32) -> impl FnMut() -> f32 {
@@ -922,7 +723,7 @@ pub(crate) mod tests {
 
     fn fix_checksum(bytes: &mut Vec<u8>) {
         bytes.truncate(bytes.len() - 8);
-        let sum = fnv1a64(bytes);
+        let sum = crate::support::fnv1a64(bytes);
         bytes.extend_from_slice(&sum.to_le_bytes());
     }
 

@@ -17,7 +17,7 @@ use crate::{Error, Result, Rgb};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2 as FRAC_PI_2_F64, PI as PI_F64};
 use std::fs::File;
-use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 /// Number of θh bins.
@@ -276,23 +276,37 @@ impl MerlTable {
         ))
     }
 
-    /// Trilinear look-up between bin centres at the isotropic angles (radians): f_r in 1/sr.
-    /// Unmeasured corners are left out and the weights of the others renormalised; `None`
-    /// when all eight corners are unmeasured.
-    pub fn lookup_trilinear(&self, theta_h: f32, theta_d: f32, phi_d: f32) -> Option<[f64; 3]> {
-        let (idx, w) = trilinear_corners(theta_h, theta_d, phi_d);
-        let mut acc = [0f64; 3];
-        let mut wsum = 0f64;
-        for (&i, &wk) in idx.iter().zip(&w) {
-            if wk > 0.0 && self.is_measured(i) {
-                let v = self.value(i);
-                for c in 0..3 {
-                    acc[c] += wk as f64 * v[c];
-                }
-                wsum += wk as f64;
-            }
-        }
-        (wsum > 0.0).then(|| acc.map(|a| a / wsum))
+    /// The linear blend (1 − t) self + t other, bin by bin; a bin unmeasured in either is
+    /// unmeasured in the blend. `t` in [0, 1]. (The table a material-editing sweep compares
+    /// its interpolated latent codes with.)
+    pub fn blend(&self, other: &MerlTable, t: f64) -> MerlTable {
+        let raw: Vec<f64> = self
+            .raw()
+            .par_iter()
+            .zip(other.raw())
+            .map(|(&x, &y)| if x < 0.0 || y < 0.0 { -1.0 } else { (1.0 - t) * x + t * y })
+            .collect();
+        MerlTable::from_raw(raw, "blended table").expect("a blend of valid tables is valid")
+    }
+
+    /// The table as f_r in 1/sr per bin (within-channel index order), f32, with unmeasured
+    /// channels −1 (and values beyond f32 capped at `f32::MAX`): the form the trainer and
+    /// [`lookup_trilinear_measured`] read.
+    pub fn measured_values(&self) -> Vec<[f32; 3]> {
+        (0..BIN_COUNT)
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|i| {
+                [0, 1, 2].map(|c| {
+                    let v = self.raw[c * BIN_COUNT + i];
+                    if v < 0.0 {
+                        -1.0
+                    } else {
+                        (v * SCALE[c]).min(f32::MAX as f64) as f32
+                    }
+                })
+            })
+            .collect()
     }
 
     /// The table as f_r in 1/sr per bin (within-channel index order), f32, unmeasured (negative)
@@ -335,15 +349,10 @@ impl MerlTable {
         Ok(())
     }
 
-    /// Writes the table to a `.binary` file (created or truncated). Not atomic: callers that
-    /// must never leave a partial file write to a temporary name and rename.
+    /// Writes the table to a `.binary` file atomically ([`crate::support::write_atomically`]:
+    /// an interrupted write never leaves a partial table under `path`).
     pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
-        let path = path.as_ref();
-        let file = File::create(path).map_err(|e| Error::io(path, e))?;
-        let mut w = BufWriter::new(file);
-        self.write_to(&mut w)
-            .and_then(|_| w.flush())
-            .map_err(|e| Error::io(path, e))
+        crate::support::write_atomically(path.as_ref(), |w| self.write_to(w))
     }
 }
 
@@ -561,7 +570,7 @@ mod tests {
     fn table_from_network_round_trips_to_f32_precision() {
         // A full table written from an NBRDF network and read back returns the network's
         // f32 values at every bin centre.
-        let net = crate::nbrdf::tests::merl_network("alum-bronze");
+        let net = crate::neural::nbrdf::tests::merl_network("alum-bronze");
         let eval = |i: usize| {
             let [th, td, pd] = bin_centre(i);
             net.eval_angles(th as f32, td as f32, pd as f32)
@@ -588,18 +597,15 @@ mod tests {
     fn trilinear_reproduces_bin_centres_and_interpolates() {
         let table = MerlTable::from_fn(|th, td, _| Rgb::new(th, td, 1.0));
         let [th, td, pd] = bin_centre(bin_index(40, 30, 20));
-        let v = table
-            .lookup_trilinear(th as f32, td as f32, pd as f32)
-            .unwrap();
-        assert!((v[0] - th).abs() < 1e-6 && (v[1] - td).abs() < 1e-6);
+        let values = table.measured_values();
+        let v = lookup_trilinear_measured(&values, th as f32, td as f32, pd as f32).unwrap();
+        assert!((v[0] as f64 - th).abs() < 1e-6 && (v[1] as f64 - td).abs() < 1e-6);
         // Halfway between two θd centres the value is their mean (linear in θd).
         let td_mid = (30.0 + 1.0) / 90.0 * std::f64::consts::FRAC_PI_2;
-        let v = table
-            .lookup_trilinear(th as f32, td_mid as f32, pd as f32)
-            .unwrap();
-        assert!((v[1] - td_mid).abs() < 1e-6);
+        let v = lookup_trilinear_measured(&values, th as f32, td_mid as f32, pd as f32).unwrap();
+        assert!((v[1] as f64 - td_mid).abs() < 1e-6);
         // φd wraps: just below π interpolates between bins 179 and 0.
-        assert!(table.lookup_trilinear(0.3, 0.3, PI - 1e-3).is_some());
+        assert!(lookup_trilinear_measured(&values, 0.3, 0.3, PI - 1e-3).is_some());
     }
 
     #[test]
@@ -613,9 +619,10 @@ mod tests {
         });
         assert!(table.unmeasured_count() > 0);
         assert!(table.lookup_nearest(1.0, 0.2, 0.2)[0] < 0.0);
-        let v = table.lookup_trilinear(0.3, 0.2, 0.2).unwrap();
+        let values = table.measured_values();
+        let v = lookup_trilinear_measured(&values, 0.3, 0.2, 0.2).unwrap();
         assert!((v[0] - 0.25).abs() < 1e-6);
-        assert!(table.lookup_trilinear(1.2, 0.2, 0.2).is_none());
+        assert!(lookup_trilinear_measured(&values, 1.2, 0.2, 0.2).is_none());
         let render = table.to_render_values();
         assert!(render
             .iter()
@@ -696,5 +703,16 @@ mod tests {
         r.read_raw(BIN_COUNT - 50_000, &mut buf).unwrap();
         assert!(buf[..] == table.raw()[BIN_COUNT - 50_000..BIN_COUNT + 50_000]);
         assert!(r.read_raw(3 * BIN_COUNT - 10, &mut buf).is_err());
+    }
+
+    #[test]
+    fn blend_is_linear_and_keeps_unmeasured_bins() {
+        let a = MerlTable::from_fn(|_, _, _| glam::Vec3::splat(1.0));
+        let b = MerlTable::from_fn(|th, _, _| if th > 1.5 { glam::Vec3::splat(-1.0) } else { glam::Vec3::splat(3.0) });
+        let m = a.blend(&b, 0.25);
+        let (i_measured, i_unmeasured) = (0, bin_index(89, 0, 0));
+        let want = 0.75 * a.value(i_measured)[0] + 0.25 * b.value(i_measured)[0];
+        assert!((m.value(i_measured)[0] - want).abs() < 1e-12);
+        assert!(!m.is_measured(i_unmeasured));
     }
 }

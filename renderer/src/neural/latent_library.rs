@@ -1,5 +1,5 @@
 //! The latent files given to the renderer (`render --material FILE`), read and validated
-//! once; latent codes are decoded into [`FrenbrdfBsdf`]s on demand, so a scene pays only for
+//! once; latent codes are decoded into [`NeuralBsdf`]s on demand, so a scene pays only for
 //! the codes it binds. The f_ref table of a file (17.5 MB as f32) is converted on the first
 //! decode from that file and shared by every code decoded from it.
 //!
@@ -9,12 +9,12 @@
 //! ([`LatentLibrary::bind_equal_names`]). Names are searched in the files in the order given;
 //! the first file holding a name wins.
 
-use crate::bsdf::frenbrdf::{FrenbrdfBsdf, ReferenceValues};
+use crate::bsdf::neural::{NeuralBsdf, ReferenceValues};
 use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
-use crate::latent_file::LatentFile;
+use crate::formats::latent_file::LatentFile;
 use crate::material::Binding;
 use crate::scene::{SceneDescription, SurfaceModel};
-use crate::target_net::TargetNet;
+use crate::neural::target_net::TargetNet;
 use crate::{Error, Result};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -39,6 +39,23 @@ pub struct LatentLibrary {
 pub struct LatentCode {
     pub file: usize,
     pub z: Vec<f32>,
+}
+
+impl LatentCode {
+    /// z(t) = (1 − t) z_self + t z_other, for material-editing sweeps; both codes must come
+    /// from the same file (one decoder).
+    pub fn lerp(&self, other: &LatentCode, t: f32) -> Result<LatentCode> {
+        if self.file != other.file || self.z.len() != other.z.len() {
+            return Err(Error::InvalidArgument {
+                flag: "latent codes".to_string(),
+                reason: "the two latent codes come from different latent files".to_string(),
+            });
+        }
+        Ok(LatentCode {
+            file: self.file,
+            z: self.z.iter().zip(&other.z).map(|(x, y)| (1.0 - t) * x + t * y).collect(),
+        })
+    }
 }
 
 impl LatentLibrary {
@@ -94,7 +111,7 @@ impl LatentLibrary {
     }
 
     /// Decodes the code called `name` into a BSDF.
-    pub fn decode(&self, name: &str) -> Result<FrenbrdfBsdf> {
+    pub fn decode(&self, name: &str) -> Result<NeuralBsdf> {
         let code = self.latent(name)?;
         self.decode_code(&code, name)
     }
@@ -102,7 +119,7 @@ impl LatentLibrary {
     /// Decodes any code (e.g. an interpolated one) with the decoder of `code.file`; `label`
     /// names the result. Errors name the file when the code has the wrong size or a
     /// non-finite value.
-    pub fn decode_code(&self, code: &LatentCode, label: &str) -> Result<FrenbrdfBsdf> {
+    pub fn decode_code(&self, code: &LatentCode, label: &str) -> Result<NeuralBsdf> {
         let f = self.files.get(code.file).ok_or_else(|| Error::InvalidArgument {
             flag: "latent code".to_string(),
             reason: format!("file index {} out of range", code.file),
@@ -120,7 +137,7 @@ impl LatentLibrary {
             .reference
             .get_or_init(|| Arc::new(file.f_ref.par_iter().map(|v| v.map(|h| h.to_f32())).collect()))
             .clone();
-        Ok(FrenbrdfBsdf::new(
+        Ok(NeuralBsdf::new(
             label,
             net,
             reference,
@@ -149,8 +166,8 @@ impl LatentLibrary {
 mod tests {
     use super::*;
     use crate::bsdf::Bxdf;
-    use crate::latent_file::tests::small_file;
-    use crate::latent_file::WeightType;
+    use crate::formats::latent_file::tests::small_file;
+    use crate::formats::latent_file::WeightType;
     use glam::Vec3;
 
     fn library() -> (tempfile::TempDir, LatentLibrary) {
@@ -177,5 +194,15 @@ mod tests {
         assert!(err.contains("latent.bin") && err.contains("finite"), "{err}");
         code.z.pop();
         assert!(lib.decode_code(&code, "short").is_err());
+    }
+
+    #[test]
+    fn lerp_hits_the_end_points() {
+        let a = LatentCode { file: 0, z: vec![1.0, -2.0] };
+        let b = LatentCode { file: 0, z: vec![3.0, 2.0] };
+        assert_eq!(a.lerp(&b, 0.0).unwrap(), a);
+        assert_eq!(a.lerp(&b, 1.0).unwrap(), b);
+        assert_eq!(a.lerp(&b, 0.5).unwrap().z, vec![2.0, 0.0]);
+        assert!(a.lerp(&LatentCode { file: 1, z: vec![0.0, 0.0] }, 0.5).is_err());
     }
 }

@@ -4,8 +4,8 @@
 mod common;
 
 use common::{assert_clean_failure, render, repo_file};
-use renderer::merl::MerlTable;
-use renderer::nbrdf::NbrdfNetwork;
+use renderer::formats::merl::MerlTable;
+use renderer::neural::nbrdf::NbrdfNetwork;
 use std::path::Path;
 
 fn shipped_latents() -> String {
@@ -17,7 +17,7 @@ fn preview_scene() -> String {
 }
 
 fn mean_of(path: &Path) -> f32 {
-    let (_, _, pixels) = renderer::image_io::read_image(path).expect("image");
+    let (_, _, pixels) = renderer::formats::image_io::read_image(path).expect("image");
     pixels.iter().map(|p| p.x + p.y + p.z).sum::<f32>() / pixels.len() as f32
 }
 

@@ -1,0 +1,347 @@
+//! glTF 2.0 loader (`.gltf` with external or `data:` buffers, and binary `.glb`).
+//!
+//! What is read:
+//! - The default scene (or the first scene): its node hierarchy, with each node's `matrix`
+//!   or translation/rotation/scale accumulated from the root.
+//! - Mesh primitives of mode TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN (strips and fans are
+//!   converted to triangle lists as the glTF specification orders them); POINTS and LINES*
+//!   are errors. POSITION, NORMAL (transformed by the inverse transpose of the node's world
+//!   matrix), TEXCOORD_0 (only set 0, whatever `texCoord` a texture names), indices or
+//!   none. Primitives without normals get area-weighted smooth vertex normals computed
+//!   from their triangles ([`super::smooth_vertex_normals`]); normals that cannot be
+//!   normalised are replaced the same way. Under a transform with a negative determinant
+//!   the winding is flipped so triangles stay counter-clockwise seen from the front.
+//! - Materials: `pbrMetallicRoughness.baseColorFactor` (linear) times `baseColorTexture`
+//!   (sRGB-decoded to linear at load, see [`Texture::from_encoded_srgb`]; samplers' wrap
+//!   and filter modes are ignored: the renderer repeats and filters bilinearly),
+//!   `metallicFactor`, `roughnessFactor`, and `emissiveFactor` times
+//!   `KHR_materials_emissive_strength` as [`Material::emission`]. Emissive, normal,
+//!   occlusion and metallic-roughness textures are ignored; `doubleSided` is kept. Primitives without a material
+//!   get [`Material::default_diffuse`] (named "default").
+//! - Material `extras` choose the [`SurfaceModel`] (at most one of these keys):
+//!   - `{"bsdf": "diffuse"}` → [`SurfaceModel::Lambert`]; `{"bsdf": "metallic-roughness"}`
+//!     → [`SurfaceModel::MetallicRoughness`] (the default without extras);
+//!   - `{"brdf": "BINDING"}` → [`SurfaceModel::Bound`] with the [`Binding`] written there,
+//!     e.g. `merl:materials/alum-bronze.binary` or `nbrdf:networks/alum-bronze`, a relative
+//!     path resolved against the glTF file's directory; a binding that does not parse is an
+//!     error naming the file and the material;
+//!   - `{"neural": "NAME"}` → [`SurfaceModel::Bound`]`(`[`Binding::Neural`]`)`, a latent
+//!     code of the material file chosen at render time.
+//! - Perspective cameras instanced by nodes (`yfov`, `aspectRatio`); `camera_to_world` is
+//!   the node's world transform without its scale. A camera is named after the camera
+//!   object, else its node, else `camera<index>`. Orthographic cameras are skipped; a file
+//!   whose only cameras are orthographic is an error.
+//! - `KHR_lights_punctual` point, spot and directional lights: radiometric intensity =
+//!   `intensity × color` (no 683 lm/W factor, see [`PunctualLight`]); positions are the
+//!   node's world origin, directions its world -z; spot cone angles become cosines.
+//!   `range` is ignored.
+//! - The environment, from the scene's `extras` (falling back to the asset's `extras`):
+//!   `{"environment": {"image": "studio.exr", "strength": 1.0, "rotation_degrees": 0.0}}`
+//!   (image path relative to the glTF file) or `{"environment": {"color": [r, g, b]}}`
+//!   (`strength` and `rotation_degrees` optional, defaults 1 and 0). The image itself is
+//!   read by the renderer's environment code, not here.
+//!
+//! - Not read: animations, skins and morph targets (the rest pose is used), sparse
+//!   accessors, and extensions other than the two above (files that *require* another
+//!   extension are rejected by the `gltf` crate's validation).
+//!
+//! Errors: a missing scene or buffer file is [`Error::Io`] naming that file; everything else
+//! is [`Error::InvalidFile`] naming the glTF file and the problem (the `gltf` crate's message
+//! for malformed JSON or invalid references).
+
+use super::{
+    smooth_vertex_normals, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Material,
+    PunctualLight, SceneDescription, SurfaceModel, Texture,
+};
+use crate::material::Binding;
+use crate::{Error, Result, Rgb};
+use ::gltf::accessor::{DataType, Dimensions};
+use ::gltf::camera::Projection;
+use ::gltf::khr_lights_punctual::Kind as LightKind;
+use ::gltf::mesh::Mode;
+use ::gltf::{Accessor, Document, Gltf, Node, Primitive};
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use serde_json::Value;
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+
+mod buffers;
+mod extras;
+mod primitives;
+#[cfg(test)]
+mod tests;
+
+use buffers::{load_buffers, parse_and_validate, read_uri};
+use extras::{environment_from_extras, surface_model};
+
+/// Loads a `.gltf` or `.glb` file (see the module documentation for what is read).
+pub fn load(path: &Path) -> Result<SceneDescription> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    load_from_bytes(&bytes, path)
+}
+
+/// Loads a glTF scene from the contents of a `.gltf` or `.glb` file. `path` is where the
+/// bytes came from: errors name it, and buffers and images given by relative URIs are read
+/// from disk relative to its directory.
+pub fn load_from_bytes(bytes: &[u8], path: &Path) -> Result<SceneDescription> {
+    load_from_bytes_with(bytes, path, |file| std::fs::read(file))
+}
+
+/// Like [`load_from_bytes`], but the files the glTF file refers to (external buffers and
+/// images) are read by `read_file`, given their path (the glTF file's directory joined with
+/// the decoded URI), instead of from disk; an error it returns becomes [`Error::Io`] naming
+/// that path. Lets a scene and its files come from memory (tests, fuzzing).
+pub fn load_from_bytes_with(
+    bytes: &[u8],
+    path: &Path,
+    mut read_file: impl FnMut(&Path) -> std::io::Result<Vec<u8>>,
+) -> Result<SceneDescription> {
+    let Gltf { document, blob } = parse_and_validate(bytes, path)?;
+    let base = path.parent().unwrap_or_else(|| Path::new(""));
+    let buffers = load_buffers(path, base, &document, blob, &mut read_file)?;
+    let mut loader = Loader {
+        path,
+        base,
+        read_file: &mut read_file,
+        buffers: &buffers,
+        scene: SceneDescription {
+            source: path.to_path_buf(),
+            ..SceneDescription::default()
+        },
+        texture_of_image: HashMap::new(),
+        default_material: None,
+        saw_orthographic: false,
+    };
+    for material in document.materials() {
+        let material = loader.material(&document, &material)?;
+        loader.scene.materials.push(material);
+    }
+    let gltf_scene = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+        .ok_or_else(|| Error::invalid_file(path, "defines no scene"))?;
+    loader.walk(&gltf_scene)?;
+    if loader.scene.cameras.is_empty() && loader.saw_orthographic {
+        return Err(Error::invalid_file(
+            path,
+            "has only orthographic cameras, which are not supported (use a perspective camera)",
+        ));
+    }
+    let environment = environment_from_extras(gltf_scene.extras(), path, base)?;
+    loader.scene.environment = match environment {
+        Some(env) => Some(env),
+        None => environment_from_extras(&document.as_json().asset.extras, path, base)?,
+    };
+    loader.scene.validate()?;
+    Ok(loader.scene)
+}
+
+/// The state of one load.
+struct Loader<'a> {
+    path: &'a Path,
+    base: &'a Path,
+    /// Reads the files the glTF file refers to (see [`load_from_bytes_with`]).
+    read_file: &'a mut dyn FnMut(&Path) -> std::io::Result<Vec<u8>>,
+    buffers: &'a [Vec<u8>],
+    scene: SceneDescription,
+    /// glTF image index → index into `scene.textures`.
+    texture_of_image: HashMap<usize, usize>,
+    /// Index of the material given to primitives without one, once created.
+    default_material: Option<u32>,
+    saw_orthographic: bool,
+}
+
+impl Loader<'_> {
+    fn invalid(&self, reason: impl Into<String>) -> Error {
+        Error::invalid_file(self.path, reason)
+    }
+
+    /// Walks the scene's node trees depth first (without recursion), each node visited once.
+    fn walk(&mut self, gltf_scene: &::gltf::Scene) -> Result<()> {
+        let mut visited = HashSet::new();
+        let mut stack: Vec<(Node, Mat4)> =
+            gltf_scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+        stack.reverse();
+        while let Some((node, parent)) = stack.pop() {
+            if !visited.insert(node.index()) {
+                return Err(self.invalid(format!(
+                    "node {} is reached twice in the node hierarchy (a cycle or a shared child)",
+                    node_label(&node)
+                )));
+            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            self.visit(&node, world)?;
+            let children: Vec<Node> = node.children().collect();
+            stack.extend(children.into_iter().rev().map(|c| (c, world)));
+        }
+        Ok(())
+    }
+
+    fn visit(&mut self, node: &Node, world: Mat4) -> Result<()> {
+        if let Some(mesh) = node.mesh() {
+            let name = mesh
+                .name()
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("#{}", mesh.index()));
+            for primitive in mesh.primitives() {
+                let part = self.primitive(&name, &primitive, world)?;
+                self.scene.geometry.append(&part, self.path)?;
+            }
+        }
+        if let Some(camera) = node.camera() {
+            match camera.projection() {
+                Projection::Perspective(p) => {
+                    let name = camera
+                        .name()
+                        .or(node.name())
+                        .map(str::to_string)
+                        .unwrap_or_else(|| format!("camera{}", camera.index()));
+                    let (_, rotation, translation) = world.to_scale_rotation_translation();
+                    let camera_to_world =
+                        Mat4::from_rotation_translation(rotation.normalize(), translation);
+                    if !camera_to_world.is_finite() {
+                        return Err(self
+                            .invalid(format!("camera '{name}' has a degenerate node transform")));
+                    }
+                    if !(p.yfov() > 0.0 && p.yfov() < std::f32::consts::PI) {
+                        return Err(self.invalid(format!(
+                            "camera '{name}' has yfov {} (must be in (0, pi) radians)",
+                            p.yfov()
+                        )));
+                    }
+                    self.scene.cameras.push(Camera {
+                        name,
+                        camera_to_world,
+                        yfov: p.yfov(),
+                        aspect_ratio: p.aspect_ratio().filter(|a| a.is_finite() && *a > 0.0),
+                    });
+                }
+                Projection::Orthographic(_) => self.saw_orthographic = true,
+            }
+        }
+        if let Some(light) = node.light() {
+            let radiometric = Rgb::from_array(light.color()) * light.intensity();
+            let position = world.transform_point3(Vec3::ZERO);
+            let direction = world.transform_vector3(Vec3::NEG_Z).try_normalize();
+            let label = light
+                .name()
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("#{}", light.index()));
+            let direction = || {
+                direction.ok_or_else(|| {
+                    self.invalid(format!("light '{label}' has a degenerate node transform"))
+                })
+            };
+            let light = match light.kind() {
+                LightKind::Point => PunctualLight::Point {
+                    position,
+                    intensity: radiometric,
+                },
+                LightKind::Spot {
+                    inner_cone_angle,
+                    outer_cone_angle,
+                } => PunctualLight::Spot {
+                    position,
+                    direction: direction()?,
+                    intensity: radiometric,
+                    cos_inner: inner_cone_angle.cos(),
+                    cos_outer: outer_cone_angle.cos(),
+                },
+                LightKind::Directional => PunctualLight::Directional {
+                    direction: direction()?,
+                    irradiance: radiometric,
+                },
+            };
+            if !position.is_finite() || !radiometric.is_finite() {
+                return Err(self.invalid(format!("light '{label}' is not finite")));
+            }
+            self.scene.lights.push(light);
+        }
+        Ok(())
+    }
+
+    fn default_material_id(&mut self) -> Result<u32> {
+        if let Some(id) = self.default_material {
+            return Ok(id);
+        }
+        let id = u32::try_from(self.scene.materials.len())
+            .map_err(|_| self.invalid("too many materials"))?;
+        self.scene
+            .materials
+            .push(Material::default_diffuse("default"));
+        self.default_material = Some(id);
+        Ok(id)
+    }
+
+    fn material(&mut self, document: &Document, material: &::gltf::Material) -> Result<Material> {
+        let name = material
+            .name()
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("material{}", material.index().unwrap_or(0)));
+        let pbr = material.pbr_metallic_roughness();
+        let [r, g, b, _] = pbr.base_color_factor();
+        let base_color_texture = match pbr.base_color_texture() {
+            Some(info) => Some(self.texture(document, info.texture().source().index(), &name)?),
+            None => None,
+        };
+        let emission = Rgb::from_array(material.emissive_factor())
+            * material.emissive_strength().unwrap_or(1.0);
+        let model = surface_model(material.extras(), &name, self.base)
+            .map_err(|reason| self.invalid(reason))?;
+        let result = Material {
+            model,
+            base_color: Rgb::new(r, g, b),
+            base_color_texture,
+            metallic: pbr.metallic_factor().clamp(0.0, 1.0),
+            roughness: pbr.roughness_factor().clamp(0.0, 1.0),
+            emission,
+            double_sided: material.double_sided(),
+            name,
+        };
+        if !result.base_color.is_finite() || !result.emission.is_finite() {
+            return Err(self.invalid(format!("material '{}' has non-finite factors", result.name)));
+        }
+        Ok(result)
+    }
+
+    /// The texture index of glTF image `image`, decoding it on first use.
+    fn texture(&mut self, document: &Document, image: usize, material: &str) -> Result<usize> {
+        if let Some(&t) = self.texture_of_image.get(&image) {
+            return Ok(t);
+        }
+        let gltf_image = document.images().nth(image).ok_or_else(|| {
+            self.invalid(format!("material '{material}' uses missing image {image}"))
+        })?;
+        let what = format!("image {image} (base colour of material '{material}')");
+        let bytes = match gltf_image.source() {
+            ::gltf::image::Source::View { view, .. } => self
+                .buffers
+                .get(view.buffer().index())
+                .and_then(|b| b.get(view.offset()..view.offset().checked_add(view.length())?))
+                .ok_or_else(|| {
+                    self.invalid(format!(
+                        "{what}: bufferView {} is out of range",
+                        view.index()
+                    ))
+                })?
+                .to_vec(),
+            ::gltf::image::Source::Uri { uri, .. } => {
+                read_uri(self.path, self.base, uri, &what, self.read_file)?
+            }
+        };
+        let texture = Texture::from_encoded_srgb(&bytes, self.path, &what)?;
+        let t = self.scene.textures.len();
+        self.scene.textures.push(texture);
+        self.texture_of_image.insert(image, t);
+        Ok(t)
+    }
+}
+
+/// A node's name for messages.
+fn node_label(node: &Node) -> String {
+    match node.name() {
+        Some(name) => format!("'{name}'"),
+        None => format!("#{}", node.index()),
+    }
+}
+

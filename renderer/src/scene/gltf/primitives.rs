@@ -1,0 +1,266 @@
+//! Mesh primitives: accessors checked before they are read, triangle modes assembled into
+//! triangle lists, positions and normals transformed to world space.
+
+use super::*;
+
+impl Loader<'_> {
+    /// One primitive's triangles in world space, with material ids set.
+    pub(super) fn primitive(&mut self, mesh: &str, primitive: &Primitive, world: Mat4) -> Result<Geometry> {
+        let index = primitive.index();
+        let mode = primitive.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            return Err(self.invalid(format!(
+                "unsupported primitive mode {} in mesh '{mesh}' (only triangles, strips and fans)",
+                mode_name(mode)
+            )));
+        }
+        let what = |attribute: &str| format!("{attribute} of primitive {index} in mesh '{mesh}'");
+        let buffers = self.buffers;
+        let reader = primitive.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+
+        let positions_accessor = primitive
+            .get(&::gltf::Semantic::Positions)
+            .ok_or_else(|| self.invalid(format!("{} is missing", what("POSITION"))))?;
+        self.check_accessor(
+            &positions_accessor,
+            &what("POSITION"),
+            &[DataType::F32],
+            Dimensions::Vec3,
+        )?;
+        let local_positions: Vec<Vec3> = reader
+            .read_positions()
+            .ok_or_else(|| self.invalid(format!("cannot read {}", what("POSITION"))))?
+            .map(Vec3::from_array)
+            .collect();
+        let vertex_count = local_positions.len();
+
+        let local_normals: Option<Vec<Vec3>> = match primitive.get(&::gltf::Semantic::Normals) {
+            Some(accessor) => {
+                self.check_accessor(
+                    &accessor,
+                    &what("NORMAL"),
+                    &[DataType::F32],
+                    Dimensions::Vec3,
+                )?;
+                let normals: Vec<Vec3> = reader
+                    .read_normals()
+                    .ok_or_else(|| self.invalid(format!("cannot read {}", what("NORMAL"))))?
+                    .map(Vec3::from_array)
+                    .collect();
+                self.check_count(normals.len(), vertex_count, &what("NORMAL"))?;
+                Some(normals)
+            }
+            None => None,
+        };
+
+        let uvs: Vec<Vec2> = match primitive.get(&::gltf::Semantic::TexCoords(0)) {
+            Some(accessor) => {
+                self.check_accessor(
+                    &accessor,
+                    &what("TEXCOORD_0"),
+                    &[DataType::F32, DataType::U8, DataType::U16],
+                    Dimensions::Vec2,
+                )?;
+                let uvs: Vec<Vec2> = reader
+                    .read_tex_coords(0)
+                    .ok_or_else(|| self.invalid(format!("cannot read {}", what("TEXCOORD_0"))))?
+                    .into_f32()
+                    .map(Vec2::from_array)
+                    .collect();
+                self.check_count(uvs.len(), vertex_count, &what("TEXCOORD_0"))?;
+                uvs
+            }
+            None => vec![Vec2::ZERO; vertex_count],
+        };
+
+        let indices: Vec<u32> = match primitive.indices() {
+            Some(accessor) => {
+                self.check_accessor(
+                    &accessor,
+                    &what("indices"),
+                    &[DataType::U8, DataType::U16, DataType::U32],
+                    Dimensions::Scalar,
+                )?;
+                reader
+                    .read_indices()
+                    .ok_or_else(|| self.invalid(format!("cannot read {}", what("indices"))))?
+                    .into_u32()
+                    .collect()
+            }
+            None => (0..u32::try_from(vertex_count)
+                .map_err(|_| self.invalid(format!("too many vertices in {}", what("POSITION"))))?)
+                .collect(),
+        };
+        if let Some(&bad) = indices.iter().find(|&&i| i as usize >= vertex_count) {
+            return Err(self.invalid(format!(
+                "index {bad} out of range ({vertex_count} vertices) in primitive {index} of mesh '{mesh}'"
+            )));
+        }
+        let mut triangles = assemble_triangles(mode, &indices).ok_or_else(|| {
+            self.invalid(format!(
+                "{} index count {} is not a multiple of 3 in primitive {index} of mesh '{mesh}'",
+                mode_name(mode),
+                indices.len()
+            ))
+        })?;
+
+        let positions: Vec<Vec3> = local_positions
+            .iter()
+            .map(|&p| world.transform_point3(p))
+            .collect();
+        if positions.iter().any(|p| !p.is_finite()) {
+            return Err(self.invalid(format!("non-finite vertex position in mesh '{mesh}'")));
+        }
+        let linear = Mat3::from_mat4(world);
+        if linear.determinant() < 0.0 {
+            for t in &mut triangles {
+                t.swap(1, 2);
+            }
+        }
+        let normal_matrix = linear.inverse().transpose();
+        let normals = match local_normals {
+            Some(local) => {
+                let transformed: Vec<Option<Vec3>> = local
+                    .iter()
+                    .map(|&n| (normal_matrix * n).try_normalize())
+                    .collect();
+                if transformed.iter().all(Option::is_some) {
+                    transformed.into_iter().flatten().collect()
+                } else {
+                    let smooth = smooth_vertex_normals(&positions, &triangles);
+                    transformed
+                        .into_iter()
+                        .zip(smooth)
+                        .map(|(n, s)| n.unwrap_or(s))
+                        .collect()
+                }
+            }
+            None => smooth_vertex_normals(&positions, &triangles),
+        };
+
+        let material_id = match primitive.material().index() {
+            Some(i) => u32::try_from(i).map_err(|_| self.invalid("too many materials"))?,
+            None => self.default_material_id()?,
+        };
+        let material_ids = vec![material_id; triangles.len()];
+        Ok(Geometry {
+            positions,
+            normals,
+            uvs,
+            triangles,
+            material_ids,
+        })
+    }
+
+    /// Checks what the `gltf` crate's readers assume but do not check, so reading can
+    /// neither panic nor silently truncate: component type and dimensions, a non-zero count,
+    /// a buffer view (sparse accessors are not supported), a stride at least the element
+    /// size, and the accessed range inside the view and the view inside its buffer.
+    pub(super) fn check_accessor(
+        &self,
+        accessor: &Accessor,
+        what: &str,
+        types: &[DataType],
+        dimensions: Dimensions,
+    ) -> Result<()> {
+        let i = accessor.index();
+        if accessor.sparse().is_some() {
+            return Err(self.invalid(format!("{what}: sparse accessor {i} is not supported")));
+        }
+        if !types.contains(&accessor.data_type()) || accessor.dimensions() != dimensions {
+            return Err(self.invalid(format!(
+                "{what}: accessor {i} has type {:?} {:?}, expected {dimensions:?} of {types:?}",
+                accessor.dimensions(),
+                accessor.data_type()
+            )));
+        }
+        if accessor.count() == 0 {
+            return Err(self.invalid(format!("{what}: accessor {i} has count 0")));
+        }
+        let view = accessor
+            .view()
+            .ok_or_else(|| self.invalid(format!("{what}: accessor {i} has no bufferView")))?;
+        let element = accessor.size();
+        let stride = view.stride().unwrap_or(element);
+        if stride < element {
+            return Err(self.invalid(format!(
+                "{what}: bufferView {} has byteStride {stride}, smaller than accessor {i}'s {element}-byte elements",
+                view.index()
+            )));
+        }
+        let end = stride
+            .checked_mul(accessor.count() - 1)
+            .and_then(|n| n.checked_add(element))
+            .and_then(|n| n.checked_add(accessor.offset()));
+        if end.is_none_or(|end| end > view.length()) {
+            return Err(self.invalid(format!(
+                "{what}: accessor {i} reads past the end of bufferView {}",
+                view.index()
+            )));
+        }
+        let buffer_len = self.buffers.get(view.buffer().index()).map_or(0, Vec::len);
+        if view
+            .offset()
+            .checked_add(view.length())
+            .is_none_or(|end| end > buffer_len)
+        {
+            return Err(self.invalid(format!(
+                "{what}: bufferView {} reads past the end of buffer {} ({buffer_len} bytes)",
+                view.index(),
+                view.buffer().index()
+            )));
+        }
+        Ok(())
+    }
+
+    pub(super) fn check_count(&self, count: usize, vertex_count: usize, what: &str) -> Result<()> {
+        if count == vertex_count {
+            Ok(())
+        } else {
+            Err(self.invalid(format!(
+                "{what} has {count} elements but POSITION has {vertex_count}"
+            )))
+        }
+    }
+}
+
+/// The glTF spelling of a primitive mode.
+pub(super) fn mode_name(mode: Mode) -> &'static str {
+    match mode {
+        Mode::Points => "POINTS",
+        Mode::Lines => "LINES",
+        Mode::LineLoop => "LINE_LOOP",
+        Mode::LineStrip => "LINE_STRIP",
+        Mode::Triangles => "TRIANGLES",
+        Mode::TriangleStrip => "TRIANGLE_STRIP",
+        Mode::TriangleFan => "TRIANGLE_FAN",
+    }
+}
+
+/// Triangle list from a triangle mode's index sequence (glTF 2.0 § 3.7.2.1 orders strips as
+/// (i, i + 1 + i % 2, i + 2 - i % 2) and fans as (i + 1, i + 2, 0)); `None` when a
+/// TRIANGLES list's length is not a multiple of 3.
+pub(super) fn assemble_triangles(mode: Mode, indices: &[u32]) -> Option<Vec<[u32; 3]>> {
+    let n = indices.len();
+    match mode {
+        Mode::TriangleStrip => Some(
+            (0..n.saturating_sub(2))
+                .map(|i| [indices[i], indices[i + 1 + i % 2], indices[i + 2 - i % 2]])
+                .collect(),
+        ),
+        Mode::TriangleFan => Some(
+            (1..n.saturating_sub(1))
+                .map(|i| [indices[i], indices[i + 1], indices[0]])
+                .collect(),
+        ),
+        _ => n.is_multiple_of(3).then(|| {
+            indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect()
+        }),
+    }
+}
