@@ -1,6 +1,7 @@
 //! Training configuration: every hyperparameter of a run, with the method's defaults
-//! (DESIGN.md, "FreNBRDF"). Saved as `config.json` in the run directory and inside every
-//! checkpoint; a JSON file given with `--config` may set any subset of the fields.
+//! (docs/training.md, "Configuration"). Saved as `config.json` in the run directory and
+//! inside every checkpoint; a JSON file given with `--config` may set any subset of the
+//! fields.
 
 use crate::error::{Error, Result};
 use renderer::neural::mapping::MappingForm;

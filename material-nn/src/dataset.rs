@@ -28,7 +28,8 @@ use renderer::neural::mapping::MappingForm;
 use renderer::formats::merl::{lookup_trilinear_measured, MerlTable, BIN_COUNT, SCALE};
 use serde::{Deserialize, Serialize};
 use std::f32::consts::{FRAC_PI_2, TAU};
-use std::path::{Path, PathBuf};
+use crate::tables::material_name;
+use std::path::Path;
 use std::sync::Arc;
 
 /// One material's table in memory.
@@ -78,7 +79,7 @@ impl MaterialTable {
                     [0, 1, 2].map(|c| {
                         buf.clear();
                         buf.extend(tables.iter().map(|t| t.values[i][c] as f64));
-                        crate::tabulate::median_of_measured(buf) as f32
+                        crate::tables::median_of_measured(buf) as f32
                     })
                 },
             )
@@ -105,37 +106,6 @@ impl MaterialTable {
     }
 }
 
-/// The material name of a table path (its file stem).
-pub fn material_name(path: &Path) -> Result<String> {
-    path.file_stem()
-        .and_then(|s| s.to_str())
-        .map(str::to_string)
-        .ok_or_else(|| Error::invalid_file(path, "table file name is not valid UTF-8"))
-}
-
-/// The `.binary` tables of a directory, sorted by name. Errors if there are none.
-pub fn list_tables(dir: &Path) -> Result<Vec<PathBuf>> {
-    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
-    let mut paths = Vec::new();
-    for entry in entries {
-        let path = entry.map_err(|e| Error::io(dir, e))?.path();
-        if path
-            .extension()
-            .is_some_and(|e| e == crate::tabulate::TABLE_EXTENSION)
-            && path.is_file()
-        {
-            paths.push(path);
-        }
-    }
-    if paths.is_empty() {
-        return Err(Error::invalid_file(
-            dir,
-            "no MERL tables (*.binary) in this directory",
-        ));
-    }
-    paths.sort();
-    Ok(paths)
-}
 
 /// The split of the materials by name.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -184,7 +154,7 @@ impl MaterialDataset {
         let items = names
             .par_iter()
             .map(|n| {
-                MaterialTable::read(&dir.join(format!("{n}.{}", crate::tabulate::TABLE_EXTENSION)))
+                MaterialTable::read(&crate::tables::table_path(dir, n))
                     .map(Arc::new)
             })
             .collect::<Result<Vec<_>>>()?;

@@ -372,7 +372,7 @@ pub fn evaluate(
     let fre = FreOperator::new(&fre_config, &device);
     let model = model_name(run);
     let table_path =
-        |name: &str| data_dir.join(format!("{name}.{}", crate::tabulate::TABLE_EXTENSION));
+        |name: &str| crate::tables::table_path(data_dir, name);
     let nbrdf_prefixes = match &settings.nbrdf_dir {
         Some(dir) => Some(
             names

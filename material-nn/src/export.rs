@@ -70,7 +70,7 @@ pub fn encode_materials(
         .iter()
         .enumerate()
         .map(|(i, name)| {
-            let path = data_dir.join(format!("{name}.{}", crate::tabulate::TABLE_EXTENSION));
+            let path = crate::tables::table_path(data_dir, name);
             if !path.exists() {
                 return Err(Error::invalid_file(
                     &path,

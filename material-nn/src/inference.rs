@@ -16,12 +16,13 @@
 //!    never seen to the decoder's best fit.
 
 use crate::checkpoint::Checkpoint;
-use crate::config::{RecForm, TrainConfig};
+use crate::config::TrainConfig;
 use crate::dataset::{MaterialTable, SampleSet, Sampler};
 use crate::error::{Error, Result};
-use crate::loss::reconstruction_loss;
+use crate::loss::ReconstructionLoss;
 use crate::model::{to_vec, HyperBrdf, Mlp};
-use crate::training::{load_model, optimizer, read_json, training_device, RunDir, RunInfo};
+use crate::backend::{optimizer, training_device};
+use crate::run::{load_model, read_json, RunDir, RunInfo};
 use burn::module::{Module, Param};
 use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
@@ -92,10 +93,8 @@ pub struct Codec {
     pub model: HyperBrdf,
     /// Sampler with the model's f_ref, mapping and θh distribution.
     pub sampler: Sampler,
-    /// Form of L_rec the model was trained with.
-    pub rec_form: RecForm,
-    /// λ1 (generated weights) and λ2 (latent) of L_rec.
-    pub lambdas: (f32, f32),
+    /// L_rec the model was trained with (the objective of refinement).
+    pub rec_loss: ReconstructionLoss,
     /// Device of `model`.
     pub device: Device,
 }
@@ -112,7 +111,7 @@ pub struct Refined {
 }
 
 impl Codec {
-    fn new(frozen: HyperBrdf, sampler: Sampler, rec_form: RecForm, lambdas: (f32, f32)) -> Self {
+    fn new(frozen: HyperBrdf, sampler: Sampler, rec_loss: ReconstructionLoss) -> Self {
         let frozen = frozen.freeze();
         let model = frozen.valid();
         let device = Device::flex();
@@ -120,8 +119,7 @@ impl Codec {
             frozen,
             model,
             sampler,
-            rec_form,
-            lambdas,
+            rec_loss,
             device,
         }
     }
@@ -157,8 +155,7 @@ impl Codec {
             peak_share: encoder.peak_share,
         };
         // Training's L_rec settings (the file does not record them; these are the defaults).
-        let t = TrainConfig::default();
-        Ok(Self::new(model, sampler, t.rec_form, (t.lambda_weights, t.lambda_latent)))
+        Ok(Self::new(model, sampler, ReconstructionLoss::of(&TrainConfig::default())))
     }
 
     /// Size of z.
@@ -236,12 +233,11 @@ impl Codec {
         let x = tensor3(set.inputs[..6 * n].to_vec(), 6);
         let y = tensor3(set.values[..3 * n].to_vec(), 3);
         let cos = tensor3(set.cos_i[..n].to_vec(), 1);
-        let (lambda_w, lambda_z) = self.lambdas;
         let objective = |code: &LatentCode| {
             let z = code.z.val();
             let params = self.frozen.decode(z.clone());
             let pred = self.frozen.target_forward(&params, x.clone());
-            reconstruction_loss(self.rec_form, pred, y.clone(), cos.clone(), &params, z, lambda_w, lambda_z)
+            self.rec_loss.forward(pred, y.clone(), cos.clone(), &params, z)
         };
         let mut code = LatentCode {
             z: Param::from_tensor(Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &device)),
@@ -319,12 +315,7 @@ impl TrainedRun {
             epsilon: config.epsilon,
             peak_share: config.peak_share,
         };
-        let codec = Codec::new(
-            model,
-            sampler,
-            config.rec_form,
-            (config.lambda_weights, config.lambda_latent),
-        );
+        let codec = Codec::new(model, sampler, ReconstructionLoss::of(&config));
         Ok(TrainedRun {
             config,
             codec,
@@ -403,7 +394,7 @@ mod tests {
             epsilon: 0.002,
             peak_share: 0.5,
         };
-        Codec::new(model, sampler, RecForm::Code, (0.1, 0.1))
+        Codec::new(model, sampler, ReconstructionLoss { form: crate::config::RecForm::Code, lambda_weights: 0.1, lambda_latent: 0.1 })
     }
 
     #[test]

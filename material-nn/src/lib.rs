@@ -1,5 +1,7 @@
-//! Learns neural materials from measured BRDFs; see the crate README.
+//! Learns neural materials from measured BRDFs (FreNBRDF, with HyperBRDF and NBRDF as
+//! baselines); docs/training.md describes the method, the commands and the measured results.
 
+pub mod backend;
 pub mod checkpoint;
 pub mod config;
 pub mod dataset;
@@ -10,9 +12,11 @@ pub mod inference;
 pub mod loss;
 pub mod model;
 pub mod nbrdf_fit;
+pub mod run;
 pub mod search;
 pub mod sh;
 pub mod splat;
+pub mod tables;
 pub mod tabulate;
 pub mod training;
 

@@ -1,7 +1,7 @@
 //! The losses: L_rec (HyperBRDF, the talk's Eq. 1) and the frequency-rectified L_fre
 //! (FreNBRDF, the talk's Eq. 3–10).
 //!
-//! L_fre of one sample set, as DESIGN.md specifies it:
+//! L_fre of one sample set, in the released code's form (docs/training.md):
 //! 1. each sample's difference direction d (φh = 0) is a point on the upper hemisphere;
 //! 2. the cos θi-weighted values v = y · cos θi are splatted onto the upper-hemisphere points of
 //!    the [`ShGrid`] of degree L with the k nearest samples ([`crate::splat`], σ = 0.05 chordal,
@@ -23,61 +23,74 @@
 //! step's samples — so L_fre compares the two functions' spectra slice by slice, including
 //! the specular slice θh = 0.
 
-use crate::config::{FreConfig, RecForm};
+use crate::config::{FreConfig, RecForm, TrainConfig};
 use crate::error::Result;
 use crate::sh::{coefficient_count, degree_weights, ShGrid};
 use crate::splat::{splat_map, SplatMap};
 use burn::tensor::{Device, Int, Tensor, TensorData};
 use renderer::brdf_coords::{rendered_point, RenderedPoint};
 
-/// L_rec of a batch.
-///
-/// Shapes: `pred`, `target` [B, N, 3] (mapped values y), `cos_i` [B, N, 1]; `params` the
-/// target-net tensors [B, numel] of [`crate::model::HyperBrdf::decode`]; `z` [B, latent].
-/// Talk form: mean |(y − y') cos θi| over all B·N·3 entries + λ1 Σ w² + λ2 Σ z² (sums per
-/// material, averaged over the B materials; w = every generated weight and bias). Code form:
-/// squared error and means instead of sums. Returns (total, data term).
-#[allow(clippy::too_many_arguments)]
-pub fn reconstruction_loss(
-    form: RecForm,
-    pred: Tensor<3>,
-    target: Tensor<3>,
-    cos_i: Tensor<3>,
-    params: &[Tensor<2>],
-    z: Tensor<2>,
-    lambda_weights: f32,
-    lambda_latent: f32,
-) -> (Tensor<1>, Tensor<1>) {
-    let b = pred.dims()[0] as f32;
-    let diff = (pred - target) * cos_i;
-    let data = match form {
-        RecForm::Talk => diff.abs().mean(),
-        RecForm::Code => diff.square().mean(),
-    };
-    let (weights, latent) = match form {
-        RecForm::Talk => {
-            let w = params
-                .iter()
-                .map(|p| p.clone().square().sum())
-                .reduce(|a, c| a + c)
-                .map(|s| s / b);
-            (w, z.square().sum() / b)
+/// L_rec (the talk's Eq. 1): its form and the weights of its two regularisers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReconstructionLoss {
+    /// Talk form (absolute error, sums) or the released code's (squared error, means).
+    pub form: RecForm,
+    /// λ1: weight of the generated target-net weights' squared norm.
+    pub lambda_weights: f32,
+    /// λ2: weight of the latent code's squared norm.
+    pub lambda_latent: f32,
+}
+
+impl ReconstructionLoss {
+    /// The L_rec a run is configured with.
+    pub fn of(config: &TrainConfig) -> Self {
+        ReconstructionLoss {
+            form: config.rec_form,
+            lambda_weights: config.lambda_weights,
+            lambda_latent: config.lambda_latent,
         }
-        RecForm::Code => {
-            let count: usize = params.iter().map(|p| p.dims()[1]).sum();
-            let w = params
-                .iter()
-                .map(|p| p.clone().square().sum())
-                .reduce(|a, c| a + c)
-                .map(|s| s / (b * count as f32));
-            (w, z.square().mean())
-        }
-    };
-    let mut total = data.clone() + latent * lambda_latent;
-    if let Some(w) = weights {
-        total = total + w * lambda_weights;
     }
-    (total, data)
+
+    /// L_rec of a batch.
+    ///
+    /// Shapes: `pred`, `target` [B, N, 3] (mapped values y), `cos_i` [B, N, 1]; `params` the
+    /// target-net tensors [B, numel] of [`crate::model::HyperBrdf::decode`]; `z` [B, latent].
+    /// Talk form: mean |(y − y') cos θi| over all B·N·3 entries + λ1 Σ w² + λ2 Σ z² (sums per
+    /// material, averaged over the B materials; w = every generated weight and bias). Code
+    /// form: squared error and means instead of sums. Returns (total, data term).
+    pub fn forward(&self, pred: Tensor<3>, target: Tensor<3>, cos_i: Tensor<3>, params: &[Tensor<2>], z: Tensor<2>) -> (Tensor<1>, Tensor<1>) {
+        let ReconstructionLoss { form, lambda_weights, lambda_latent } = *self;
+        let b = pred.dims()[0] as f32;
+        let diff = (pred - target) * cos_i;
+        let data = match form {
+            RecForm::Talk => diff.abs().mean(),
+            RecForm::Code => diff.square().mean(),
+        };
+        let (weights, latent) = match form {
+            RecForm::Talk => {
+                let w = params
+                    .iter()
+                    .map(|p| p.clone().square().sum())
+                    .reduce(|a, c| a + c)
+                    .map(|s| s / b);
+                (w, z.square().sum() / b)
+            }
+            RecForm::Code => {
+                let count: usize = params.iter().map(|p| p.dims()[1]).sum();
+                let w = params
+                    .iter()
+                    .map(|p| p.clone().square().sum())
+                    .reduce(|a, c| a + c)
+                    .map(|s| s / (b * count as f32));
+                (w, z.square().mean())
+            }
+        };
+        let mut total = data.clone() + latent * lambda_latent;
+        if let Some(w) = weights {
+            total = total + w * lambda_weights;
+        }
+        (total, data)
+    }
 }
 
 /// The fixed part of L_fre: the grid and its weighted analysis matrix.

@@ -34,10 +34,11 @@
 //! fitted material's settings, losses and time ([`FitSummary`]).
 
 use renderer::support::write_bytes_atomically;
-use crate::dataset::{draw_points, list_tables, material_name, MaterialTable, SampleSet};
+use crate::dataset::{draw_points, MaterialTable, SampleSet};
+use crate::tables::{list_tables, material_name};
 use crate::error::{Error, Result};
 use crate::model::Nbrdf;
-use crate::training::{optimizer, training_device};
+use crate::backend::{optimizer, training_device};
 use burn::module::Module;
 use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
@@ -357,7 +358,7 @@ pub fn select_tables(
     data_dir: &Path,
     selected: Option<&[String]>,
 ) -> Result<Vec<(String, PathBuf)>> {
-    let paths = list_tables(data_dir)?;
+    let paths = list_tables(data_dir, None)?;
     let available = paths
         .iter()
         .map(|p| Ok((material_name(p)?, p.clone())))
@@ -375,8 +376,7 @@ pub fn select_tables(
                 .ok_or_else(|| {
                     renderer::Error::UnknownName {
                         what: "material table",
-                        name: data_dir
-                            .join(format!("{name}.{}", crate::tabulate::TABLE_EXTENSION))
+                        name: crate::tables::table_path(data_dir, name)
                             .display()
                             .to_string(),
                         available: available.iter().map(|(n, _)| n.clone()).collect(),

@@ -8,7 +8,8 @@
 use crate::checkpoint::Checkpoint;
 use crate::config::TrainConfig;
 use crate::error::{Error, Result};
-use crate::training::{train, RunDir, TrainRequest};
+use crate::run::RunDir;
+use crate::training::{train, TrainRequest};
 use rand::{Rng, SeedableRng};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

@@ -7,14 +7,11 @@
 use crate::{Error, Result};
 use rayon::prelude::*;
 use renderer::analytic::AnalyticBrdf;
-use renderer::formats::merl::{MerlReader, MerlTable, BIN_COUNT, FILE_BYTES};
+use renderer::formats::merl::{MerlTable, FILE_BYTES};
 use renderer::neural::nbrdf::{list_networks, NbrdfNetwork};
 
 
 use std::path::{Path, PathBuf};
-
-/// Extension of MERL table files.
-pub const TABLE_EXTENSION: &str = "binary";
 
 /// The table of an NBRDF network: f_r at every bin centre (φd ∈ (0, π), as the networks were
 /// trained), including the configurations below the horizon, where the network extrapolates.
@@ -95,7 +92,7 @@ pub fn tabulate_networks(
         .par_iter()
         .with_max_len(1)
         .map(|name| {
-            let path = out_dir.join(format!("{name}.{TABLE_EXTENSION}"));
+            let path = crate::tables::table_path(out_dir, name);
             let outcome = if table_present(&path) {
                 TableOutcome::Skipped(path)
             } else {
@@ -109,86 +106,6 @@ pub fn tabulate_networks(
         .collect()
 }
 
-/// The `.binary` files of a directory, sorted, leaving out `exclude` (e.g. the output).
-pub fn tables_in(dir: &Path, exclude: Option<&Path>) -> Result<Vec<PathBuf>> {
-    let exclude = exclude.and_then(|p| p.canonicalize().ok());
-    let mut paths = Vec::new();
-    for entry in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
-        let path = entry.map_err(|e| Error::io(dir, e))?.path();
-        if path.extension().is_some_and(|e| e == TABLE_EXTENSION)
-            && path.is_file()
-            && (exclude.is_none() || path.canonicalize().ok() != exclude)
-        {
-            paths.push(path);
-        }
-    }
-    paths.sort();
-    if paths.is_empty() {
-        return Err(Error::invalid_file(
-            dir,
-            "no .binary tables in this directory",
-        ));
-    }
-    Ok(paths)
-}
-
-/// Median of the non-negative (measured) values; −1 (unmeasured) when there are none. The
-/// mean of the two middle values for an even count. Reorders `values`.
-pub fn median_of_measured(values: &mut Vec<f64>) -> f64 {
-    values.retain(|&v| v >= 0.0);
-    let n = values.len();
-    if n == 0 {
-        return -1.0;
-    }
-    let (lower, upper, _) = values.select_nth_unstable_by(n / 2, f64::total_cmp);
-    let upper = *upper;
-    if n % 2 == 1 {
-        upper
-    } else {
-        let below = lower.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        0.5 * (below + upper)
-    }
-}
-
-/// Values per chunk of the streamed median (per file: 512 KiB).
-const MEDIAN_CHUNK: usize = 1 << 16;
-
-/// The per-bin, per-channel median of the tables at `paths`, unmeasured (negative) entries
-/// left out (a bin unmeasured in every table stays unmeasured). The files are validated
-/// first and then streamed in chunks, so memory stays at about 0.5 MiB per table.
-/// `progress(done, total)` reports chunks.
-pub fn median_table(paths: &[PathBuf], progress: impl Fn(usize, usize)) -> Result<MerlTable> {
-    if paths.is_empty() {
-        return Err(Error::Invalid(
-            "median of no tables: give at least one input table".to_string(),
-        ));
-    }
-    let mut readers = paths
-        .iter()
-        .map(MerlReader::open)
-        .collect::<renderer::Result<Vec<_>>>()?;
-    let total = 3 * BIN_COUNT;
-    let chunks = total.div_ceil(MEDIAN_CHUNK);
-    let mut raw = vec![0f64; total];
-    let mut buffers = vec![vec![0f64; MEDIAN_CHUNK]; readers.len()];
-    for (chunk, out) in raw.chunks_mut(MEDIAN_CHUNK).enumerate() {
-        let first = chunk * MEDIAN_CHUNK;
-        for (reader, buffer) in readers.iter_mut().zip(buffers.iter_mut()) {
-            reader.read_raw(first, &mut buffer[..out.len()])?;
-        }
-        out.par_iter_mut().enumerate().for_each_init(
-            || Vec::with_capacity(buffers.len()),
-            |values, (k, o)| {
-                values.clear();
-                values.extend(buffers.iter().map(|b| b[k]));
-                *o = median_of_measured(values);
-            },
-        );
-        progress(chunk + 1, chunks);
-    }
-    Ok(MerlTable::from_raw(raw, "median table")?)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -197,54 +114,6 @@ mod tests {
 
     fn data_dir() -> PathBuf {
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/nbrdf/merl")
-    }
-
-    #[test]
-    fn median_of_measured_values() {
-        assert_eq!(median_of_measured(&mut vec![3.0, -1.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median_of_measured(&mut vec![4.0, 1.0, -1.0, 2.0, 3.0]), 2.5);
-        assert_eq!(median_of_measured(&mut vec![-1.0, -2.0]), -1.0);
-        assert_eq!(median_of_measured(&mut vec![0.0]), 0.0);
-    }
-
-    #[test]
-    fn median_table_of_three_and_unmeasured_bins() {
-        let dir = tempfile::tempdir().unwrap();
-        let mut paths = Vec::new();
-        for (k, v) in [0.1f32, 0.3, 0.2].into_iter().enumerate() {
-            let t = MerlTable::from_fn(move |th, _, _| {
-                if th > 1.0 && k > 0 {
-                    Rgb::splat(-1.0)
-                } else {
-                    Rgb::splat(v)
-                }
-            });
-            let p = dir.path().join(format!("t{k}.binary"));
-            t.write(&p).unwrap();
-            paths.push(p);
-        }
-        let median = median_table(&paths, |_, _| {}).unwrap();
-        let low = median.value(bin_index(10, 10, 10));
-        assert!(
-            (low[0] - 0.2).abs() < 1e-7 && (low[2] - 0.2).abs() < 1e-7,
-            "{low:?}"
-        );
-        // Above θh = 1 only table 0 is measured.
-        let high = median.value(bin_index(89, 10, 10));
-        assert!((high[1] - 0.1).abs() < 1e-7, "{high:?}");
-        assert_eq!(
-            tables_in(dir.path(), Some(&paths[0])).unwrap(),
-            paths[1..].to_vec()
-        );
-    }
-
-    #[test]
-    fn median_rejects_bad_input_naming_it() {
-        let dir = tempfile::tempdir().unwrap();
-        let bad = dir.path().join("bad.binary");
-        std::fs::write(&bad, [1u8; 64]).unwrap();
-        let e = median_table(&[bad], |_, _| {}).unwrap_err().to_string();
-        assert!(e.contains("bad.binary"), "{e}");
     }
 
     #[test]

@@ -15,85 +15,28 @@
 //! there are no validation materials), and a checkpoint. A stop request (Ctrl-C) ends the run
 //! after the current step with a checkpoint.
 //!
-//! Run directory: `config.json`, `split.json`, `run.json` (data directory and materials),
-//! `reference.binary` (f_ref, MERL layout), `checkpoint.bin` (latest), `best.bin` (the
-//! checkpoint of the best epoch). Everything random comes from one seeded generator whose
+//! The run's files are described in [`crate::run`]. Everything random comes from one seeded generator whose
 //! state is checkpointed, so a resumed run ends with the same weights as an uninterrupted one.
 
+use crate::backend::{optimizer, training_device};
 use crate::checkpoint::{Checkpoint, EpochRecord, TrainState};
-use renderer::support::write_bytes_atomically;
-use crate::config::TrainConfig;
-use crate::dataset::{
-    list_tables, material_name, MaterialDataset, MaterialTable, SampleSet, Sampler, Split,
-};
+use crate::config::{FreForm, TrainConfig};
+use crate::dataset::{MaterialDataset, MaterialTable, SampleSet, Sampler, Split};
 use crate::error::{Error, Result};
-use crate::config::FreForm;
-use crate::loss::{reconstruction_loss, FreOperator, SliceTarget, SlicedFre};
-use std::collections::HashMap;
+use crate::loss::{FreOperator, ReconstructionLoss, SliceTarget, SlicedFre};
 use crate::model::HyperBrdf;
+use crate::run::{load_model, model_bytes, read_json, write_json, RunDir, RunInfo};
+use crate::tables::{list_tables, material_name};
 use burn::module::{Module, ModuleVisitor, Param, ParamId};
-use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
-use burn::store::ModuleRecord;
+use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::{Bytes, Device, Tensor, TensorData};
-use rand::seq::SliceRandom;
 use rand::SeedableRng;
-use serde::{Deserialize, Serialize};
+use rand::seq::SliceRandom;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
-
-/// Where a run keeps its files.
-#[derive(Clone, Debug)]
-pub struct RunDir(pub PathBuf);
-
-impl RunDir {
-    /// `config.json`.
-    pub fn config(&self) -> PathBuf {
-        self.0.join("config.json")
-    }
-    /// `split.json`.
-    pub fn split(&self) -> PathBuf {
-        self.0.join("split.json")
-    }
-    /// `run.json`.
-    pub fn info(&self) -> PathBuf {
-        self.0.join("run.json")
-    }
-    /// `reference.binary`: f_ref as a MERL table.
-    pub fn reference(&self) -> PathBuf {
-        self.0.join("reference.binary")
-    }
-    /// `checkpoint.bin`: the latest checkpoint.
-    pub fn checkpoint(&self) -> PathBuf {
-        self.0.join("checkpoint.bin")
-    }
-    /// `best.bin`: the checkpoint of the best epoch.
-    pub fn best(&self) -> PathBuf {
-        self.0.join("best.bin")
-    }
-}
-
-/// `run.json`: what the run was trained on.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RunInfo {
-    /// The data directory given to `train`.
-    pub data_dir: PathBuf,
-    /// Every material of the data directory at the start of the run.
-    pub materials: Vec<String>,
-}
-
-/// Reads a JSON file of the run directory.
-pub fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| Error::invalid_file(path, format!("bad JSON: {e}")))
-}
-
-fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    let text = serde_json::to_string_pretty(value)
-        .map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))?;
-    Ok(write_bytes_atomically(path, text.as_bytes())?)
-}
 
 /// What `train` was asked to do.
 #[derive(Clone, Debug)]
@@ -136,23 +79,6 @@ pub enum Outcome {
     EarlyStopped { best_epoch: usize },
     /// Stopped on request after this many steps, with a checkpoint.
     Interrupted { step: u64 },
-}
-
-/// The device training runs on: burn's CPU backend `flex` (or, with the `gpu` feature, the
-/// CUDA device when `MATERIAL_NN_DEVICE=cuda`), with autodiff.
-pub fn training_device() -> Device {
-    #[cfg(feature = "gpu")]
-    {
-        if std::env::var("MATERIAL_NN_DEVICE").is_ok_and(|v| v == "cuda") {
-            return Device::cuda(0).autodiff();
-        }
-    }
-    Device::flex().autodiff()
-}
-
-/// Adam as the method uses it (β = 0.9, 0.999; ε = 1e-8, PyTorch's).
-pub fn optimizer() -> ModuleOptimizer {
-    AdamConfig::new().with_epsilon(1e-8).init()
 }
 
 /// Ids and ranks of a module's float parameters.
@@ -280,16 +206,7 @@ fn batch_loss(
         Some(FreLoss::Slices { op, .. }) => Some(model.target_forward(&params, op.inputs(b))),
         _ => None,
     };
-    let (mut total, data) = reconstruction_loss(
-        config.rec_form,
-        pred.clone(),
-        y.clone(),
-        cos.clone(),
-        &params,
-        z,
-        config.lambda_weights,
-        config.lambda_latent,
-    );
+    let (mut total, data) = ReconstructionLoss::of(config).forward(pred.clone(), y.clone(), cos.clone(), &params, z);
     let mut fre_total: Option<Tensor<1>> = None;
     for (i, set) in sets.iter().enumerate() {
         let l = match fre {
@@ -371,34 +288,6 @@ pub fn validation_loss(
     Ok(Some(data + config.fre.eta as f64 * l_fre))
 }
 
-fn model_bytes(model: &HyperBrdf, path: &Path) -> Result<Vec<u8>> {
-    let bytes = model
-        .clone()
-        .into_record()
-        .into_bytes()
-        .map_err(|e| Error::invalid_file(path, format!("cannot serialise the model: {e}")))?;
-    Ok(bytes.to_vec())
-}
-
-/// Loads model weights (burnpack bytes of a checkpoint) into a model of `config`'s shape.
-pub fn load_model(
-    config: &TrainConfig,
-    bytes: &[u8],
-    device: &Device,
-    path: &Path,
-) -> Result<HyperBrdf> {
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(0);
-    let model = HyperBrdf::init(&config.net, &mut rng, device);
-    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
-        .map_err(|e| Error::invalid_file(path, format!("bad model weights: {e}")))?;
-    model.try_load_record(record).map_err(|e| {
-        Error::invalid_file(
-            path,
-            format!("model weights do not fit the configuration: {e}"),
-        )
-    })
-}
-
 /// Everything a run needs besides the model.
 struct Setup {
     config: TrainConfig,
@@ -410,7 +299,7 @@ struct Setup {
 fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
     let config = req.config.clone().unwrap_or_default();
     config.check().map_err(Error::Invalid)?;
-    let paths = list_tables(&req.data_dir)?;
+    let paths = list_tables(&req.data_dir, None)?;
     let names = paths
         .iter()
         .map(|p| material_name(p))

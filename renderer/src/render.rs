@@ -6,13 +6,14 @@
 use crate::camera::PinholeCamera;
 use crate::film::{Film, PixelAccumulator};
 use crate::accel::{Hit, Ray};
-use crate::integrator::{BatchBuffers, PathState, PathTracer, ShadowTest};
+use crate::integrator::{BatchBuffers, PathState, PathTracer, StepResults};
 use crate::render_scene::RenderScene;
 use crate::sampler::Sampler;
 use crate::Rgb;
 use glam::Vec2;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -82,12 +83,12 @@ struct TileScratch {
     paths: Vec<PathState>,
     /// Sample index (within the tile's pass) of each path.
     owners: Vec<u32>,
-    /// Paths still going, and those going on after the current vertex.
+    /// Paths still going.
     active: Vec<u32>,
-    next: Vec<u32>,
     rays: Vec<Ray>,
     hits: Vec<Option<Hit>>,
-    shadows: Vec<(u32, ShadowTest)>,
+    /// The shadow tests of the current vertex and the paths that go on after it.
+    step: StepResults,
     blocked: Vec<bool>,
     buffers: BatchBuffers,
     radiance: Vec<Rgb>,
@@ -113,16 +114,16 @@ impl Renderer<'_> {
         cancel: &AtomicBool,
         progress: &(dyn Fn(u64) + Sync),
     ) -> PassCounters {
-        let (w, h) = (film.width, film.height);
-        let tiles_x = w.div_ceil(TILE_SIZE);
-        let tiles_y = h.div_ceil(TILE_SIZE);
-        let results: Vec<(u32, Vec<PixelAccumulator>, PassCounters)> = (0..tiles_x * tiles_y)
+        let w = film.width;
+        let tiles = Tiles::new(film.width, film.height);
+        let samples = first_sample..first_sample + count;
+        let results: Vec<(u32, Vec<PixelAccumulator>, PassCounters)> = (0..tiles.count())
             .into_par_iter()
             .map_init(TileScratch::default, |scratch, tile| {
                 if cancel.load(Ordering::Relaxed) {
                     return (tile, Vec::new(), PassCounters::default());
                 }
-                let (pixels, counters) = self.render_tile(scratch, tile, tiles_x, w, h, first_sample, count);
+                let (pixels, counters) = self.render_tile(scratch, tiles, tile, samples.clone());
                 progress(counters.samples);
                 (tile, pixels, counters)
             })
@@ -133,7 +134,7 @@ impl Renderer<'_> {
             if pixels.is_empty() {
                 continue;
             }
-            let (x0, y0, x1, y1) = tile_bounds(tile, tiles_x, w, h);
+            let (x0, y0, x1, y1) = tiles.bounds(tile);
             let mut i = 0;
             for y in y0..y1 {
                 for x in x0..x1 {
@@ -151,18 +152,10 @@ impl Renderer<'_> {
     /// Neighbouring iterations are independent paths, which the CPU overlaps, where one path
     /// alone is a chain of dependent latencies. Each path consumes its random stream exactly
     /// as [`PathTracer::radiance`] does, so the image is the same.
-    #[allow(clippy::too_many_arguments)]
-    fn render_tile(
-        &self,
-        scratch: &mut TileScratch,
-        tile: u32,
-        tiles_x: u32,
-        w: u32,
-        h: u32,
-        first_sample: u32,
-        count: u32,
-    ) -> (Vec<PixelAccumulator>, PassCounters) {
-        let (x0, y0, x1, y1) = tile_bounds(tile, tiles_x, w, h);
+    fn render_tile(&self, scratch: &mut TileScratch, tiles: Tiles, tile: u32, samples: Range<u32>) -> (Vec<PixelAccumulator>, PassCounters) {
+        let (first_sample, count) = (samples.start, samples.len() as u32);
+        let w = tiles.width;
+        let (x0, y0, x1, y1) = tiles.bounds(tile);
         let tile_w = x1 - x0;
         let n = (tile_w * (y1 - y0)) as usize;
         // Every sample of the pass in one batch (sample-major): late in the paths, when most
@@ -173,10 +166,9 @@ impl Renderer<'_> {
             paths,
             owners,
             active,
-            next,
             rays,
             hits,
-            shadows,
+            step,
             blocked,
             buffers,
             radiance,
@@ -201,9 +193,8 @@ impl Renderer<'_> {
             rays.clear();
             rays.extend(active.iter().map(|&i| paths[i as usize].ray));
             scene.bvh.intersect_all(rays, hits);
-            shadows.clear();
-            next.clear();
-            self.integrator.step_batch(scene, paths, active, hits, buffers, shadows, next);
+            self.integrator.step_batch(scene, paths, active, hits, buffers, step);
+            let shadows = &step.shadows;
             counters.shadow_rays += shadows.len() as u64;
             rays.clear();
             rays.extend(shadows.iter().map(|(_, test)| test.ray));
@@ -213,7 +204,7 @@ impl Renderer<'_> {
                     paths[*i as usize].l += test.contribution;
                 }
             }
-            std::mem::swap(active, next);
+            std::mem::swap(active, &mut step.next);
         }
         radiance.clear();
         radiance.resize(batch, Rgb::ZERO);
@@ -313,10 +304,34 @@ fn traversal_name(mode: Option<bool>) -> &'static str {
     }
 }
 
-fn tile_bounds(tile: u32, tiles_x: u32, w: u32, h: u32) -> (u32, u32, u32, u32) {
-    let (tx, ty) = (tile % tiles_x, tile / tiles_x);
-    let (x0, y0) = (tx * TILE_SIZE, ty * TILE_SIZE);
-    (x0, y0, (x0 + TILE_SIZE).min(w), (y0 + TILE_SIZE).min(h))
+/// An image of `width` × `height` pixels split into square tiles of [`TILE_SIZE`] pixels,
+/// numbered row-major.
+#[derive(Clone, Copy, Debug)]
+struct Tiles {
+    columns: u32,
+    width: u32,
+    height: u32,
+}
+
+impl Tiles {
+    fn new(width: u32, height: u32) -> Self {
+        Tiles {
+            columns: width.div_ceil(TILE_SIZE),
+            width,
+            height,
+        }
+    }
+
+    fn count(&self) -> u32 {
+        self.columns * self.height.div_ceil(TILE_SIZE)
+    }
+
+    /// Pixel bounds (x0, y0, x1, y1) of tile `tile`, ends exclusive.
+    fn bounds(&self, tile: u32) -> (u32, u32, u32, u32) {
+        let (tx, ty) = (tile % self.columns, tile / self.columns);
+        let (x0, y0) = (tx * TILE_SIZE, ty * TILE_SIZE);
+        (x0, y0, (x0 + TILE_SIZE).min(self.width), (y0 + TILE_SIZE).min(self.height))
+    }
 }
 
 #[cfg(test)]

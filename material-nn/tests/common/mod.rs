@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 use material_nn::checkpoint::Checkpoint;
-use material_nn::training::load_model;
+use material_nn::run::load_model;
 use renderer::analytic::AnalyticBrdf;
 use renderer::formats::merl::MerlTable;
 use std::path::{Path, PathBuf};

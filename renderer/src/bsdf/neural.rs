@@ -128,23 +128,14 @@ impl TabulatedBrdf for NeuralBsdf {
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
+    use crate::testing::data::shipped_latents;
     use crate::bsdf::Bxdf;
     use crate::testing::bsdfs::{
         check_chi2, check_stability, merl_fitted_table, CHI2_MATERIALS, CHI2_THETAS,
     };
-    use crate::neural::latent_library::{LatentCode, LatentLibrary};
-    use std::sync::OnceLock;
-
-    /// The shipped latent file, read once per test process.
-    pub(crate) fn shipped_latents() -> &'static LatentLibrary {
-        static LIB: OnceLock<LatentLibrary> = OnceLock::new();
-        LIB.get_or_init(|| {
-            let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/materials/latent.bin");
-            LatentLibrary::load(&[path]).expect("scenes/materials/latent.bin")
-        })
-    }
+    use crate::neural::latent_library::LatentCode;
 
     fn unit(theta: f32, phi: f32) -> Vec3 {
         Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())

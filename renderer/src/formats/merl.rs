@@ -570,7 +570,7 @@ mod tests {
     fn table_from_network_round_trips_to_f32_precision() {
         // A full table written from an NBRDF network and read back returns the network's
         // f32 values at every bin centre.
-        let net = crate::neural::nbrdf::tests::merl_network("alum-bronze");
+        let net = crate::testing::data::merl_network("alum-bronze");
         let eval = |i: usize| {
             let [th, td, pd] = bin_centre(i);
             net.eval_angles(th as f32, td as f32, pd as f32)

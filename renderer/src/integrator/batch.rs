@@ -34,11 +34,17 @@ pub struct BatchBuffers {
     groups: Vec<DiffuseScattered>,
 }
 
+/// What one batch step produces, both in the order of the active paths: the shadow tests
+/// with the index of their path, and the paths that go on.
+#[derive(Default)]
+pub struct StepResults {
+    pub shadows: Vec<(u32, ShadowTest)>,
+    pub next: Vec<u32>,
+}
+
 impl PathTracer {
     /// Steps paths `active` (indices into `paths`) whose rays found `hits` (in the same
-    /// order), as [`Self::step`] would one by one: pushes each shadow test with its path
-    /// index onto `shadows` and the paths that go on onto `next`, both in `active`'s order.
-    #[allow(clippy::too_many_arguments)]
+    /// order), as [`Self::step`] would one by one, replacing `results`.
     pub fn step_batch(
         &self,
         scene: &RenderScene,
@@ -46,9 +52,11 @@ impl PathTracer {
         active: &[u32],
         hits: &[Option<Hit>],
         buffers: &mut BatchBuffers,
-        shadows: &mut Vec<(u32, ShadowTest)>,
-        next: &mut Vec<u32>,
+        results: &mut StepResults,
     ) {
+        let StepResults { shadows, next } = results;
+        shadows.clear();
+        next.clear();
         let lanes_apply = self.strategy != Strategy::BsdfOnly;
         let light_only = self.strategy == Strategy::LightOnly;
         let BatchBuffers {

@@ -8,7 +8,7 @@
 mod batch;
 mod diffuse_lanes;
 
-pub use batch::BatchBuffers;
+pub use batch::{BatchBuffers, StepResults};
 
 use crate::accel::{offset_ray_origin, Hit, Ray};
 use crate::bsdf::{Bsdf, BsdfSample, Bxdf};

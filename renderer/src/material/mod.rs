@@ -261,7 +261,7 @@ mod tests {
     use super::*;
     use crate::bsdf::Bxdf;
     use crate::formats::merl::MerlTable;
-    use crate::neural::nbrdf::tests::data_dir;
+    use crate::testing::data::data_dir;
     use glam::Vec3;
 
     fn open(text: &str, base: &Path) -> Result<SharedBsdf> {

@@ -294,18 +294,10 @@ fn forward_portable(net: &NbrdfNetwork, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
+    use crate::testing::data::{data_dir, merl_network};
     use std::path::PathBuf;
-
-    /// The shared NBRDF data (always present next to the repository).
-    pub(crate) fn data_dir() -> PathBuf {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/nbrdf")
-    }
-
-    pub(crate) fn merl_network(name: &str) -> NbrdfNetwork {
-        NbrdfNetwork::load(data_dir().join("merl").join(name)).unwrap()
-    }
 
     #[test]
     fn golden_vectors_match() {
@@ -367,7 +359,7 @@ pub(crate) mod tests {
 
     #[test]
     fn chrome_sanity_value() {
-        // README: at θh = 0, θd = 0.3 chrome gives about (494, 538, 537).
+        // ../shared/data/nbrdf/README.md: at θh = 0, θd = 0.3 chrome gives about (494, 538, 537).
         let f = merl_network("chrome").eval_angles(0.0, 0.3, 0.0);
         for (got, want) in [(f.x, 494.0), (f.y, 538.0), (f.z, 537.0)] {
             assert!((got - want).abs() / want < 0.02, "{f:?}");

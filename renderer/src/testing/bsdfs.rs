@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use crate::testing::chi2::{self, Chi2Config, Chi2Domain};
 use crate::formats::merl::MerlTable;
-use crate::neural::nbrdf::tests::merl_network;
+use crate::testing::data::merl_network;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -86,7 +86,7 @@ fn unit(theta: f32, phi: f32) -> Vec3 {
 #[test]
 fn measured_brdfs_do_not_create_energy() {
     use crate::bsdf::merl::{Interpolation, MerlBsdf};
-    let latents = crate::bsdf::neural::tests::shipped_latents();
+    let latents = crate::testing::data::shipped_latents();
     for name in CHI2_MATERIALS {
         let table = MerlBsdf::new(&merl_fitted_table(name), Interpolation::Trilinear, &TabulatedSamplerConfig::default());
         let network = nbrdf_bsdf(name);
@@ -226,7 +226,7 @@ fn importance_sampling_beats_cosine_sampling() {
 
 #[test]
 fn chrome_peak_is_kept_finite_and_unclamped() {
-    // README: at θh = 0, θd = 0.3 chrome gives about (494, 538, 537) 1/sr.
+    // ../shared/data/nbrdf/README.md: at θh = 0, θd = 0.3 chrome gives about (494, 538, 537) 1/sr.
     let table = merl_fitted_table("chrome");
     let merl = MerlBsdf::new(
         &table,

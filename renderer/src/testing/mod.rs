@@ -1,7 +1,10 @@
 //! Testing support for BSDFs, used by this crate's unit tests and by other crates' tests and
 //! evaluations: statistical checks of any [`crate::bsdf::Bxdf`] ([`chi2`]) and, in unit
-//! tests, the checks shared by the BSDFs made from data (`bsdfs`).
+//! tests, the checks shared by the BSDFs made from data (`bsdfs`) and the real data they
+//! read (`data`).
 
 #[cfg(test)]
 pub(crate) mod bsdfs;
 pub mod chi2;
+#[cfg(test)]
+pub(crate) mod data;

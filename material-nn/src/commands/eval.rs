@@ -1,0 +1,154 @@
+//! `material-nn eval`: a run's reconstruction, editing and image errors on a split.
+
+use anyhow::Context;
+use clap::{Args, ValueEnum};
+use material_nn::inference::{EncodeSettings, RefineSettings, TrainedRun};
+use std::path::PathBuf;
+use std::time::Instant;
+use super::progress_bar;
+
+/// Which split `eval` uses.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum SplitName {
+    Train,
+    Validation,
+    Test,
+    /// Every table of the data directory (e.g. materials from outside the training data).
+    All,
+}
+
+#[derive(Args)]
+pub struct EvalArgs {
+    /// Run directory of `train`.
+    #[arg(long, value_name = "RUN")]
+    pub run: PathBuf,
+    /// Directory of the tables (default: the run's data directory).
+    #[arg(long, value_name = "DIR")]
+    pub data: Option<PathBuf>,
+    /// The materials evaluated: a split of the run, or `all` tables of the data directory
+    /// (`--data DIR --split all`: materials the model never saw, each encoded first).
+    #[arg(long, value_enum, default_value = "test")]
+    pub split: SplitName,
+    /// Output directory (default RUN/eval).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Comparison points per material.
+    #[arg(long, default_value_t = 65_536)]
+    pub samples: usize,
+    /// Random editing pairs (the talk used 2,000).
+    #[arg(long, default_value_t = 50)]
+    pub pairs: usize,
+    /// Seed of points, pairs, t and the preview renders.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Also evaluate the NBRDF baseline networks DIR/NAME (from nbrdf-fit) of the materials.
+    #[arg(long, value_name = "DIR")]
+    pub nbrdf: Option<PathBuf>,
+    /// Preview scene (a glTF file with a material named "preview").
+    #[arg(long, value_name = "PATH", default_value_os_t = default_preview_scene())]
+    pub scene: PathBuf,
+    /// Samples per pixel of the preview renders (at 256 spp the noise of the two renders
+    /// alone limits PSNR to about 36 dB at 128x128).
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
+    pub spp: u32,
+    /// Size of the preview renders, WxH pixels.
+    #[arg(long, value_name = "WxH", default_value = "128x128", value_parser = renderer::support::parse_resolution)]
+    pub resolution: (u32, u32),
+    /// BRDF-space metrics only: render no previews (no PSNR / SSIM).
+    #[arg(long)]
+    pub no_images: bool,
+    /// Directions per directional-albedo estimate (decoded against table at 0°, 45°, 75°).
+    #[arg(long, default_value_t = 1 << 17)]
+    pub albedo_samples: usize,
+    /// Refinement steps of each material's code, as `encode` refines (0: the set encoder's
+    /// codes as they are).
+    #[arg(long, default_value_t = RefineSettings::default().steps)]
+    pub refine_steps: usize,
+}
+
+/// scenes/material-preview/scene.gltf of the workspace this binary was built in.
+fn default_preview_scene() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map_or_else(PathBuf::new, PathBuf::from)
+        .join("scenes/material-preview/scene.gltf")
+}
+
+pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    use material_nn::eval;
+    let start = Instant::now();
+    let run = TrainedRun::load(&args.run)?;
+    let data = args
+        .data
+        .clone()
+        .unwrap_or_else(|| run.info.data_dir.clone());
+    let names = match args.split {
+        SplitName::Train => run.split.train.clone(),
+        SplitName::Validation => run.split.validation.clone(),
+        SplitName::Test => run.split.test.clone(),
+        SplitName::All => material_nn::tables::list_tables(&data, None)?
+            .iter()
+            .map(|p| material_nn::tables::material_name(p))
+            .collect::<Result<Vec<_>, _>>()?,
+    };
+    let out = args.out.clone().unwrap_or_else(|| args.run.join("eval"));
+    let (width, height) = args.resolution;
+    let images = (!args.no_images).then(|| eval::ImageSettings {
+        scene: args.scene.clone(),
+        width,
+        height,
+        spp: args.spp,
+        out_dir: Some(out.join("images")),
+    });
+    let settings = eval::EvalSettings {
+        samples: args.samples,
+        pairs: args.pairs,
+        seed: args.seed,
+        nbrdf_dir: args.nbrdf.clone(),
+        images,
+        encode: EncodeSettings {
+            refine: RefineSettings {
+                steps: args.refine_steps,
+                ..RefineSettings::default()
+            },
+            ..EncodeSettings::default()
+        },
+        albedo_samples: args.albedo_samples,
+    };
+    std::fs::create_dir_all(&out).with_context(|| out.display().to_string())?;
+    let bar = progress_bar(2 * names.len() + args.pairs, "eval");
+    let result = eval::evaluate(&run, &data, &names, &settings, &mut |what| {
+        bar.set_message(what.to_string());
+        bar.inc(1);
+    });
+    bar.finish_and_clear();
+    let (reconstruction, editing) = result?;
+    let note = (!args.no_images).then(|| {
+        format!(
+            "PSNR and SSIM: previews of {} ({width}x{height}, {} spp, seed {}, path depth {}) \
+             against the tabulated table's, 8-bit clamp-tone-mapped values (SSIM window {}); \
+             images in eval/images/.",
+            args.scene.display(),
+            args.spp,
+            args.seed,
+            eval::PREVIEW_MAX_DEPTH,
+            renderer::metrics::SSIM_WINDOW
+        )
+    });
+    let summary = eval::to_markdown(&reconstruction, &editing, note.as_deref());
+    for (file, text) in [
+        ("reconstruction.csv", eval::to_csv(&reconstruction)),
+        ("editing.csv", eval::to_csv(&editing)),
+        ("summary.md", summary.clone()),
+    ] {
+        let path = out.join(file);
+        std::fs::write(&path, text).with_context(|| path.display().to_string())?;
+    }
+    print!("{summary}");
+    println!(
+        "{}: written in {:.1} s",
+        out.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
