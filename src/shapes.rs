@@ -1,7 +1,8 @@
 //! Procedural triangle meshes for test scenes.
 
 use glam::{Vec2, Vec3};
-use renderer::scene::Geometry;
+use renderer::scene::{EnvironmentSource, EnvironmentSpec, Geometry, Material, SceneDescription};
+use renderer::Rgb;
 use std::f32::consts::PI;
 
 /// Appends a UV sphere to `geometry` with every triangle using `material`. With `inward`
@@ -49,6 +50,23 @@ pub fn add_floor(geometry: &mut Geometry, height: f32, half: f32, material: u32)
     geometry.triangles.push([base, base + 2, base + 1]);
     geometry.triangles.push([base, base + 3, base + 2]);
     geometry.material_ids.extend([material, material]);
+}
+
+/// A furnace: a unit sphere at the origin (`stacks` × `slices`, outward) made of `material`
+/// under a uniform environment of radiance 1.
+pub fn sphere_in_furnace(material: Material, stacks: u32, slices: u32) -> SceneDescription {
+    let mut geometry = Geometry::default();
+    add_sphere(&mut geometry, Vec3::ZERO, 1.0, stacks, slices, false, 0);
+    SceneDescription {
+        geometry,
+        materials: vec![material],
+        environment: Some(EnvironmentSpec {
+            source: EnvironmentSource::Constant(Rgb::ONE),
+            strength: 1.0,
+            rotation: 0.0,
+        }),
+        ..SceneDescription::default()
+    }
 }
 
 #[cfg(test)]

@@ -2,10 +2,11 @@
 //! inside of a uniformly emitting, uniformly reflecting sphere, for every estimator.
 
 use glam::Vec3;
-use neural_brdf_tests::{look_at, mean_rgb, render, shapes::add_sphere};
+use neural_brdf_tests::shapes::{add_sphere, sphere_in_furnace};
+use neural_brdf_tests::{look_at, mean_rgb, render};
 use renderer::integrator::{PathTracer, Strategy};
 use renderer::render_scene::RenderScene;
-use renderer::scene::{EnvironmentSource, EnvironmentSpec, Geometry, Material, SceneDescription, SurfaceModel};
+use renderer::scene::{Geometry, Material, SceneDescription, SurfaceModel};
 use renderer::Rgb;
 
 fn lambert(name: &str, albedo: f32, emission: f32) -> Material {
@@ -22,19 +23,7 @@ fn lambert(name: &str, albedo: f32, emission: f32) -> Material {
 /// everywhere (white furnace), with unlimited depth.
 #[test]
 fn white_furnace_lambert() {
-    let mut geometry = Geometry::default();
-    add_sphere(&mut geometry, Vec3::ZERO, 1.0, 32, 64, false, 0);
-    let description = SceneDescription {
-        geometry,
-        materials: vec![lambert("white", 1.0, 0.0)],
-        environment: Some(EnvironmentSpec {
-            source: EnvironmentSource::Constant(Rgb::ONE),
-            strength: 1.0,
-            rotation: 0.0,
-        }),
-        ..SceneDescription::default()
-    };
-    let scene = RenderScene::new(description).expect("scene");
+    let scene = RenderScene::new(sphere_in_furnace(lambert("white", 1.0, 0.0), 32, 64)).expect("scene");
     let camera = look_at(Vec3::new(0.0, 0.0, 3.5), Vec3::ZERO, 40.0);
     for strategy in [Strategy::Mis, Strategy::BsdfOnly, Strategy::LightOnly] {
         let integrator = PathTracer {
@@ -57,19 +46,7 @@ fn white_furnace_lambert() {
 #[test]
 fn grey_furnace_with_roulette_from_the_first_bounce() {
     let albedo = 0.5f32;
-    let mut geometry = Geometry::default();
-    add_sphere(&mut geometry, Vec3::ZERO, 1.0, 32, 64, false, 0);
-    let description = SceneDescription {
-        geometry,
-        materials: vec![lambert("grey", albedo, 0.0)],
-        environment: Some(EnvironmentSpec {
-            source: EnvironmentSource::Constant(Rgb::ONE),
-            strength: 1.0,
-            rotation: 0.0,
-        }),
-        ..SceneDescription::default()
-    };
-    let scene = RenderScene::new(description).expect("scene");
+    let scene = RenderScene::new(sphere_in_furnace(lambert("grey", albedo, 0.0), 32, 64)).expect("scene");
     let camera = look_at(Vec3::new(0.0, 0.0, 3.5), Vec3::ZERO, 20.0);
     for strategy in [Strategy::Mis, Strategy::BsdfOnly, Strategy::LightOnly] {
         let integrator = PathTracer {

@@ -4,7 +4,8 @@
 //! the estimators must agree on it.
 
 use glam::{Vec2, Vec3};
-use neural_brdf_tests::{look_at, mean_rgb, render, shapes::{add_floor, add_sphere}};
+use neural_brdf_tests::shapes::{add_floor, add_sphere, sphere_in_furnace};
+use neural_brdf_tests::{look_at, mean_rgb, render};
 use renderer::integrator::{PathTracer, Strategy};
 use renderer::render_scene::RenderScene;
 use renderer::scene::{EnvironmentSource, EnvironmentSpec, Geometry, Material, SceneDescription, SurfaceModel};
@@ -78,18 +79,7 @@ fn tiny_bright_emitter_degenerate_and_sliver_triangles() {
 /// A camera inside a closed object sees only its inside: finite, and black without emitters.
 #[test]
 fn camera_inside_geometry() {
-    let mut g = Geometry::default();
-    add_sphere(&mut g, Vec3::ZERO, 1.0, 12, 24, false, 0);
-    let description = SceneDescription {
-        geometry: g,
-        materials: vec![material("white", SurfaceModel::Lambert, 0.8, 0.0)],
-        environment: Some(EnvironmentSpec {
-            source: EnvironmentSource::Constant(Rgb::ONE),
-            strength: 1.0,
-            rotation: 0.0,
-        }),
-        ..SceneDescription::default()
-    };
+    let description = sphere_in_furnace(material("white", SurfaceModel::Lambert, 0.8, 0.0), 12, 24);
     let scene = RenderScene::new(description).expect("scene");
     let img = render(&scene, &look_at(Vec3::ZERO, Vec3::Z, 45.0), 16, 16, 8, PathTracer::default(), 1);
     assert_finite(&img, "inside");

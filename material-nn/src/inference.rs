@@ -309,12 +309,7 @@ impl TrainedRun {
         let info: RunInfo = read_json(&run.info())?;
         let split: crate::dataset::Split = read_json(&run.split())?;
         let config = ckpt.config;
-        let sampler = Sampler {
-            reference: Arc::new(reference),
-            mapping: config.mapping,
-            epsilon: config.epsilon,
-            peak_share: config.peak_share,
-        };
+        let sampler = Sampler::of(&config, reference);
         let codec = Codec::new(model, sampler, ReconstructionLoss::of(&config));
         Ok(TrainedRun {
             config,

@@ -320,12 +320,7 @@ fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
         },
     )?;
     Ok(Setup {
-        sampler: Sampler {
-            reference: Arc::new(reference),
-            mapping: config.mapping,
-            epsilon: config.epsilon,
-            peak_share: config.peak_share,
-        },
+        sampler: Sampler::of(&config, reference),
         config,
         train,
         validation,
@@ -339,12 +334,7 @@ fn existing_run(data_dir: &Path, run: &RunDir, config: TrainConfig) -> Result<Se
     let validation = MaterialDataset::load(data_dir, &split.validation)?;
     let reference = MaterialTable::read(&run.reference())?;
     Ok(Setup {
-        sampler: Sampler {
-            reference: Arc::new(reference),
-            mapping: config.mapping,
-            epsilon: config.epsilon,
-            peak_share: config.peak_share,
-        },
+        sampler: Sampler::of(&config, reference),
         config,
         train,
         validation,

@@ -65,8 +65,8 @@ struct Args {
     /// from the first file holding it). Materials named like a latent code bind to it.
     #[arg(long)]
     material: Vec<PathBuf>,
-    /// Bind a material: MATERIAL=LATENT_NAME (needs --material), or MATERIAL=SPEC with
-    /// SPEC merl:PATH.binary or nbrdf:PATH_PREFIX (repeatable).
+    /// Bind a material: MATERIAL=LATENT_NAME (needs --material), or MATERIAL=BINDING with
+    /// BINDING merl:PATH.binary or nbrdf:PATH_PREFIX (repeatable).
     #[arg(long, value_parser = parse_binding)]
     bind: Vec<(String, String)>,
     /// Editing sweep A:B:STEPS: renders STEPS frames with the latent code
@@ -114,8 +114,8 @@ fn parse_finite(s: &str) -> Result<f32, String> {
 
 fn parse_binding(s: &str) -> Result<(String, String), String> {
     match s.split_once('=') {
-        Some((m, spec)) if !m.is_empty() && !spec.is_empty() => Ok((m.to_string(), spec.to_string())),
-        _ => Err(format!("'{s}' is not MATERIAL=SPEC")),
+        Some((m, binding)) if !m.is_empty() && !binding.is_empty() => Ok((m.to_string(), binding.to_string())),
+        _ => Err(format!("'{s}' is not MATERIAL=BINDING")),
     }
 }
 

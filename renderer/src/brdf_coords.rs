@@ -147,13 +147,21 @@ pub fn isotropic_angles(wi: Vec3, wo: Vec3) -> [f32; 3] {
 #[inline]
 pub fn network_input(wi: Vec3, wo: Vec3) -> [f32; 6] {
     let hd = half_diff(wi, wo);
+    let (sin_h, d) = sin_theta_h_and_folded_d(&hd);
+    [sin_h, 0.0, hd.h.z, d.x, d.y, d.z]
+}
+
+/// sin θh and the difference vector with φd folded into [0, π), the two parts of the
+/// network input that need more than a copy.
+#[inline]
+fn sin_theta_h_and_folded_d(hd: &HalfDiff) -> (f32, Vec3) {
     let sin_h = (hd.h.x * hd.h.x + hd.h.y * hd.h.y).sqrt();
     let d = if needs_fold(hd.d) {
         Vec3::new(-hd.d.x, -hd.d.y, hd.d.z)
     } else {
         hd.d
     };
-    [sin_h, 0.0, hd.h.z, d.x, d.y, d.z]
+    (sin_h, d)
 }
 
 /// [`network_input`] and [`isotropic_angles`] of (wi, wo) together, from one half/difference
@@ -161,12 +169,7 @@ pub fn network_input(wi: Vec3, wo: Vec3) -> [f32; 6] {
 #[inline]
 pub fn network_input_and_angles(wi: Vec3, wo: Vec3) -> ([f32; 6], [f32; 3]) {
     let hd = half_diff(wi, wo);
-    let sin_h = (hd.h.x * hd.h.x + hd.h.y * hd.h.y).sqrt();
-    let d = if needs_fold(hd.d) {
-        Vec3::new(-hd.d.x, -hd.d.y, hd.d.z)
-    } else {
-        hd.d
-    };
+    let (sin_h, d) = sin_theta_h_and_folded_d(&hd);
     let angles = [sin_h.atan2(hd.h.z), polar_angle(d), fold_phi_d(d.y.atan2(d.x))];
     ([sin_h, 0.0, hd.h.z, d.x, d.y, d.z], angles)
 }
