@@ -5,11 +5,14 @@
 //! a [`Binding`] names a BSDF made from data (a MERL table, an NBRDF network, a latent code),
 //! opened once into a [`SharedBsdf`] that every shading point of the materials bound to it
 //! shares. [`SceneMaterials`] holds a scene's materials prepared this way: it opens only what
-//! some triangle uses, each distinct binding once.
+//! some triangle uses, each distinct binding once. [`MaterialBsdf`] is one such BSDF on its
+//! own, for other renderers (the plugins).
 
 pub mod binding;
+pub mod standalone;
 
 pub use binding::{Binding, BINDING_FORMS};
+pub use standalone::MaterialBsdf;
 
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::merl::MerlBsdf;

@@ -1,0 +1,279 @@
+//! One material's BSDF on its own, for other renderers (the C, Python and Mitsuba 3 plugins):
+//! opened from a file, evaluated and sampled one direction pair at a time or batched over
+//! slices.
+//!
+//! Directions are in the local shading frame of the whole crate ([`crate::bsdf`]): z is the
+//! shading normal, `wo` points toward the viewer and `wi` toward the light, both unit vectors
+//! pointing away from the surface. Values are f_r in 1/sr **without** the cosine factor,
+//! densities are solid-angle densities in 1/sr; below either horizon both are zero.
+//!
+//! Only what the material needs is loaded: a MERL table or an NBRDF network alone; for a
+//! latent code, the latent file is read once and only that code is decoded (with its fitted
+//! importance sampler).
+//!
+//! ```no_run
+//! use renderer::material::MaterialBsdf;
+//! let bronze = MaterialBsdf::open("scenes/materials/latent.bin".as_ref(), Some("alum-bronze"))?;
+//! let f = bronze.eval([0.0, 0.6, 0.8], [0.0, -0.6, 0.8]);
+//! # Ok::<(), renderer::Error>(())
+//! ```
+
+use super::{Binding, SharedBsdf};
+use crate::bsdf::{BsdfSample, Bxdf};
+use crate::neural::latent_library::{LatentCode, LatentLibrary};
+use crate::{Error, Result};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use std::path::Path;
+
+/// Directions per parallel work item of the batched calls.
+const BATCH_CHUNK: usize = 1024;
+
+/// One material's BSDF (see the module documentation). `Send + Sync`: share it between
+/// threads by reference.
+#[derive(Debug)]
+pub struct MaterialBsdf {
+    bsdf: SharedBsdf,
+}
+
+/// One drawn direction: wi (unit, z > 0), f_r(wo, wi) in 1/sr and the solid-angle density.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub wi: [f32; 3],
+    pub f: [f32; 3],
+    pub pdf: f32,
+}
+
+impl From<BsdfSample> for Sample {
+    fn from(s: BsdfSample) -> Self {
+        Sample {
+            wi: s.wi.to_array(),
+            f: s.f.to_array(),
+            pdf: s.pdf,
+        }
+    }
+}
+
+impl MaterialBsdf {
+    /// Opens a material file: a MERL table (`.binary`), an NBRDF network (the prefix of its
+    /// six `.npy` files, or one of them), or a latent file (`latent.bin`), whose code `name`
+    /// is decoded. A latent file needs `name`; a table or network must not get one. Errors
+    /// name the file or the unknown code (listing the available ones).
+    pub fn open(path: &Path, name: Option<&str>) -> Result<Self> {
+        let text = path.to_string_lossy();
+        let is_table = path.extension().is_some_and(|e| e == "binary");
+        let is_network = text.ends_with(".npy") || crate::neural::nbrdf::tensor_paths(path)[0].is_file();
+        let binding = if is_table {
+            Binding::Merl(path.to_path_buf())
+        } else if is_network {
+            Binding::Nbrdf(path.to_path_buf())
+        } else {
+            let Some(name) = name else {
+                return Err(Error::InvalidArgument {
+                    flag: "material name".to_string(),
+                    reason: format!("{} is a latent file: name one of its codes", path.display()),
+                });
+            };
+            let latents = LatentLibrary::load(&[path])?;
+            return Ok(MaterialBsdf {
+                bsdf: SharedBsdf::open(&Binding::Neural(name.to_string()), &latents)?,
+            });
+        };
+        if let Some(name) = name {
+            return Err(Error::InvalidArgument {
+                flag: "material name".to_string(),
+                reason: format!("'{name}' given for {}, which holds one material", path.display()),
+            });
+        }
+        Self::from_binding(&binding, &LatentLibrary::default())
+    }
+
+    /// Opens a latent file and decodes the latent vector `z` (any code, e.g. an edited one)
+    /// with its decoder; `label` names it. Errors name the file when `z` has the wrong size
+    /// or a non-finite value.
+    pub fn open_latent_vector(path: &Path, z: &[f32], label: &str) -> Result<Self> {
+        let latents = LatentLibrary::load(&[path])?;
+        let code = LatentCode { file: 0, z: z.to_vec() };
+        Ok(MaterialBsdf {
+            bsdf: SharedBsdf::Neural(latents.decode_code(&code, label)?),
+        })
+    }
+
+    /// Opens the BSDF a [`Binding`] names (latent codes from `latents`).
+    pub fn from_binding(binding: &Binding, latents: &LatentLibrary) -> Result<Self> {
+        Ok(MaterialBsdf {
+            bsdf: SharedBsdf::open(binding, latents)?,
+        })
+    }
+
+    /// The BSDF as the renderer holds it (e.g. a decoded code's target net and sampler).
+    pub fn shared(&self) -> &SharedBsdf {
+        &self.bsdf
+    }
+
+    /// f_r(wo, wi) in 1/sr per RGB channel.
+    #[inline]
+    pub fn eval(&self, wo: [f32; 3], wi: [f32; 3]) -> [f32; 3] {
+        self.bsdf.as_bsdf().eval(Vec3::from(wo), Vec3::from(wi)).to_array()
+    }
+
+    /// The density (1/sr) with which [`MaterialBsdf::sample`] draws `wi` given `wo`.
+    #[inline]
+    pub fn pdf(&self, wo: [f32; 3], wi: [f32; 3]) -> f32 {
+        self.bsdf.as_bsdf().pdf(Vec3::from(wo), Vec3::from(wi))
+    }
+
+    /// Value and density together.
+    #[inline]
+    pub fn eval_pdf(&self, wo: [f32; 3], wi: [f32; 3]) -> ([f32; 3], f32) {
+        let (f, pdf) = self.bsdf.as_bsdf().eval_pdf(Vec3::from(wo), Vec3::from(wi));
+        (f.to_array(), pdf)
+    }
+
+    /// Draws wi given `wo` from three uniform numbers in [0, 1) (`u[0..2]` for the direction,
+    /// `u[2]` to choose a lobe); `None` when nothing can be drawn (e.g. `wo` below the
+    /// horizon). The density of the result is exactly [`MaterialBsdf::pdf`].
+    #[inline]
+    pub fn sample(&self, wo: [f32; 3], u: [f32; 3]) -> Option<Sample> {
+        self.bsdf.as_bsdf().sample(Vec3::from(wo), Vec2::new(u[0], u[1]), u[2]).map(Sample::from)
+    }
+
+    /// [`MaterialBsdf::eval`] for every pair (`wo[i]`, `wi[i]`) into `f[i]`, in parallel.
+    /// Errors (naming the argument and index) on different lengths or a non-finite direction.
+    pub fn eval_batch(&self, wo: &[[f32; 3]], wi: &[[f32; 3]], f: &mut [[f32; 3]]) -> Result<()> {
+        check_batch(wo, "wo", f.len())?;
+        check_batch(wi, "wi", f.len())?;
+        batch(f, |i| self.eval(wo[i], wi[i]));
+        Ok(())
+    }
+
+    /// [`MaterialBsdf::pdf`] for every pair into `pdf[i]`, in parallel; errors as
+    /// [`MaterialBsdf::eval_batch`].
+    pub fn pdf_batch(&self, wo: &[[f32; 3]], wi: &[[f32; 3]], pdf: &mut [f32]) -> Result<()> {
+        check_batch(wo, "wo", pdf.len())?;
+        check_batch(wi, "wi", pdf.len())?;
+        batch(pdf, |i| self.pdf(wo[i], wi[i]));
+        Ok(())
+    }
+
+    /// [`MaterialBsdf::sample`] for every `wo[i]` with the numbers `u[i]`, in parallel; a
+    /// draw that fails gives `None`. Errors on different lengths, a non-finite `wo` or a
+    /// `u` outside [0, 1].
+    pub fn sample_batch(&self, wo: &[[f32; 3]], u: &[[f32; 3]], out: &mut [Option<Sample>]) -> Result<()> {
+        check_batch(wo, "wo", out.len())?;
+        if u.len() != out.len() {
+            return Err(batch_error("u", format!("{} entries for {} directions", u.len(), out.len())));
+        }
+        if let Some(i) = u.iter().position(|v| !v.iter().all(|x| (0.0..=1.0).contains(x))) {
+            return Err(batch_error("u", format!("entry {i} is {:?}, not in [0, 1]", u[i])));
+        }
+        batch(out, |i| self.sample(wo[i], u[i]));
+        Ok(())
+    }
+}
+
+fn batch_error(what: &str, reason: String) -> Error {
+    Error::InvalidArgument {
+        flag: what.to_string(),
+        reason,
+    }
+}
+
+/// Checks that `dirs` has `n` entries, all finite.
+fn check_batch(dirs: &[[f32; 3]], what: &str, n: usize) -> Result<()> {
+    if dirs.len() != n {
+        return Err(batch_error(what, format!("{} entries for {n} outputs", dirs.len())));
+    }
+    match dirs.iter().position(|d| !d.iter().all(|x| x.is_finite())) {
+        Some(i) => Err(batch_error(what, format!("entry {i} is {:?}, not finite", dirs[i]))),
+        None => Ok(()),
+    }
+}
+
+/// Fills `out[i] = value(i)` in parallel chunks.
+fn batch<T: Send>(out: &mut [T], value: impl Fn(usize) -> T + Sync) {
+    out.par_chunks_mut(BATCH_CHUNK).enumerate().for_each(|(c, chunk)| {
+        for (k, o) in chunk.iter_mut().enumerate() {
+            *o = value(c * BATCH_CHUNK + k);
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::data::data_dir;
+
+    fn shipped() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/materials/latent.bin")
+    }
+
+    fn unit(theta: f32, phi: f32) -> [f32; 3] {
+        [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()]
+    }
+
+    #[test]
+    fn opens_each_kind_and_agrees_with_the_renderers_bsdf() {
+        fn assert_send_sync<T: Send + Sync>() {}
+        assert_send_sync::<MaterialBsdf>();
+        let neural = MaterialBsdf::open(&shipped(), Some("alum-bronze")).unwrap();
+        let latents = LatentLibrary::load(&[shipped()]).unwrap();
+        let reference = latents.decode("alum-bronze").unwrap();
+        let (wo, wi) = (unit(0.5, 0.2), unit(0.7, 2.5));
+        assert_eq!(neural.eval(wo, wi), reference.eval(Vec3::from(wo), Vec3::from(wi)).to_array());
+        assert_eq!(neural.pdf(wo, wi), reference.pdf(Vec3::from(wo), Vec3::from(wi)));
+        let network = MaterialBsdf::open(&data_dir().join("merl/chrome"), None).unwrap();
+        assert!(matches!(network.shared(), SharedBsdf::Nbrdf(_)));
+        let z = latents.latent("alum-bronze").unwrap().z;
+        let same = MaterialBsdf::open_latent_vector(&shipped(), &z, "copy").unwrap();
+        assert_eq!(same.eval(wo, wi), neural.eval(wo, wi));
+    }
+
+    #[test]
+    fn batches_match_single_calls_and_samples_carry_their_density() {
+        let m = MaterialBsdf::open(&shipped(), Some("chrome")).unwrap();
+        let n = 3000;
+        let wo: Vec<[f32; 3]> = (0..n).map(|i| unit(1.4 * (i as f32 / n as f32), i as f32 * 0.37)).collect();
+        let wi: Vec<[f32; 3]> = (0..n).map(|i| unit(1.5 * ((i * 7 % n) as f32 / n as f32), i as f32 * 1.1)).collect();
+        let u: Vec<[f32; 3]> = (0..n).map(|i| [(i as f32 * 0.618).fract(), (i as f32 * 0.414).fract(), (i as f32 * 0.732).fract()]).collect();
+        let mut f = vec![[0.0; 3]; n];
+        let mut pdf = vec![0.0; n];
+        let mut samples = vec![None; n];
+        m.eval_batch(&wo, &wi, &mut f).unwrap();
+        m.pdf_batch(&wo, &wi, &mut pdf).unwrap();
+        m.sample_batch(&wo, &u, &mut samples).unwrap();
+        for i in (0..n).step_by(97) {
+            assert_eq!(f[i], m.eval(wo[i], wi[i]));
+            assert_eq!(pdf[i], m.pdf(wo[i], wi[i]));
+            assert_eq!(samples[i], m.sample(wo[i], u[i]));
+        }
+        let drawn: Vec<Sample> = samples.iter().flatten().copied().collect();
+        assert!(drawn.len() > n / 2);
+        for s in drawn.iter().step_by(53) {
+            let wo_i = wo[samples.iter().position(|x| x.as_ref() == Some(s)).unwrap()];
+            assert!((m.pdf(wo_i, s.wi) - s.pdf).abs() <= 1e-4 * s.pdf, "{s:?}");
+            assert_eq!(m.eval(wo_i, s.wi), s.f);
+        }
+    }
+
+    #[test]
+    fn bad_input_is_a_clear_error() {
+        let e = MaterialBsdf::open(Path::new("/nonexistent/latent.bin"), Some("gold")).unwrap_err().to_string();
+        assert!(e.contains("/nonexistent/latent.bin"), "{e}");
+        let e = MaterialBsdf::open(&shipped(), Some("no-such")).unwrap_err().to_string();
+        assert!(e.contains("no-such") && e.contains("alum-bronze"), "{e}");
+        let e = MaterialBsdf::open(&shipped(), None).unwrap_err().to_string();
+        assert!(e.contains("latent file"), "{e}");
+        let e = MaterialBsdf::open_latent_vector(&shipped(), &[f32::NAN; 3], "bad").unwrap_err().to_string();
+        assert!(e.contains("latent.bin") && e.contains("finite"), "{e}");
+        let m = MaterialBsdf::open(&shipped(), Some("chrome")).unwrap();
+        let mut f = vec![[0.0; 3]; 2];
+        let e = m.eval_batch(&[[0.0, 0.0, 1.0], [f32::NAN, 0.0, 1.0]], &[[0.0, 0.0, 1.0]; 2], &mut f).unwrap_err().to_string();
+        assert!(e.contains("wo") && e.contains("entry 1"), "{e}");
+        let e = m.eval_batch(&[[0.0, 0.0, 1.0]], &[[0.0, 0.0, 1.0]; 2], &mut f).unwrap_err().to_string();
+        assert!(e.contains("1 entries for 2"), "{e}");
+        let mut s = vec![None; 1];
+        let e = m.sample_batch(&[[0.0, 0.0, 1.0]], &[[0.5, 1.5, 0.0]], &mut s).unwrap_err().to_string();
+        assert!(e.contains("not in [0, 1]"), "{e}");
+    }
+}
