@@ -502,15 +502,14 @@ fn neural_bsdf(
     name: &str,
     z: &[f32],
 ) -> Result<NeuralBsdf> {
-    let net = renderer::neural::target_net::TargetNet::new(&file.decode(z))?;
     Ok(NeuralBsdf::new(
         name,
-        net,
+        file.decode(z),
         reference.clone(),
         run.codec.sampler.mapping,
         run.codec.sampler.epsilon,
         &TabulatedSamplerConfig::default(),
-    ))
+    )?)
 }
 
 /// Mean metrics of rows; the image metrics are the means over the rows that have them.

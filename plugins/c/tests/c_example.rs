@@ -9,10 +9,11 @@ fn crate_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// The directory cargo put the library in (the test binary lives in its `deps/`).
+/// Where `cargo test` put `libneural_brdf` (the cdylib example, see examples/cdylib.rs; the
+/// test binary lives in `deps/` beside `examples/`).
 fn library_dir() -> PathBuf {
     let exe = std::env::current_exe().expect("test executable");
-    exe.parent().and_then(Path::parent).expect("target directory").to_path_buf()
+    exe.parent().and_then(Path::parent).expect("target directory").join("examples")
 }
 
 #[test]

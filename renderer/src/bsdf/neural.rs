@@ -11,7 +11,9 @@
 use super::tabulated_sampling::{TabulatedBrdf, TabulatedSampler, TabulatedSamplerConfig};
 
 use crate::neural::mapping::MappingForm;
+use crate::neural::mlp::Mlp;
 use crate::neural::target_net::TargetNet;
+use crate::Result;
 use crate::Rgb;
 use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -33,6 +35,8 @@ pub type ReferenceValues = Arc<Vec<[f32; 3]>>;
 #[derive(Debug)]
 pub struct NeuralBsdf {
     name: String,
+    /// The decoded target net as plain layers (what other renderers evaluate).
+    decoded: Mlp,
     net: TargetNet,
     reference: ReferenceValues,
     mapping: MappingForm,
@@ -42,26 +46,29 @@ pub struct NeuralBsdf {
 }
 
 impl NeuralBsdf {
-    /// Wraps a decoded target net with the file's reference and mapping, and fits the
-    /// importance sampler (≈ 0.1 M evaluations, parallel).
+    /// Packs a decoded target net (see [`TargetNet::new`] for what it must be) with the
+    /// file's reference and mapping, and fits the importance sampler (≈ 0.1 M evaluations,
+    /// parallel).
     pub fn new(
         name: impl Into<String>,
-        net: TargetNet,
+        decoded: Mlp,
         reference: ReferenceValues,
         mapping: MappingForm,
         epsilon: f32,
         sampling: &TabulatedSamplerConfig,
-    ) -> Self {
+    ) -> Result<Self> {
+        let net = TargetNet::new(&decoded)?;
         let sampler = TabulatedSampler::new(|wo, wi| eval_decoded(&net, &reference, mapping, epsilon, wo, wi).0, sampling);
-        NeuralBsdf {
+        Ok(NeuralBsdf {
             name: name.into(),
+            decoded,
             net,
             reference,
             mapping,
             epsilon,
             sampler,
             clamped: Default::default(),
-        }
+        })
     }
 
     /// The name of the latent code (or a label such as `alum-bronze→chrome@0.25`).
@@ -69,9 +76,27 @@ impl NeuralBsdf {
         &self.name
     }
 
-    /// The decoded target net.
+    /// The decoded target net, packed for evaluation.
     pub fn net(&self) -> &TargetNet {
         &self.net
+    }
+
+    /// The decoded target net as plain layers: 6D input of
+    /// [`crate::brdf_coords::network_input`] → ReLU hidden layers → mapped value y per RGB
+    /// channel (y = x · W + b, W [d_in, d_out] row-major).
+    pub fn decoded(&self) -> &Mlp {
+        &self.decoded
+    }
+
+    /// f_ref per MERL bin (within-channel index order, [`crate::formats::merl::bin_index`]),
+    /// RGB, 1/sr; a negative channel marks the bin unmeasured.
+    pub fn reference(&self) -> &[[f32; 3]] {
+        &self.reference
+    }
+
+    /// The mapping between f_r and y, and its ε.
+    pub fn mapping(&self) -> (MappingForm, f32) {
+        (self.mapping, self.epsilon)
     }
 
 

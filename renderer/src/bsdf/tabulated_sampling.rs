@@ -101,6 +101,24 @@ impl Default for TabulatedSamplerConfig {
 /// valid outgoing direction.
 const MAX_NODE_THETA_O: f32 = FRAC_PI_2 - 1e-3;
 
+/// The fitted tables of a [`TabulatedSampler`], for renderers that draw from the same density
+/// themselves (see the module documentation for what they mean).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SamplerTables {
+    /// θo of each node (radians), equally spaced over [0, π/2]; a direction between two nodes
+    /// uses both, weighted linearly.
+    pub theta_o: Vec<f32>,
+    /// v = 1 − cos θh at the row boundaries (rows + 1 entries, 0 to 1).
+    pub row_v: Vec<f32>,
+    /// Columns per table (x = |φh − φo| / π in equal steps).
+    pub columns: usize,
+    /// Probability of the cosine lobe.
+    pub cosine_fraction: f32,
+    /// Per node, the vertex values of its bilinear density, `row_v.len()` lines of
+    /// `columns + 1`, line-major, scaled to a maximum of 1 (unnormalised).
+    pub values: Vec<Vec<f32>>,
+}
+
 /// The fitted sampler; see the module documentation.
 #[derive(Clone)]
 pub struct TabulatedSampler {
@@ -322,6 +340,18 @@ impl TabulatedSampler {
         let s = crate::brdf_coords::polar_angle(wo) / FRAC_PI_2 * (n - 1) as f32;
         let k = (s.max(0.0) as usize).min(n - 2);
         (k, (s - k as f32).clamp(0.0, 1.0))
+    }
+
+    /// The fitted tables.
+    pub fn tables(&self) -> SamplerTables {
+        let n = self.tables.len();
+        SamplerTables {
+            theta_o: (0..n).map(|k| k as f32 / (n - 1) as f32 * FRAC_PI_2).collect(),
+            row_v: self.row_v.clone(),
+            columns: self.phi_cells,
+            cosine_fraction: self.cosine_fraction,
+            values: self.tables.iter().map(|t| t.values.clone()).collect(),
+        }
     }
 
     /// Draws wi given `wo` (local frame, z > 0) from a 2D sample `u` and a 1D sample `uc`

@@ -19,6 +19,8 @@
 //! ```
 
 use super::{Binding, SharedBsdf};
+use crate::bsdf::neural::NeuralBsdf;
+use crate::bsdf::tabulated_sampling::{SamplerTables, TabulatedBrdf};
 use crate::bsdf::{BsdfSample, Bxdf};
 use crate::neural::latent_library::{LatentCode, LatentLibrary};
 use crate::{Error, Result};
@@ -106,9 +108,27 @@ impl MaterialBsdf {
         })
     }
 
-    /// The BSDF as the renderer holds it (e.g. a decoded code's target net and sampler).
+    /// The BSDF as the renderer holds it.
     pub fn shared(&self) -> &SharedBsdf {
         &self.bsdf
+    }
+
+    /// For a latent code: its decoded target net, f_ref and mapping (what another renderer
+    /// needs to evaluate it itself); `None` for a table or a network.
+    pub fn neural(&self) -> Option<&NeuralBsdf> {
+        match &self.bsdf {
+            SharedBsdf::Neural(b) => Some(b),
+            _ => None,
+        }
+    }
+
+    /// The importance sampler's fitted tables (every material of this kind has one).
+    pub fn sampler_tables(&self) -> SamplerTables {
+        match &self.bsdf {
+            SharedBsdf::Merl(b) => b.sampler().tables(),
+            SharedBsdf::Nbrdf(b) => b.sampler().tables(),
+            SharedBsdf::Neural(b) => b.sampler().tables(),
+        }
     }
 
     /// f_r(wo, wi) in 1/sr per RGB channel.
@@ -227,6 +247,29 @@ mod tests {
         let z = latents.latent("alum-bronze").unwrap().z;
         let same = MaterialBsdf::open_latent_vector(&shipped(), &z, "copy").unwrap();
         assert_eq!(same.eval(wo, wi), neural.eval(wo, wi));
+    }
+
+    #[test]
+    fn a_code_exposes_its_net_reference_and_sampler_tables() {
+        let m = MaterialBsdf::open(&shipped(), Some("alum-bronze")).unwrap();
+        let neural = m.neural().expect("a latent code");
+        let widths: Vec<usize> = neural.decoded().layers.iter().map(|l| l.d_out).collect();
+        assert_eq!(widths.last(), Some(&3));
+        assert_eq!(neural.reference().len(), crate::formats::merl::BIN_COUNT);
+        // The plain layers give the packed net's output.
+        let x = crate::brdf_coords::network_input(Vec3::new(0.3, 0.1, 0.95).normalize(), Vec3::new(-0.2, 0.4, 0.89).normalize());
+        let plain = neural.decoded().forward(&x);
+        let packed = neural.net().forward(x);
+        for c in 0..3 {
+            assert!((plain[c] - packed[c]).abs() <= 1e-4 * (1.0 + plain[c].abs()), "{plain:?} vs {packed:?}");
+        }
+        let t = m.sampler_tables();
+        assert_eq!(t.values.len(), t.theta_o.len());
+        assert!(t.values.iter().all(|v| v.len() == t.row_v.len() * (t.columns + 1)));
+        assert!(t.values.iter().all(|v| v.iter().all(|x| x.is_finite() && *x >= 0.0) && v.iter().any(|x| *x == 1.0)));
+        let table = MaterialBsdf::open(&data_dir().join("merl/chrome"), None).unwrap();
+        assert!(table.neural().is_none());
+        assert_eq!(table.sampler_tables().row_v, t.row_v);
     }
 
     #[test]

@@ -14,7 +14,6 @@ use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use crate::formats::latent_file::LatentFile;
 use crate::material::Binding;
 use crate::scene::{SceneDescription, SurfaceModel};
-use crate::neural::target_net::TargetNet;
 use crate::{Error, Result};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -131,20 +130,12 @@ impl LatentLibrary {
                 format!("latent '{label}' must be {} finite values", file.latent_dim),
             ));
         }
-        let net = TargetNet::new(&file.decode(&code.z))
-            .map_err(|e| Error::invalid_file(&f.path, format!("decoding '{label}': {e}")))?;
         let reference = f
             .reference
             .get_or_init(|| Arc::new(file.f_ref.par_iter().map(|v| v.map(|h| h.to_f32())).collect()))
             .clone();
-        Ok(NeuralBsdf::new(
-            label,
-            net,
-            reference,
-            file.mapping,
-            file.epsilon,
-            &TabulatedSamplerConfig::default(),
-        ))
+        NeuralBsdf::new(label, file.decode(&code.z), reference, file.mapping, file.epsilon, &TabulatedSamplerConfig::default())
+            .map_err(|e| Error::invalid_file(&f.path, format!("decoding '{label}': {e}")))
     }
 
     /// Binds every material without an explicit binding whose name equals a latent name to
