@@ -105,12 +105,11 @@ impl RenderScene {
                 }
             })
             .collect();
-        let emission: Vec<Rgb> = materials.iter().map(|m| m.emission).collect();
         let materials = SceneMaterials::prepare(materials, textures, &used, latents)?;
         let (bounds_centre, bounds_radius) = bounding_sphere(&geometry);
         let environment = environment.as_ref().map(Environment::load).transpose()?;
         let emissive = (0..geometry.triangle_count()).filter_map(|i| {
-            let e = emission[geometry.material_ids[i] as usize];
+            let e = materials.emission(geometry.material_ids[i]);
             (e.max_element() > 0.0).then(|| (i as u32, geometry.triangle_positions(i), e))
         });
         let lights = LightSet::new(

@@ -241,8 +241,7 @@ pub unsafe extern "C" fn nb_material_eval_pdf(m: *const NbMaterial, n: usize, wo
         let (wo, wi) = unsafe { (triples(wo, n, "wo")?, triples(wi, n, "wi")?) };
         let f = unsafe { output(f.cast::<[f32; 3]>(), n, "f") }?;
         let pdf = unsafe { output(pdf, n, "pdf") }?;
-        m.eval_batch(wo, wi, f)?;
-        m.pdf_batch(wo, wi, pdf)
+        m.eval_pdf_batch(wo, wi, f, pdf)
     })
 }
 

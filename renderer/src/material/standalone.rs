@@ -176,6 +176,24 @@ impl MaterialBsdf {
         Ok(())
     }
 
+    /// [`MaterialBsdf::eval_pdf`] for every pair into `f[i]` and `pdf[i]`, in parallel, one
+    /// evaluation per pair; errors as [`MaterialBsdf::eval_batch`] (also when `pdf` and `f`
+    /// differ in length).
+    pub fn eval_pdf_batch(&self, wo: &[[f32; 3]], wi: &[[f32; 3]], f: &mut [[f32; 3]], pdf: &mut [f32]) -> Result<()> {
+        check_batch(wo, "wo", f.len())?;
+        check_batch(wi, "wi", f.len())?;
+        if pdf.len() != f.len() {
+            return Err(batch_error("pdf", format!("{} entries for {} outputs", pdf.len(), f.len())));
+        }
+        f.par_chunks_mut(BATCH_CHUNK).zip(pdf.par_chunks_mut(BATCH_CHUNK)).enumerate().for_each(|(c, (fc, pc))| {
+            for (k, (fo, po)) in fc.iter_mut().zip(pc.iter_mut()).enumerate() {
+                let i = c * BATCH_CHUNK + k;
+                (*fo, *po) = self.eval_pdf(wo[i], wi[i]);
+            }
+        });
+        Ok(())
+    }
+
     /// [`MaterialBsdf::sample`] for every `wo[i]` with the numbers `u[i]`, in parallel; a
     /// draw that fails gives `None`. Errors on different lengths, a non-finite `wo` or a
     /// `u` outside [0, 1].
@@ -266,7 +284,7 @@ mod tests {
         let t = m.sampler_tables();
         assert_eq!(t.values.len(), t.theta_o.len());
         assert!(t.values.iter().all(|v| v.len() == t.row_v.len() * (t.columns + 1)));
-        assert!(t.values.iter().all(|v| v.iter().all(|x| x.is_finite() && *x >= 0.0) && v.iter().any(|x| *x == 1.0)));
+        assert!(t.values.iter().all(|v| v.iter().all(|x| x.is_finite() && *x >= 0.0) && v.contains(&1.0)));
         let table = MaterialBsdf::open(&data_dir().join("merl/chrome"), None).unwrap();
         assert!(table.neural().is_none());
         assert_eq!(table.sampler_tables().row_v, t.row_v);
@@ -281,21 +299,23 @@ mod tests {
         let u: Vec<[f32; 3]> = (0..n).map(|i| [(i as f32 * 0.618).fract(), (i as f32 * 0.414).fract(), (i as f32 * 0.732).fract()]).collect();
         let mut f = vec![[0.0; 3]; n];
         let mut pdf = vec![0.0; n];
+        let (mut f_joint, mut pdf_joint) = (vec![[0.0; 3]; n], vec![0.0; n]);
         let mut samples = vec![None; n];
         m.eval_batch(&wo, &wi, &mut f).unwrap();
         m.pdf_batch(&wo, &wi, &mut pdf).unwrap();
+        m.eval_pdf_batch(&wo, &wi, &mut f_joint, &mut pdf_joint).unwrap();
         m.sample_batch(&wo, &u, &mut samples).unwrap();
+        assert_eq!((&f_joint, &pdf_joint), (&f, &pdf));
         for i in (0..n).step_by(97) {
             assert_eq!(f[i], m.eval(wo[i], wi[i]));
             assert_eq!(pdf[i], m.pdf(wo[i], wi[i]));
             assert_eq!(samples[i], m.sample(wo[i], u[i]));
         }
-        let drawn: Vec<Sample> = samples.iter().flatten().copied().collect();
+        let drawn: Vec<(usize, Sample)> = samples.iter().enumerate().filter_map(|(i, s)| Some((i, (*s)?))).collect();
         assert!(drawn.len() > n / 2);
-        for s in drawn.iter().step_by(53) {
-            let wo_i = wo[samples.iter().position(|x| x.as_ref() == Some(s)).unwrap()];
-            assert!((m.pdf(wo_i, s.wi) - s.pdf).abs() <= 1e-4 * s.pdf, "{s:?}");
-            assert_eq!(m.eval(wo_i, s.wi), s.f);
+        for &(i, s) in drawn.iter().step_by(53) {
+            assert!((m.pdf(wo[i], s.wi) - s.pdf).abs() <= 1e-4 * s.pdf, "{s:?}");
+            assert_eq!(m.eval(wo[i], s.wi), s.f);
         }
     }
 
