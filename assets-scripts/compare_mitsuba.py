@@ -140,16 +140,22 @@ def read_exr(path):
         return np.array(mi.Bitmap(path).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, False))
 
 
-def render_ours(args, width, height, out_exr, out_json):
-    cmd = [args.render_bin, args.scene, "--spp", str(args.spp), "--resolution", f"{width}x{height}",
-           "--max-depth", str(args.max_depth), "--output", out_exr, "--stats", out_json] + args.render_arg
+def run_render(cmd, out_exr, out_json):
+    """Runs our `render` command line `cmd` (which must write `out_exr` and, with --stats,
+    `out_json`) from the repository root; returns (its stats, the image, process seconds)."""
     print("running:", " ".join(cmd), flush=True)
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, cwd=ROOT)
     t_proc = time.perf_counter() - t0
     with open(out_json) as f:
         stats = json.load(f)
-    img = read_exr(out_exr)
+    return stats, read_exr(out_exr), t_proc
+
+
+def render_ours(args, width, height, out_exr, out_json):
+    cmd = [args.render_bin, args.scene, "--spp", str(args.spp), "--resolution", f"{width}x{height}",
+           "--max-depth", str(args.max_depth), "--output", out_exr, "--stats", out_json] + args.render_arg
+    stats, img, t_proc = run_render(cmd, out_exr, out_json)
     n = width * height * args.spp
     wall = float(stats.get("wall_seconds", t_proc))
     return {

@@ -87,6 +87,11 @@ impl MerlBsdf {
         self.interpolation
     }
 
+    /// f_r in 1/sr per bin (within-channel index order, [`merl::bin_index`]; unmeasured bins
+    /// are 0), what the look-ups interpolate.
+    pub fn values(&self) -> &[[f32; 3]] {
+        &self.values
+    }
 }
 
 /// Look-up in render values (f_r per bin, within-channel index order).

@@ -361,10 +361,27 @@ impl TabulatedSampler {
         if wo.z <= 0.0 {
             return None;
         }
+        let (lobe, _) = self.choose(wo, uc);
+        self.sample_lobe(wo, lobe, u)
+    }
+
+    /// As [`Self::sample`] from one 2D sample: `u.x` picks the lobe, and what is left of it
+    /// after the choice (uniform on [0, 1) again, independent of the choice) is the first
+    /// coordinate of the direction. Same density, [`Self::pdf`].
+    pub fn sample_2d(&self, wo: Vec3, u: Vec2) -> Option<Vec3> {
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let (lobe, rest) = self.choose(wo, u.x);
+        self.sample_lobe(wo, lobe, Vec2::new(rest.min(ONE_MINUS_EPSILON), u.y))
+    }
+
+    /// The lobe `uc` picks given `wo`, and `uc` rescaled to [0, 1) within its choice.
+    #[inline]
+    fn choose(&self, wo: Vec3, uc: f32) -> (Lobe, f32) {
         let cf = self.cosine_fraction;
         if uc < cf || cf >= 1.0 {
-            let wi = sample_cosine_hemisphere(u);
-            return (wi.z > 0.0).then_some(wi);
+            return (Lobe::Cosine, uc / cf.max(f32::MIN_POSITIVE));
         }
         let uc = (uc - cf) / (1.0 - cf);
         let (k, t) = self.nodes(wo);
@@ -373,7 +390,20 @@ impl TabulatedSampler {
         } else {
             (k + 1, (uc - (1.0 - t)) / t)
         };
-        let sign = if uc < 0.5 { 1.0 } else { -1.0 };
+        if uc < 0.5 {
+            (Lobe::Table { node, sign: 1.0 }, 2.0 * uc)
+        } else {
+            (Lobe::Table { node, sign: -1.0 }, 2.0 * uc - 1.0)
+        }
+    }
+
+    /// Draws wi from one lobe given `wo` (z > 0) and a 2D sample.
+    #[inline]
+    fn sample_lobe(&self, wo: Vec3, lobe: Lobe, u: Vec2) -> Option<Vec3> {
+        let Lobe::Table { node, sign } = lobe else {
+            let wi = sample_cosine_hemisphere(u);
+            return (wi.z > 0.0).then_some(wi);
+        };
         let (x, v) = self.tables[node].sample(u, self.phi_cells, &self.row_v);
         let hl = half_vector_at(v, x, sign);
         let (c, s) = azimuth(wo);
@@ -431,6 +461,17 @@ impl TabulatedSampler {
         self.cosine_fraction
     }
 }
+
+/// One component of the sampling mixture.
+#[derive(Clone, Copy, Debug)]
+enum Lobe {
+    Cosine,
+    /// The table of θo node `node`, with φh − φo of sign `sign` (±1).
+    Table { node: usize, sign: f32 },
+}
+
+/// The largest f32 below 1.
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// Vertex values of one θo node, line-major: f cos θi per unit solid angle of h, averaged
 /// over both signs of φh − φo.

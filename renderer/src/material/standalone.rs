@@ -20,7 +20,7 @@
 
 use super::{Binding, SharedBsdf};
 use crate::bsdf::neural::NeuralBsdf;
-use crate::bsdf::tabulated_sampling::{SamplerTables, TabulatedBrdf};
+use crate::bsdf::tabulated_sampling::{SamplerTables, TabulatedBrdf, TabulatedSampler};
 use crate::bsdf::{BsdfSample, Bxdf};
 use crate::neural::latent_library::{LatentCode, LatentLibrary};
 use crate::{Error, Result};
@@ -124,11 +124,7 @@ impl MaterialBsdf {
 
     /// The importance sampler's fitted tables (every material of this kind has one).
     pub fn sampler_tables(&self) -> SamplerTables {
-        match &self.bsdf {
-            SharedBsdf::Merl(b) => b.sampler().tables(),
-            SharedBsdf::Nbrdf(b) => b.sampler().tables(),
-            SharedBsdf::Neural(b) => b.sampler().tables(),
-        }
+        self.sampler().tables()
     }
 
     /// f_r(wo, wi) in 1/sr per RGB channel.
@@ -156,6 +152,23 @@ impl MaterialBsdf {
     #[inline]
     pub fn sample(&self, wo: [f32; 3], u: [f32; 3]) -> Option<Sample> {
         self.bsdf.as_bsdf().sample(Vec3::from(wo), Vec2::new(u[0], u[1]), u[2]).map(Sample::from)
+    }
+
+    /// As [`MaterialBsdf::sample`] from two uniform numbers: `u[0]` also chooses the lobe (what
+    /// is left of it after the choice is reused for the direction). Same density.
+    pub fn sample_2d(&self, wo: [f32; 3], u: [f32; 2]) -> Option<Sample> {
+        let wo = Vec3::from(wo);
+        let wi = self.sampler().sample_2d(wo, Vec2::from(u))?;
+        let (f, pdf) = self.bsdf.as_bsdf().eval_pdf(wo, wi);
+        (pdf > 0.0 && pdf.is_finite()).then(|| Sample { wi: wi.to_array(), f: f.to_array(), pdf })
+    }
+
+    fn sampler(&self) -> &TabulatedSampler {
+        match &self.bsdf {
+            SharedBsdf::Merl(b) => b.sampler(),
+            SharedBsdf::Nbrdf(b) => b.sampler(),
+            SharedBsdf::Neural(b) => b.sampler(),
+        }
     }
 
     /// [`MaterialBsdf::eval`] for every pair (`wo[i]`, `wi[i]`) into `f[i]`, in parallel.
@@ -194,19 +207,46 @@ impl MaterialBsdf {
         Ok(())
     }
 
-    /// [`MaterialBsdf::sample`] for every `wo[i]` with the numbers `u[i]`, in parallel; a
-    /// draw that fails gives `None`. Errors on different lengths, a non-finite `wo` or a
-    /// `u` outside [0, 1].
-    pub fn sample_batch(&self, wo: &[[f32; 3]], u: &[[f32; 3]], out: &mut [Option<Sample>]) -> Result<()> {
+    /// [`MaterialBsdf::sample`] (three numbers per direction) or [`MaterialBsdf::sample_2d`]
+    /// (two) for every `wo[i]` with the numbers `u[i]`, in parallel; a draw that fails gives
+    /// `None`. Errors on different lengths, a non-finite `wo` or a `u` outside [0, 1].
+    pub fn sample_batch<U: UniformNumbers>(&self, wo: &[[f32; 3]], u: &[U], out: &mut [Option<Sample>]) -> Result<()> {
         check_batch(wo, "wo", out.len())?;
         if u.len() != out.len() {
             return Err(batch_error("u", format!("{} entries for {} directions", u.len(), out.len())));
         }
-        if let Some(i) = u.iter().position(|v| !v.iter().all(|x| (0.0..=1.0).contains(x))) {
-            return Err(batch_error("u", format!("entry {i} is {:?}, not in [0, 1]", u[i])));
+        if let Some(i) = u.iter().position(|v| !v.numbers().iter().all(|x| (0.0..=1.0).contains(x))) {
+            return Err(batch_error("u", format!("entry {i} is {:?}, not in [0, 1]", u[i].numbers())));
         }
-        batch(out, |i| self.sample(wo[i], u[i]));
+        batch(out, |i| u[i].draw(self, wo[i]));
         Ok(())
+    }
+}
+
+/// The uniform numbers of one draw: `[f32; 3]` ([`MaterialBsdf::sample`]) or `[f32; 2]`
+/// ([`MaterialBsdf::sample_2d`]).
+pub trait UniformNumbers: Copy + Sync {
+    /// The numbers, each in [0, 1].
+    fn numbers(&self) -> &[f32];
+    /// Draws from `material` given `wo` with these numbers.
+    fn draw(self, material: &MaterialBsdf, wo: [f32; 3]) -> Option<Sample>;
+}
+
+impl UniformNumbers for [f32; 3] {
+    fn numbers(&self) -> &[f32] {
+        self
+    }
+    fn draw(self, material: &MaterialBsdf, wo: [f32; 3]) -> Option<Sample> {
+        material.sample(wo, self)
+    }
+}
+
+impl UniformNumbers for [f32; 2] {
+    fn numbers(&self) -> &[f32] {
+        self
+    }
+    fn draw(self, material: &MaterialBsdf, wo: [f32; 3]) -> Option<Sample> {
+        material.sample_2d(wo, self)
     }
 }
 
@@ -316,6 +356,33 @@ mod tests {
         for &(i, s) in drawn.iter().step_by(53) {
             assert!((m.pdf(wo[i], s.wi) - s.pdf).abs() <= 1e-4 * s.pdf, "{s:?}");
             assert_eq!(m.eval(wo[i], s.wi), s.f);
+        }
+    }
+
+    /// Drawing from two numbers (the lobe chosen by the first, its rest reused) has the
+    /// density [`MaterialBsdf::pdf`], for a peaked code and a broad network.
+    #[test]
+    fn two_number_draws_pass_chi2() {
+        /// The material with `sample` drawing from (u.x, u.y) alone.
+        struct TwoNumbers<'a>(&'a MaterialBsdf);
+        impl Bxdf for TwoNumbers<'_> {
+            fn eval(&self, wo: Vec3, wi: Vec3) -> crate::Rgb {
+                self.0.eval(wo.to_array(), wi.to_array()).into()
+            }
+            fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+                self.0.pdf(wo.to_array(), wi.to_array())
+            }
+            fn sample(&self, wo: Vec3, u: Vec2, _uc: f32) -> Option<BsdfSample> {
+                let s = self.0.sample_2d(wo.to_array(), u.to_array())?;
+                Some(BsdfSample { wi: s.wi.into(), f: s.f.into(), pdf: s.pdf })
+            }
+        }
+        let chrome = MaterialBsdf::open(&shipped(), Some("chrome")).unwrap();
+        let paint = MaterialBsdf::open(&data_dir().join("merl/gold-metallic-paint3"), None).unwrap();
+        for (name, m) in [("chrome", &chrome), ("gold-metallic-paint3", &paint)] {
+            for theta in [0.3f32, 1.2] {
+                crate::testing::bsdfs::check_chi2(&TwoNumbers(m), name, theta);
+            }
         }
     }
 

@@ -1,0 +1,103 @@
+"""neural_brdf.Material: opening, evaluation, sampling, exported data and errors."""
+
+import shutil
+
+import numpy as np
+import pytest
+
+import neural_brdf
+from conftest import direction_pairs, hemisphere
+
+
+@pytest.fixture(scope="module")
+def bronze(latent_path):
+    return neural_brdf.Material.open(latent_path, "alum-bronze")
+
+
+def test_opens_each_kind(latent_path, table_path, network_path):
+    assert neural_brdf.Material.open(latent_path, "chrome").kind == "neural"
+    table = neural_brdf.Material.open(table_path)
+    assert table.kind == "merl" and table.table.shape == (90, 90, 180, 3)
+    assert table.layers is None and table.f_ref is None and table.mapping is None
+    assert neural_brdf.Material.open(network_path).kind == "nbrdf"
+
+
+def test_batches_agree_with_single_rows_and_accept_any_float(bronze):
+    rng = np.random.default_rng(1)
+    wo, wi = direction_pairs(rng, 500)
+    f, pdf = bronze.eval(wo, wi), bronze.pdf(wo, wi)
+    assert f.shape == (500, 3) and pdf.shape == (500,) and f.dtype == np.float32
+    assert np.all(f >= 0) and np.all(pdf >= 0) and f.max() > 1.0
+    f2, pdf2 = bronze.eval_pdf(wo.astype(np.float64), wi.astype(np.float64))
+    np.testing.assert_array_equal(f, f2)
+    np.testing.assert_array_equal(pdf, pdf2)
+    for i in range(0, 500, 97):
+        np.testing.assert_array_equal(bronze.eval(wo[i : i + 1], wi[i : i + 1])[0], f[i])
+    below = wi * np.array([1, 1, -1], dtype=np.float32)
+    assert not bronze.eval(wo, below).any() and not bronze.pdf(wo, below).any()
+
+
+@pytest.mark.parametrize("numbers", [2, 3])
+def test_samples_carry_their_value_and_density(bronze, numbers):
+    rng = np.random.default_rng(2)
+    wo = hemisphere(rng, 4000)
+    wi, f, pdf = bronze.sample(wo, rng.random((4000, numbers)))
+    drawn = pdf > 0
+    assert drawn.mean() > 0.95
+    assert np.allclose(np.linalg.norm(wi[drawn], axis=1), 1.0, atol=1e-5) and np.all(wi[drawn, 2] > 0)
+    np.testing.assert_allclose(bronze.pdf(wo[drawn], wi[drawn]), pdf[drawn], rtol=1e-4)
+    np.testing.assert_array_equal(bronze.eval(wo[drawn], wi[drawn]), f[drawn])
+    assert not wi[~drawn].any() and not f[~drawn].any()
+
+
+def test_exports_the_decoded_net_reference_mapping_and_sampler_tables(bronze):
+    layers = bronze.layers
+    assert layers[0][0].shape[0] == 6 and layers[-1][0].shape[1] == 3
+    for (w, b), (w_next, _) in zip(layers, layers[1:]):
+        assert w.shape[1] == b.shape[0] == w_next.shape[0]
+    assert bronze.f_ref.shape == (90, 90, 180, 3) and (bronze.f_ref >= 0).mean() > 0.5
+    form, epsilon = bronze.mapping
+    assert form in ("code", "talk") and epsilon > 0
+    t = bronze.sampler_tables()
+    assert t["values"].shape == (len(t["theta_o"]), len(t["row_v"]), t["columns"] + 1)
+    assert t["values"].max() == 1.0 and t["values"].min() >= 0.0
+    assert t["row_v"][0] == 0.0 and t["row_v"][-1] == pytest.approx(1.0) and 0 < t["cosine_fraction"] < 1
+
+
+def test_latent_vectors_decode_like_their_codes(latent_path, bronze):
+    codes = neural_brdf.latent_codes(latent_path)
+    assert "alum-bronze" in codes and "chrome" in codes and codes["chrome"].dtype == np.float32
+    same = neural_brdf.Material.from_latent_vector(latent_path, codes["alum-bronze"].astype(np.float64), "copy")
+    assert same.name == "copy"
+    wo, wi = direction_pairs(np.random.default_rng(3), 200)
+    np.testing.assert_array_equal(same.eval(wo, wi), bronze.eval(wo, wi))
+    halfway = neural_brdf.Material.from_latent_vector(latent_path, 0.5 * (codes["alum-bronze"] + codes["chrome"]))
+    assert not np.array_equal(halfway.eval(wo, wi), bronze.eval(wo, wi))
+
+
+def test_errors_carry_the_cli_messages(latent_path, tmp_path, bronze):
+    with pytest.raises(OSError, match="/nonexistent/latent.bin"):
+        neural_brdf.Material.open("/nonexistent/latent.bin", "chrome")
+    with pytest.raises(neural_brdf.UnknownNameError, match="latent code 'gold' not found .*alum-bronze"):
+        neural_brdf.Material.open(latent_path, "gold")
+    wrong = tmp_path / "wrong-version.bin"
+    shutil.copy(latent_path, wrong)
+    data = bytearray(wrong.read_bytes())
+    data[8:12] = (99).to_bytes(4, "little")
+    wrong.write_bytes(bytes(data))
+    with pytest.raises(neural_brdf.InvalidFileError, match=str(wrong)):
+        neural_brdf.Material.open(wrong, "chrome")
+    with pytest.raises(ValueError, match="name one of its codes"):
+        neural_brdf.Material.open(latent_path)
+    with pytest.raises(ValueError, match=r"wo must have shape \(N, 3\)"):
+        bronze.eval(np.zeros((4, 2)), np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="wo has 4 rows but wi has 3"):
+        bronze.eval(np.ones((4, 3)), np.ones((3, 3)))
+    with pytest.raises(ValueError, match="not finite"):
+        bronze.pdf(np.array([[0.0, 0.0, np.nan]]), np.array([[0.0, 0.0, 1.0]]))
+    with pytest.raises(ValueError, match=r"not in \[0, 1\]"):
+        bronze.sample(np.array([[0.0, 0.0, 1.0]]), np.array([[0.5, 1.5]]))
+    with pytest.raises(ValueError):
+        neural_brdf.Material.from_latent_vector(latent_path, np.zeros(3))
+    # Errors leave the material usable.
+    assert bronze.eval(np.array([[0.0, 0.6, 0.8]]), np.array([[0.0, -0.6, 0.8]])).max() > 0
