@@ -20,6 +20,14 @@ fn profile_dir() -> PathBuf {
     exe.parent().and_then(Path::parent).expect("target directory").to_path_buf()
 }
 
+/// Cargo's name of this build's profile (`target/debug` is the `dev` profile).
+fn profile_name() -> String {
+    match profile_dir().file_name().and_then(|n| n.to_str()) {
+        Some("debug") | None => "dev".to_string(),
+        Some(other) => other.to_string(),
+    }
+}
+
 /// The package (Python sources + the freshly built extension module) in a directory to put
 /// first on PYTHONPATH.
 fn assemble_package() -> PathBuf {
@@ -55,11 +63,7 @@ fn merl_table() -> PathBuf {
 /// `cargo test --workspace` already; otherwise built here, with this test's profile.
 fn render_binary() -> PathBuf {
     let path = profile_dir().join("render");
-    let profile = match profile_dir().file_name().and_then(|n| n.to_str()) {
-        Some("debug") => "dev".to_string(),
-        Some(other) => other.to_string(),
-        None => "dev".to_string(),
-    };
+    let profile = profile_name();
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| env!("CARGO").into());
     let status = Command::new(cargo)
         .args(["build", "--quiet", "-p", "render-cli", "--bin", "render", "--profile", &profile])
@@ -102,4 +106,36 @@ fn pytest_suite_passes() {
     assert!(output.status.success(), "pytest failed:\n{log}");
     assert!(!log.contains(" skipped"), "pytest skipped tests:\n{log}");
     println!("{log}");
+}
+
+/// `pip install ./plugins/python` works: maturin builds the package from pyproject.toml (here
+/// with the test build's profile, so the compiled dependencies are reused; users get a
+/// release build) into a fresh directory, from which it imports and evaluates a material.
+#[test]
+fn pip_installs_the_package() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let profile = profile_name();
+    let output = Command::new("python3")
+        .args(["-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--disable-pip-version-check", "--target"])
+        .arg(dir.path())
+        .arg(format!("--config-settings=build-args=--profile {profile}"))
+        .arg(crate_dir())
+        .env("CARGO_TARGET_DIR", profile_dir().parent().expect("target directory"))
+        .output()
+        .expect("run python3 -m pip (needs maturin, see .ci/run)");
+    assert!(output.status.success(), "pip install failed:\n{}", String::from_utf8_lossy(&output.stderr));
+    let script = "import neural_brdf, sys\n\
+        m = neural_brdf.Material.open(sys.argv[1], 'alum-bronze')\n\
+        f = m.eval([[0.0, 0.6, 0.8]], [[0.0, -0.6, 0.8]])\n\
+        assert f.shape == (1, 3) and f.min() > 0, f\n\
+        print(neural_brdf.__file__)";
+    let run = Command::new("python3")
+        .args(["-c", script])
+        .arg(crate_dir().join("../../scenes/materials/latent.bin"))
+        .env("PYTHONPATH", dir.path())
+        .output()
+        .expect("run python3");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "the installed package fails:\n{stdout}{}", String::from_utf8_lossy(&run.stderr));
+    assert!(stdout.trim().starts_with(&*dir.path().to_string_lossy()), "imported from {stdout}");
 }
