@@ -19,7 +19,8 @@ and tabulated BRDFs:
 - "camera": perspective, yfov 30 deg, aspect ratio 1, at distance 2 from the sphere's centre,
   raised CAMERA_ELEVATION_DEGREES above the horizontal, looking at the centre.
 - "key": a KHR_lights_punctual point light above-left of and in front of the sphere
-  (radiometric intensity in W/sr, as the renderer reads it).
+  of radiant intensity KEY_INTENSITY W/sr, written in the specification's photometric unit
+  (candela: KEY_INTENSITY x LUMENS_PER_WATT, the 683 lm/W glTF and Blender's exporter use).
 - The environment, named in the scene's extras: studio.exr next to the scene file (made by
   make_studio_envmap.py).
 
@@ -50,7 +51,8 @@ GROUND_HALF_SIZE = 50.0
 GROUND_ALBEDO = 0.5
 KEY_POSITION = [-1.5, 2.0, 1.5]
 KEY_COLOR = [1.0, 0.92, 0.82]
-KEY_INTENSITY = 10.0
+KEY_INTENSITY = 10.0  # W/sr
+LUMENS_PER_WATT = 683.0  # glTF's photometric units: 683 cd = 1 W/sr
 PREVIEW_MATERIAL = "preview"
 PREVIEW_BASE_COLOR = [0.955, 0.638, 0.538, 1.0]  # copper's linear F0
 PREVIEW_ROUGHNESS = 0.3
@@ -256,7 +258,7 @@ def build():
         "extensions": {
             "KHR_lights_punctual": {
                 "lights": [
-                    {"name": "key", "type": "point", "color": KEY_COLOR, "intensity": KEY_INTENSITY}
+                    {"name": "key", "type": "point", "color": KEY_COLOR, "intensity": KEY_INTENSITY * LUMENS_PER_WATT}
                 ]
             }
         },
@@ -361,8 +363,8 @@ def mitsuba_scene(
       fov_axis "y" (ours keeps yfov for any output aspect), film width x height, `box`
       reconstruction filter (ours averages uniformly jittered samples within each pixel),
       independent sampler with `spp` samples.
-    - key light: `point` at KEY_POSITION with intensity KEY_INTENSITY x KEY_COLOR in W/sr (ours
-      reads KHR_lights_punctual intensity x color as radiometric W/sr).
+    - key light: `point` at KEY_POSITION with intensity KEY_INTENSITY x KEY_COLOR in W/sr (the
+      glTF holds it in candela, which ours divides by 683 lm/W).
     - environment: `envmap` of ENVIRONMENT_IMAGE in scene_dir, scale ENVIRONMENT_STRENGTH,
       to_world = rotation about +y by ENVIRONMENT_ROTATION_DEGREES + 180. Ours maps direction d
       to u = 0.5 + atan2(d.x, -d.z)/2pi, v = acos(d.y)/pi (image centre toward -z) and turns the

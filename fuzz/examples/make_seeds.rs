@@ -204,7 +204,7 @@ fn strip_scene() -> (Value, Vec<u8>) {
         ],
         "cameras": [{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.01, "aspectRatio": 1.5}}],
         "extensions": {"KHR_lights_punctual": {"lights": [
-            {"type": "point", "intensity": 5.0, "color": [1.0, 0.9, 0.8]},
+            {"type": "point", "intensity": 3415.0, "color": [1.0, 0.9, 0.8]},
             {"type": "spot", "intensity": 2.0, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}}
         ]}},
         "meshes": [{"name": "strip", "primitives": [

@@ -261,6 +261,9 @@ fn run(args: Args) -> Result<()> {
     let load_start = Instant::now();
     let latents = LatentLibrary::load(&args.material)?;
     let mut description = SceneDescription::load(&args.scene)?;
+    for warning in &description.warnings {
+        eprintln!("warning: {warning}");
+    }
     bind_materials(&mut description, &args.bind, &latents)?;
     latents.bind_equal_names(&mut description);
     let aspect = args.resolution.map(|(w, h)| w as f32 / h as f32);

@@ -172,3 +172,25 @@ fn bind_measured_brdfs() {
         assert_clean_failure(&out, &needles, dir.path());
     }
 }
+
+/// A scene using a glTF extension the renderer does not support renders, with one warning
+/// naming it; one requiring it fails with a one-line error and writes nothing.
+#[test]
+fn unsupported_gltf_extensions_warn_or_fail() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let positions = [-1.0, -1.0, -3.0, 1.0, -1.0, -3.0, 0.0, 1.0, -3.0];
+    let used = gltf_with(positions, 4).replacen('{', r#"{"extensionsUsed":["KHR_materials_clearcoat"],"#, 1);
+    let scene = write(dir.path(), "used.gltf", &used);
+    let out = render(&[&scene, "--spp", "1", "--resolution", "8x8", "--output", "used.png"], dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert_eq!(stderr.matches("warning:").count(), 1, "{stderr}");
+    assert!(stderr.contains("KHR_materials_clearcoat is not supported"), "{stderr}");
+    assert!(dir.path().join("used.png").is_file());
+
+    let required = used.replacen('{', r#"{"extensionsRequired":["KHR_materials_clearcoat"],"#, 1);
+    let scene = write(dir.path(), "required.gltf", &required);
+    let out = render(&[&scene, "--spp", "1", "--resolution", "8x8", "--output", "required.png"], dir.path());
+    assert_clean_failure(&out, &["required.gltf", "requires the glTF extension KHR_materials_clearcoat"], dir.path());
+    assert!(!dir.path().join("required.png").exists());
+}

@@ -280,8 +280,14 @@ impl Camera {
     }
 }
 
-/// A punctual light (KHR_lights_punctual). Intensities are taken as radiometric: W/sr for
-/// point and spot lights, W/m² for directional lights (the same scale as emissive radiance).
+/// Luminous efficacy used to turn glTF's photometric light units into radiometric ones, lm/W:
+/// the value `KHR_lights_punctual` and Blender's glTF exporter use (the peak of the photopic
+/// curve), so 683 cd is 1 W/sr and 683 lx is 1 W/m².
+pub const LUMENS_PER_WATT: f32 = 683.0;
+
+/// A punctual light (KHR_lights_punctual), in radiometric units: W/sr for point and spot
+/// lights, W/m² for directional lights (the same scale as emissive radiance). The glTF loader
+/// converts the file's photometric units (cd, lx) with [`LUMENS_PER_WATT`].
 #[derive(Clone, Debug, PartialEq)]
 pub enum PunctualLight {
     Point {
@@ -342,6 +348,9 @@ pub struct SceneDescription {
     pub cameras: Vec<Camera>,
     pub lights: Vec<PunctualLight>,
     pub environment: Option<EnvironmentSpec>,
+    /// What the loader could not honour but rendered around (e.g. an unsupported glTF
+    /// extension the file uses without requiring it), one line each, to show the user once.
+    pub warnings: Vec<String>,
 }
 
 impl SceneDescription {

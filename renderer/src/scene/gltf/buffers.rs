@@ -3,7 +3,11 @@
 
 use super::*;
 
-/// Parses a `.gltf` or `.glb` file and runs the `gltf` crate's validation, which checks
+/// The glTF extensions the loader reads (see the module documentation).
+pub(super) const SUPPORTED_EXTENSIONS: [&str; 2] = ["KHR_lights_punctual", "KHR_materials_emissive_strength"];
+
+/// Parses a `.gltf` or `.glb` file (an unsupported extension in `extensionsRequired` is an
+/// error naming it) and runs the `gltf` crate's validation, which checks
 /// every index into the document's arrays. Two inputs that make the `gltf` crate (1.4)
 /// panic are turned into errors first: a GLB header whose total length is below the
 /// header's own 12 bytes (an overflowing subtraction in `binary.rs`), and a primitive whose
@@ -24,6 +28,15 @@ pub(super) fn parse_and_validate(bytes: &[u8], path: &Path) -> Result<Gltf> {
     let Gltf { document, blob } =
         Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(&e))?;
     let json = document.into_json();
+    if let Some(name) = json.extensions_required.iter().find(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str())) {
+        return Err(Error::invalid_file(
+            path,
+            format!(
+                "requires the glTF extension {name}, which this renderer does not support (supported: {})",
+                SUPPORTED_EXTENSIONS.join(", ")
+            ),
+        ));
+    }
     let accessor_count = json.accessors.len();
     for (m, mesh) in json.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {

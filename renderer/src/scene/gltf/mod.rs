@@ -31,8 +31,10 @@
 //!   the node's world transform without its scale. A camera is named after the camera
 //!   object, else its node, else `camera<index>`. Orthographic cameras are skipped; a file
 //!   whose only cameras are orthographic is an error.
-//! - `KHR_lights_punctual` point, spot and directional lights: radiometric intensity =
-//!   `intensity × color` (no 683 lm/W factor, see [`PunctualLight`]); positions are the
+//! - `KHR_lights_punctual` point, spot and directional lights in the specification's
+//!   photometric units (candela for point and spot, lux for directional), converted to
+//!   radiometric ones as glTF and Blender's exporter do: `intensity / 683 lm/W × color`
+//!   ([`super::LUMENS_PER_WATT`]; W/sr, W/m²); positions are the
 //!   node's world origin, directions its world -z; spot cone angles become cosines.
 //!   `range` is ignored.
 //! - The environment, from the scene's `extras` (falling back to the asset's `extras`):
@@ -42,8 +44,11 @@
 //!   read by the renderer's environment code, not here.
 //!
 //! - Not read: animations, skins and morph targets (the rest pose is used), sparse
-//!   accessors, and extensions other than the two above (files that *require* another
-//!   extension are rejected by the `gltf` crate's validation).
+//!   accessors, and extensions other than the two above. A file that *requires* another
+//!   extension (`extensionsRequired`) is an error naming it; one that only *uses* another
+//!   (`extensionsUsed`, e.g. `KHR_materials_transmission`, `KHR_texture_transform`) loads
+//!   with a warning naming it once ([`SceneDescription::warnings`]), and its materials render
+//!   with their core parameters.
 //!
 //! Errors: a missing scene or buffer file is [`Error::Io`] naming that file; everything else
 //! is [`Error::InvalidFile`] naming the glTF file and the problem (the `gltf` crate's message
@@ -99,6 +104,11 @@ pub fn load_from_bytes_with(
     let Gltf { document, blob } = parse_and_validate(bytes, path)?;
     let base = path.parent().unwrap_or_else(|| Path::new(""));
     let buffers = load_buffers(path, base, &document, blob, &mut read_file)?;
+    let warnings = document
+        .extensions_used()
+        .filter(|e| !buffers::SUPPORTED_EXTENSIONS.contains(e))
+        .map(|e| format!("{}: glTF extension {e} is not supported and is ignored (materials render with their core parameters)", path.display()))
+        .collect();
     let mut loader = Loader {
         path,
         base,
@@ -106,6 +116,7 @@ pub fn load_from_bytes_with(
         buffers: &buffers,
         scene: SceneDescription {
             source: path.to_path_buf(),
+            warnings,
             ..SceneDescription::default()
         },
         texture_of_image: HashMap::new(),
@@ -220,7 +231,8 @@ impl Loader<'_> {
             }
         }
         if let Some(light) = node.light() {
-            let radiometric = Rgb::from_array(light.color()) * light.intensity();
+            // cd → W/sr, lx → W/m² (the division first, so 683 k cd is exactly k W/sr).
+            let radiometric = Rgb::from_array(light.color()) * (light.intensity() / super::LUMENS_PER_WATT);
             let position = world.transform_point3(Vec3::ZERO);
             let direction = world.transform_vector3(Vec3::NEG_Z).try_normalize();
             let label = light

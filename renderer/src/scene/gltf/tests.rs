@@ -363,6 +363,9 @@ fn only_orthographic_cameras_is_an_error() {
     expect_error(&doc, "only orthographic cameras");
 }
 
+/// Intensities are photometric (cd for point and spot, lx for directional, as the
+/// specification says) and become radiometric at 683 lm/W: Blender writes its 3 W/m² sun as
+/// 2,049 lx.
 #[test]
 fn punctual_lights_of_all_three_kinds() {
     let s = FRAC_1_SQRT_2;
@@ -376,9 +379,9 @@ fn punctual_lights_of_all_three_kinds() {
     let lights = json!({
         "extensionsUsed": ["KHR_lights_punctual"],
         "extensions": {"KHR_lights_punctual": {"lights": [
-            {"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 4.0},
-            {"type": "spot", "intensity": 10.0, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}},
-            {"type": "directional", "color": [0.5, 0.5, 0.5], "intensity": 3.0}
+            {"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 2732.0},
+            {"type": "spot", "intensity": 6830.0, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}},
+            {"type": "directional", "color": [0.5, 0.5, 0.5], "intensity": 2049.0}
         ]}}
     });
     let scene = load_doc(&triangle_doc(nodes, json!([0, 1, 2, 3]), lights)).expect("load");
@@ -824,4 +827,33 @@ fn shipped_cornell_box_loads() {
         .materials
         .iter()
         .any(|m| m.emission.max_element() > 0.0));
+}
+
+/// An extension the file only uses is named once in a warning and the scene loads with its
+/// core parameters; one it requires is an error naming it; the supported ones load silently.
+#[test]
+fn unsupported_extensions_warn_once_or_fail_when_required() {
+    let materials = json!({
+        "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_emissive_strength", "KHR_texture_transform"],
+        "materials": [
+            {"name": "glass", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}},
+            {"name": "glass2", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.5}}}
+        ]
+    });
+    let scene = load_doc(&triangle_doc(json!([{"mesh": 0}]), json!([0]), materials)).expect("load");
+    assert!(scene.warnings.len() == 2, "{:#?}", scene.warnings);
+    assert!(scene.warnings[0].contains("KHR_materials_transmission") && scene.warnings[0].contains("scene.gltf"));
+    assert!(scene.warnings[1].contains("KHR_texture_transform"));
+    assert!(scene.materials.iter().any(|m| m.name == "glass"), "{:?}", scene.materials);
+
+    let required = json!({
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_draco_mesh_compression"],
+        "extensionsRequired": ["KHR_lights_punctual", "KHR_draco_mesh_compression"]
+    });
+    let message = expect_error(&triangle_doc(json!([{"mesh": 0}]), json!([0]), required), "requires the glTF extension KHR_draco_mesh_compression");
+    assert!(message.contains("supported: KHR_lights_punctual"), "{message}");
+
+    let supported = json!({"extensionsUsed": ["KHR_lights_punctual"], "extensionsRequired": ["KHR_lights_punctual"]});
+    let scene = load_doc(&triangle_doc(json!([{"mesh": 0}]), json!([0]), supported)).expect("load");
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
 }
