@@ -186,7 +186,8 @@ impl SceneMaterials {
     }
 
     /// The BSDF of `material` at a point seen from its front (`front_face`) or back, with
-    /// texture coordinates from `uv` (called only when the material has a texture); `None`
+    /// texture coordinates from `uv` (called only when the material's BSDF reads a texture:
+    /// base colour, metallic-roughness); `None`
     /// where the surface does not scatter (the back of a single-sided material).
     #[inline]
     pub fn bsdf(&self, material: u32, front_face: bool, uv: impl FnOnce() -> Vec2) -> Option<Bsdf<'_>> {
@@ -194,13 +195,27 @@ impl SceneMaterials {
         if !front_face && !m.double_sided {
             return None;
         }
-        let base = match m.base_color_texture {
-            Some(t) => m.base_color * self.textures[t].lookup(uv()),
+        let uv = || match (&m.base_color_texture, &m.metallic_roughness_texture) {
+            (None, None) => Vec2::ZERO,
+            _ => uv(),
+        };
+        let base = |uv: Vec2| match &m.base_color_texture {
+            Some(t) => m.base_color * t.lookup(&self.textures, uv),
             None => m.base_color,
         };
         Some(match self.kinds[material as usize] {
-            Kind::Lambert => Bsdf::Lambert(Lambert { albedo: base }),
-            Kind::MetallicRoughness => Bsdf::MetallicRoughness(MetallicRoughness::new(base, m.metallic, m.roughness)),
+            Kind::Lambert => Bsdf::Lambert(Lambert { albedo: base(uv()) }),
+            Kind::MetallicRoughness => {
+                let uv = uv();
+                let (metallic, roughness) = match &m.metallic_roughness_texture {
+                    Some(t) => {
+                        let texel = t.lookup(&self.textures, uv);
+                        (m.metallic * texel.z, m.roughness * texel.y)
+                    }
+                    None => (m.metallic, m.roughness),
+                };
+                Bsdf::MetallicRoughness(MetallicRoughness::new(base(uv), metallic, roughness))
+            }
             Kind::Shared(i) => self.shared[i].as_bsdf(),
         })
     }
@@ -273,6 +288,34 @@ mod tests {
 
     fn unit(theta: f32, phi: f32) -> Vec3 {
         Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    }
+
+    /// A metallic-roughness texture scales metallic by its blue and roughness by its green
+    /// channel at the point's texture coordinates; a material without textures never asks
+    /// for them.
+    #[test]
+    fn metallic_roughness_textures_scale_the_factors() {
+        use crate::bsdf::metallic_roughness::MetallicRoughness;
+        use crate::scene::{Material, SurfaceModel, Texture, TextureRef};
+        // Texel 0: metallic 1, roughness 0.5; texel 1: metallic 0, roughness 1.
+        let texture = Texture { width: 2, height: 1, texels: vec![Rgb::new(0.0, 0.5, 1.0), Rgb::new(0.0, 1.0, 0.0)] };
+        let textured = Material {
+            model: SurfaceModel::MetallicRoughness,
+            metallic: 1.0,
+            roughness: 0.8,
+            metallic_roughness_texture: Some(TextureRef { filter: crate::scene::texture::Filter::Nearest, ..TextureRef::new(0) }),
+            ..Material::default_diffuse("textured")
+        };
+        let plain = Material { model: SurfaceModel::MetallicRoughness, ..Material::default_diffuse("plain") };
+        let materials = SceneMaterials::prepare(vec![textured.clone(), plain.clone()], vec![texture], &[true, true], &LatentLibrary::default()).unwrap();
+        let (wo, wi) = (unit(0.4, 0.0), unit(0.5, 2.0));
+        for (u, metallic, roughness) in [(0.25, 1.0, 0.4), (0.75, 0.0, 0.8)] {
+            let bsdf = materials.bsdf(0, true, || glam::Vec2::new(u, 0.5)).unwrap();
+            let expected = MetallicRoughness::new(textured.base_color, metallic, roughness);
+            assert_eq!(bsdf.eval(wo, wi), expected.eval(wo, wi), "u = {u}");
+        }
+        let bsdf = materials.bsdf(1, true, || panic!("no texture, no texture coordinates")).unwrap();
+        assert_eq!(bsdf.eval(wo, wi), MetallicRoughness::new(plain.base_color, plain.metallic, plain.roughness).eval(wo, wi));
     }
 
     #[test]

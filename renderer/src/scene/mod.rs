@@ -8,6 +8,9 @@ use std::path::{Path, PathBuf};
 
 pub mod gltf;
 pub mod obj;
+pub mod texture;
+
+pub use texture::{Texture, TextureRef};
 
 /// All triangles of a scene, flattened into world space.
 #[derive(Clone, Debug, Default)]
@@ -123,9 +126,11 @@ pub struct Material {
     pub model: SurfaceModel,
     /// Linear base colour (albedo of the diffuse base, F0 tint of metals).
     pub base_color: Rgb,
-    /// Index into [`SceneDescription::textures`] of a base-colour texture multiplying
-    /// `base_color`.
-    pub base_color_texture: Option<usize>,
+    /// A base-colour texture (sRGB) multiplying `base_color`.
+    pub base_color_texture: Option<TextureRef>,
+    /// A metallic-roughness texture (linear): its blue channel multiplies `metallic`, its
+    /// green channel `roughness` (glTF's packing).
+    pub metallic_roughness_texture: Option<TextureRef>,
     /// glTF metallic factor in [0, 1].
     pub metallic: f32,
     /// glTF perceptual roughness in [0, 1] (GGX α = roughness²).
@@ -146,87 +151,12 @@ impl Material {
             model: SurfaceModel::Lambert,
             base_color: Rgb::splat(0.8),
             base_color_texture: None,
+            metallic_roughness_texture: None,
             metallic: 0.0,
             roughness: 1.0,
             emission: Rgb::ZERO,
             double_sided: true,
         }
-    }
-}
-
-/// A texture of linear RGB texels, row-major from the top row (glTF's v = 0).
-#[derive(Clone, Debug)]
-pub struct Texture {
-    pub width: u32,
-    pub height: u32,
-    pub texels: Vec<Rgb>,
-}
-
-impl Texture {
-    /// Bilinear look-up with repeat wrapping; `uv` in glTF convention.
-    pub fn lookup(&self, uv: Vec2) -> Rgb {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let x = uv.x.rem_euclid(1.0) * w as f32 - 0.5;
-        let y = uv.y.rem_euclid(1.0) * h as f32 - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let xi = |d: i64| (x0 as i64 + d).rem_euclid(w as i64) as usize;
-        let yi = |d: i64| (y0 as i64 + d).rem_euclid(h as i64) as usize;
-        let t = |xx: usize, yy: usize| self.texels[xx + w * yy];
-        let top = t(xi(0), yi(0)).lerp(t(xi(1), yi(0)), fx);
-        let bottom = t(xi(0), yi(1)).lerp(t(xi(1), yi(1)), fx);
-        top.lerp(bottom, fy)
-    }
-
-    /// Decodes an encoded colour image (PNG, or the HDR/EXR formats the `image` crate is
-    /// built with here) into linear texels.
-    ///
-    /// 8- and 16-bit images are taken as sRGB-encoded (glTF's rule for base-colour
-    /// textures) and decoded to linear with the sRGB transfer function; floating-point
-    /// images are taken as linear already. Alpha is dropped. `file` and `what` only name the
-    /// image in error messages (e.g. the scene file and "texture 'wood.png'").
-    pub fn from_encoded_srgb(bytes: &[u8], file: &Path, what: &str) -> Result<Texture> {
-        let image = image::load_from_memory(bytes)
-            .map_err(|e| Error::invalid_file(file, format!("cannot decode {what}: {e}")))?;
-        let (width, height) = (image.width(), image.height());
-        if width == 0 || height == 0 {
-            return Err(Error::invalid_file(file, format!("{what} is empty")));
-        }
-        let is_float = matches!(
-            image.color(),
-            image::ColorType::Rgb32F | image::ColorType::Rgba32F
-        );
-        let texels = image
-            .to_rgb32f()
-            .pixels()
-            .map(|p| {
-                let c = Rgb::from_array(p.0);
-                if is_float {
-                    c
-                } else {
-                    Rgb::new(
-                        srgb_to_linear(c.x),
-                        srgb_to_linear(c.y),
-                        srgb_to_linear(c.z),
-                    )
-                }
-            })
-            .collect();
-        Ok(Texture {
-            width,
-            height,
-            texels,
-        })
-    }
-}
-
-/// The sRGB electro-optical transfer function (IEC 61966-2-1): encoded value in [0, 1] to
-/// linear.
-fn srgb_to_linear(v: f32) -> f32 {
-    if v <= 0.040_45 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
     }
 }
 
@@ -467,8 +397,10 @@ impl SceneDescription {
             ));
         }
         for m in &self.materials {
-            if m.base_color_texture
-                .is_some_and(|t| t >= self.textures.len())
+            if [m.base_color_texture, m.metallic_roughness_texture]
+                .iter()
+                .flatten()
+                .any(|t| t.texture >= self.textures.len())
             {
                 return fail(format!("material '{}' uses a missing texture", m.name));
             }

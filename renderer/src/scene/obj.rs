@@ -21,7 +21,7 @@
 //! Faces without a material get [`Material::default_diffuse`] (named "default"). A missing
 //! OBJ or MTL file is [`Error::Io`] naming it; a malformed one is [`Error::InvalidFile`].
 
-use super::{smooth_vertex_normals, Geometry, Material, SceneDescription, SurfaceModel, Texture};
+use super::{smooth_vertex_normals, Geometry, Material, SceneDescription, SurfaceModel, Texture, TextureRef};
 use crate::{Error, Result, Rgb};
 use glam::{Vec2, Vec3};
 use std::cell::RefCell;
@@ -282,7 +282,7 @@ fn convert_material(
             let bytes = read_file(&texture_path).map_err(|e| Error::io(&texture_path, e))?;
             let what = format!("texture '{file}' of material '{}'", m.name);
             textures.push(Texture::from_encoded_srgb(&bytes, &texture_path, &what)?);
-            Some(textures.len() - 1)
+            Some(TextureRef::new(textures.len() - 1))
         }
         _ => None,
     };
@@ -298,6 +298,7 @@ fn convert_material(
         model,
         base_color,
         base_color_texture,
+        metallic_roughness_texture: None,
         metallic: 0.0,
         roughness,
         emission,

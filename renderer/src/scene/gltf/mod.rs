@@ -6,18 +6,21 @@
 //! - Mesh primitives of mode TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN (strips and fans are
 //!   converted to triangle lists as the glTF specification orders them); POINTS and LINES*
 //!   are errors. POSITION, NORMAL (transformed by the inverse transpose of the node's world
-//!   matrix), TEXCOORD_0 (only set 0, whatever `texCoord` a texture names), indices or
+//!   matrix), TEXCOORD_0 (only set 0, see the textures below), indices or
 //!   none. Primitives without normals get area-weighted smooth vertex normals computed
 //!   from their triangles ([`super::smooth_vertex_normals`]); normals that cannot be
 //!   normalised are replaced the same way. Under a transform with a negative determinant
 //!   the winding is flipped so triangles stay counter-clockwise seen from the front.
 //! - Materials: `pbrMetallicRoughness.baseColorFactor` (linear) times `baseColorTexture`
-//!   (sRGB-decoded to linear at load, see [`Texture::from_encoded_srgb`]; samplers' wrap
-//!   and filter modes are ignored: the renderer repeats and filters bilinearly),
-//!   `metallicFactor`, `roughnessFactor`, and `emissiveFactor` times
-//!   `KHR_materials_emissive_strength` as [`Material::emission`]. Emissive, normal,
-//!   occlusion and metallic-roughness textures are ignored; `doubleSided` is kept. Primitives without a material
-//!   get [`Material::default_diffuse`] (named "default").
+//!   (sRGB-decoded to linear at load), `metallicFactor` and `roughnessFactor` times the blue
+//!   and green channels of `metallicRoughnessTexture` (linear data), and `emissiveFactor`
+//!   times `KHR_materials_emissive_strength` as [`Material::emission`]. Textures: PNG or
+//!   JPEG (8/16-bit; EXR and HDR as linear), each image decoded once per encoding and shared;
+//!   the sampler's `wrapS`/`wrapT` (repeat, clamp, mirrored repeat) and `magFilter` (nearest
+//!   or bilinear; no mipmaps) and `KHR_texture_transform` are honoured
+//!   ([`super::texture::TextureRef`]); a `texCoord` other than 0 reads TEXCOORD_0 with a
+//!   warning. Emissive, normal and occlusion textures are ignored; `doubleSided` is kept.
+//!   Primitives without a material get [`Material::default_diffuse`] (named "default").
 //! - Material `extras` choose the [`SurfaceModel`] (at most one of these keys):
 //!   - `{"bsdf": "diffuse"}` → [`SurfaceModel::Lambert`]; `{"bsdf": "metallic-roughness"}`
 //!     → [`SurfaceModel::MetallicRoughness`] (the default without extras);
@@ -44,7 +47,7 @@
 //!   read by the renderer's environment code, not here.
 //!
 //! - Not read: animations, skins and morph targets (the rest pose is used), sparse
-//!   accessors, and extensions other than the two above. A file that *requires* another
+//!   accessors, and extensions other than the three above. A file that *requires* another
 //!   extension (`extensionsRequired`) is an error naming it; one that only *uses* another
 //!   (`extensionsUsed`, e.g. `KHR_materials_transmission`, `KHR_texture_transform`) loads
 //!   with a warning naming it once ([`SceneDescription::warnings`]), and its materials render
@@ -54,9 +57,10 @@
 //! is [`Error::InvalidFile`] naming the glTF file and the problem (the `gltf` crate's message
 //! for malformed JSON or invalid references).
 
+use super::texture::{texture_transform, Encoding, Filter, Wrap};
 use super::{
     smooth_vertex_normals, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Material,
-    PunctualLight, SceneDescription, SurfaceModel, Texture,
+    PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef,
 };
 use crate::material::Binding;
 use crate::{Error, Result, Rgb};
@@ -155,8 +159,8 @@ struct Loader<'a> {
     read_file: &'a mut dyn FnMut(&Path) -> std::io::Result<Vec<u8>>,
     buffers: &'a [Vec<u8>],
     scene: SceneDescription,
-    /// glTF image index → index into `scene.textures`.
-    texture_of_image: HashMap<usize, usize>,
+    /// (glTF image index, encoding) → index into `scene.textures`.
+    texture_of_image: HashMap<(usize, Encoding), usize>,
     /// Index of the material given to primitives without one, once created.
     default_material: Option<u32>,
     saw_orthographic: bool,
@@ -293,7 +297,11 @@ impl Loader<'_> {
         let pbr = material.pbr_metallic_roughness();
         let [r, g, b, _] = pbr.base_color_factor();
         let base_color_texture = match pbr.base_color_texture() {
-            Some(info) => Some(self.texture(document, info.texture().source().index(), &name)?),
+            Some(info) => Some(self.texture_ref(document, &info, Encoding::Srgb, &name, "base colour")?),
+            None => None,
+        };
+        let metallic_roughness_texture = match pbr.metallic_roughness_texture() {
+            Some(info) => Some(self.texture_ref(document, &info, Encoding::Linear, &name, "metallic-roughness")?),
             None => None,
         };
         let emission = Rgb::from_array(material.emissive_factor())
@@ -304,6 +312,7 @@ impl Loader<'_> {
             model,
             base_color: Rgb::new(r, g, b),
             base_color_texture,
+            metallic_roughness_texture,
             metallic: pbr.metallic_factor().clamp(0.0, 1.0),
             roughness: pbr.roughness_factor().clamp(0.0, 1.0),
             emission,
@@ -316,15 +325,62 @@ impl Loader<'_> {
         Ok(result)
     }
 
-    /// The texture index of glTF image `image`, decoding it on first use.
-    fn texture(&mut self, document: &Document, image: usize, material: &str) -> Result<usize> {
-        if let Some(&t) = self.texture_of_image.get(&image) {
+    /// A material's texture (`role` names it in messages): its image decoded with
+    /// `encoding`, its sampler's wrap and filter modes, `KHR_texture_transform`. Texture
+    /// coordinates other than TEXCOORD_0 are not read yet: a `texCoord` ≥ 1 reads set 0, with
+    /// a warning.
+    fn texture_ref(
+        &mut self,
+        document: &Document,
+        info: &::gltf::texture::Info,
+        encoding: Encoding,
+        material: &str,
+        role: &str,
+    ) -> Result<TextureRef> {
+        use ::gltf::texture::{MagFilter, WrappingMode};
+        let texture = info.texture();
+        let index = self.texture(document, texture.source().index(), encoding, &format!("{role} of material '{material}'"))?;
+        let wrap = |mode: WrappingMode| match mode {
+            WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+            WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+            WrappingMode::Repeat => Wrap::Repeat,
+        };
+        let sampler = texture.sampler();
+        let filter = match sampler.mag_filter() {
+            Some(MagFilter::Nearest) => Filter::Nearest,
+            _ => Filter::Linear,
+        };
+        let transform = info.texture_transform();
+        let tex_coord = transform.as_ref().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord());
+        if tex_coord != 0 {
+            let warning = format!(
+                "{}: the {role} texture of material '{material}' uses TEXCOORD_{tex_coord}; only TEXCOORD_0 is read, and used instead",
+                self.path.display()
+            );
+            self.scene.warnings.push(warning);
+        }
+        let transform = transform.map(|t| texture_transform(Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale())));
+        if transform.is_some_and(|m| !m.is_finite()) {
+            return Err(self.invalid(format!("the {role} texture of material '{material}' has a non-finite KHR_texture_transform")));
+        }
+        Ok(TextureRef {
+            texture: index,
+            wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+            filter,
+            transform,
+        })
+    }
+
+    /// The texture index of glTF image `image` decoded with `encoding`, decoding it on first
+    /// use (`what` names its use in messages).
+    fn texture(&mut self, document: &Document, image: usize, encoding: Encoding, what: &str) -> Result<usize> {
+        if let Some(&t) = self.texture_of_image.get(&(image, encoding)) {
             return Ok(t);
         }
         let gltf_image = document.images().nth(image).ok_or_else(|| {
-            self.invalid(format!("material '{material}' uses missing image {image}"))
+            self.invalid(format!("the {what} uses missing image {image}"))
         })?;
-        let what = format!("image {image} (base colour of material '{material}')");
+        let what = format!("image {image} ({what})");
         let bytes = match gltf_image.source() {
             ::gltf::image::Source::View { view, .. } => self
                 .buffers
@@ -341,10 +397,10 @@ impl Loader<'_> {
                 read_uri(self.path, self.base, uri, &what, self.read_file)?
             }
         };
-        let texture = Texture::from_encoded_srgb(&bytes, self.path, &what)?;
+        let texture = Texture::from_encoded(&bytes, encoding, self.path, &what)?;
         let t = self.scene.textures.len();
         self.scene.textures.push(texture);
-        self.texture_of_image.insert(image, t);
+        self.texture_of_image.insert((image, encoding), t);
         Ok(t)
     }
 }

@@ -492,25 +492,65 @@ fn material_extras_choose_the_surface_model() {
     expect_error(&bad, "material 'z' extras: BRDF binding kind 'phong:x' not found");
 }
 
-#[test]
-fn base_color_texture_is_decoded_from_srgb() {
+/// A 2 × 1 PNG with texels (255, 128, 0) and (10, 20, 30).
+fn two_texel_png() -> Vec<u8> {
     let mut png = Vec::new();
     image::RgbImage::from_raw(2, 1, vec![255, 128, 0, 10, 20, 30])
         .expect("image")
         .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .expect("encode png");
+    png
+}
+
+#[test]
+fn base_color_texture_is_decoded_from_srgb() {
+    let png = two_texel_png();
     let mut doc = material_doc(
         json!([{"name": "tex", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]),
     );
     doc["textures"] = json!([{"source": 0}]);
     doc["images"] = json!([{"uri": format!("data:image/png;base64,{}", base64(&png))}]);
     let scene = load_doc(&doc).expect("load");
-    assert_eq!(scene.materials[0].base_color_texture, Some(0));
+    assert_eq!(scene.materials[0].base_color_texture, Some(crate::scene::TextureRef::new(0)));
     let t = &scene.textures[0];
     assert_eq!((t.width, t.height), (2, 1));
     assert!((t.texels[0].x - 1.0).abs() < 1e-5 && t.texels[0].z == 0.0);
     assert!((t.texels[0].y - 0.215_861).abs() < 1e-4, "{}", t.texels[0]);
     assert!((t.texels[1].x - 0.003_035).abs() < 1e-5, "{}", t.texels[1]);
+}
+
+/// One image used as sRGB base colour and as linear metallic-roughness data is decoded once
+/// per encoding; the samplers' wrap and filter modes and KHR_texture_transform are read; a
+/// texCoord other than 0 is a warning.
+#[test]
+fn texture_references_read_samplers_transforms_and_encodings() {
+    use crate::scene::texture::{texture_transform, Filter, Wrap};
+    let png = two_texel_png();
+    let mut doc = material_doc(json!([
+        {"name": "a", "pbrMetallicRoughness": {
+            "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.5, 0.0], "rotation": 0.25, "scale": [2.0, 3.0]}}},
+            "metallicRoughnessTexture": {"index": 1, "texCoord": 1}}},
+        {"name": "b", "pbrMetallicRoughness": {"baseColorTexture": {"index": 1}}}
+    ]));
+    doc["extensionsUsed"] = json!(["KHR_texture_transform"]);
+    doc["samplers"] = json!([{"magFilter": 9728, "wrapS": 33071, "wrapT": 33648}]);
+    doc["textures"] = json!([{"source": 0, "sampler": 0}, {"source": 0}]);
+    doc["images"] = json!([{"uri": format!("data:image/png;base64,{}", base64(&png))}]);
+    let scene = load_doc(&doc).expect("load");
+    assert_eq!(scene.textures.len(), 2, "one image, two encodings");
+    let [a, b] = [&scene.materials[0], &scene.materials[1]];
+    let base = a.base_color_texture.expect("base colour texture");
+    assert_eq!(base.wrap, [Wrap::ClampToEdge, Wrap::MirroredRepeat]);
+    assert_eq!(base.filter, Filter::Nearest);
+    assert_eq!(base.transform, Some(texture_transform(Vec2::new(0.5, 0.0), 0.25, Vec2::new(2.0, 3.0))));
+    let mr = a.metallic_roughness_texture.expect("metallic-roughness texture");
+    assert_eq!((mr.wrap, mr.filter, mr.transform), ([Wrap::Repeat; 2], Filter::Linear, None));
+    assert_ne!(mr.texture, base.texture);
+    assert_eq!(b.base_color_texture.map(|t| t.texture), Some(base.texture), "the sRGB decoding is shared");
+    assert!((scene.textures[mr.texture].texels[0].y - 128.0 / 255.0).abs() < 1e-6, "linear data");
+    assert!((scene.textures[base.texture].texels[0].y - 0.215_861).abs() < 1e-4, "sRGB colour");
+    assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
+    assert!(scene.warnings[0].contains("material 'a' uses TEXCOORD_1"), "{:?}", scene.warnings);
 }
 
 #[test]
@@ -834,7 +874,7 @@ fn shipped_cornell_box_loads() {
 #[test]
 fn unsupported_extensions_warn_once_or_fail_when_required() {
     let materials = json!({
-        "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_emissive_strength", "KHR_texture_transform"],
+        "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_emissive_strength", "KHR_materials_sheen"],
         "materials": [
             {"name": "glass", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}},
             {"name": "glass2", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.5}}}
@@ -843,7 +883,7 @@ fn unsupported_extensions_warn_once_or_fail_when_required() {
     let scene = load_doc(&triangle_doc(json!([{"mesh": 0}]), json!([0]), materials)).expect("load");
     assert!(scene.warnings.len() == 2, "{:#?}", scene.warnings);
     assert!(scene.warnings[0].contains("KHR_materials_transmission") && scene.warnings[0].contains("scene.gltf"));
-    assert!(scene.warnings[1].contains("KHR_texture_transform"));
+    assert!(scene.warnings[1].contains("KHR_materials_sheen"));
     assert!(scene.materials.iter().any(|m| m.name == "glass"), "{:?}", scene.materials);
 
     let required = json!({

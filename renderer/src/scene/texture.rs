@@ -1,0 +1,258 @@
+//! Textures as materials use them: decoded images ([`Texture`], once per image and encoding,
+//! shared by every material that uses them) and references to them ([`TextureRef`]: the
+//! glTF sampler's wrap and filter modes, the texture-coordinate set and
+//! `KHR_texture_transform`).
+//!
+//! Texture coordinates follow glTF: u to the right, v down from the image's top row; texel
+//! centres at half-integers (texel (0, 0) covers u, v ∈ [0, 1/width) × [0, 1/height)).
+
+use crate::{Error, Result, Rgb};
+use glam::{Mat3, Vec2};
+use std::path::Path;
+
+/// A texture of linear RGB texels, row-major from the top row (glTF's v = 0).
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<Rgb>,
+}
+
+/// How an image's 8- and 16-bit values map to linear values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Encoding {
+    /// sRGB-encoded colour (glTF base-colour and emissive textures): decoded with the sRGB
+    /// transfer function.
+    Srgb,
+    /// Linear data (glTF metallic-roughness, normal and occlusion textures): value / max.
+    Linear,
+}
+
+/// What lies outside [0, 1] along one texture axis (glTF sampler `wrapS`/`wrapT`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Wrap {
+    /// The texture tiles (glTF REPEAT, 10497; the default).
+    #[default]
+    Repeat,
+    /// The edge texels extend (CLAMP_TO_EDGE, 33071).
+    ClampToEdge,
+    /// Every other tile is mirrored (MIRRORED_REPEAT, 33648).
+    MirroredRepeat,
+}
+
+/// How texels are interpolated (glTF sampler `magFilter`; without mipmaps the minification
+/// filter is taken to be the same).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Filter {
+    /// The nearest texel (NEAREST, 9728).
+    Nearest,
+    /// Bilinear between the four nearest texel centres (LINEAR, 9729; the default).
+    #[default]
+    Linear,
+}
+
+/// A material's use of a texture.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TextureRef {
+    /// Index into the scene's textures.
+    pub texture: usize,
+    /// Wrap modes along u and v.
+    pub wrap: [Wrap; 2],
+    pub filter: Filter,
+    /// `KHR_texture_transform`'s matrix (uv' = M · (u, v, 1)); `None` for the identity.
+    pub transform: Option<Mat3>,
+}
+
+impl TextureRef {
+    /// A reference with glTF's defaults: repeat, bilinear, no transform.
+    pub fn new(texture: usize) -> Self {
+        TextureRef {
+            texture,
+            wrap: [Wrap::Repeat; 2],
+            filter: Filter::Linear,
+            transform: None,
+        }
+    }
+
+    /// The texel value at the surface's texture coordinates `uv` (before the transform).
+    #[inline]
+    pub fn lookup(&self, textures: &[Texture], uv: Vec2) -> Rgb {
+        let uv = match &self.transform {
+            Some(m) => m.transform_point2(uv),
+            None => uv,
+        };
+        textures[self.texture].sample(uv, self.wrap, self.filter)
+    }
+}
+
+/// `KHR_texture_transform`'s matrix: uv' = T(offset) · R(rotation) · S(scale) · uv, exactly
+/// as the extension's GLSL builds it (rotation in radians; R's columns (cos, sin) and
+/// (−sin, cos)).
+pub fn texture_transform(offset: Vec2, rotation: f32, scale: Vec2) -> Mat3 {
+    let (s, c) = rotation.sin_cos();
+    let translation = Mat3::from_translation(offset);
+    let rotation = Mat3::from_cols_array(&[c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0]);
+    translation * rotation * Mat3::from_scale(scale)
+}
+
+/// Texel coordinate along an axis of `n` texels for an integer position `i` (possibly
+/// outside [0, n)).
+#[inline]
+fn wrap_index(i: i64, n: usize, wrap: Wrap) -> usize {
+    let n = n as i64;
+    match wrap {
+        Wrap::Repeat => i.rem_euclid(n) as usize,
+        Wrap::ClampToEdge => i.clamp(0, n - 1) as usize,
+        Wrap::MirroredRepeat => {
+            let period = i.rem_euclid(2 * n);
+            (if period < n { period } else { 2 * n - 1 - period }) as usize
+        }
+    }
+}
+
+impl Texture {
+    /// Bilinear look-up with repeat wrapping (glTF's default sampler).
+    pub fn lookup(&self, uv: Vec2) -> Rgb {
+        self.sample(uv, [Wrap::Repeat; 2], Filter::Linear)
+    }
+
+    /// The value at `uv` with the given wrap modes (u, v) and filter. Non-finite coordinates
+    /// are read as (0, 0).
+    pub fn sample(&self, uv: Vec2, wrap: [Wrap; 2], filter: Filter) -> Rgb {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
+        // Continuous texel coordinates, texel centres at integers; kept in a range where the
+        // f32 → i64 conversion is exact enough (every wrap mode is periodic or clamps).
+        let x = (uv.x * w as f32 - 0.5).clamp(-1e9, 1e9);
+        let y = (uv.y * h as f32 - 0.5).clamp(-1e9, 1e9);
+        let t = |xx: i64, yy: i64| self.texels[wrap_index(xx, w, wrap[0]) + w * wrap_index(yy, h, wrap[1])];
+        match filter {
+            Filter::Nearest => t(x.round() as i64, y.round() as i64),
+            Filter::Linear => {
+                let (x0, y0) = (x.floor(), y.floor());
+                let (fx, fy) = (x - x0, y - y0);
+                let (xi, yi) = (x0 as i64, y0 as i64);
+                let top = t(xi, yi).lerp(t(xi + 1, yi), fx);
+                let bottom = t(xi, yi + 1).lerp(t(xi + 1, yi + 1), fx);
+                top.lerp(bottom, fy)
+            }
+        }
+    }
+
+    /// Decodes an encoded image (PNG, JPEG, or the HDR/EXR formats the `image` crate is built
+    /// with here) into linear texels.
+    ///
+    /// 8- and 16-bit images are decoded as `encoding` says; floating-point images are taken
+    /// as linear already. Alpha is dropped. `file` and `what` only name the image in error
+    /// messages (e.g. the scene file and "texture 'wood.png'").
+    pub fn from_encoded(bytes: &[u8], encoding: Encoding, file: &Path, what: &str) -> Result<Texture> {
+        let image = image::load_from_memory(bytes)
+            .map_err(|e| Error::invalid_file(file, format!("cannot decode {what}: {e}")))?;
+        let (width, height) = (image.width(), image.height());
+        if width == 0 || height == 0 {
+            return Err(Error::invalid_file(file, format!("{what} is empty")));
+        }
+        let is_float = matches!(
+            image.color(),
+            image::ColorType::Rgb32F | image::ColorType::Rgba32F
+        );
+        let decode = |v: f32| if is_float || encoding == Encoding::Linear { v } else { srgb_to_linear(v) };
+        let texels = image
+            .to_rgb32f()
+            .pixels()
+            .map(|p| Rgb::new(decode(p.0[0]), decode(p.0[1]), decode(p.0[2])))
+            .collect();
+        Ok(Texture {
+            width,
+            height,
+            texels,
+        })
+    }
+
+    /// [`Texture::from_encoded`] for colour ([`Encoding::Srgb`]).
+    pub fn from_encoded_srgb(bytes: &[u8], file: &Path, what: &str) -> Result<Texture> {
+        Self::from_encoded(bytes, Encoding::Srgb, file, what)
+    }
+}
+
+/// The sRGB electro-optical transfer function (IEC 61966-2-1): encoded value in [0, 1] to
+/// linear.
+fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.040_45 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 4 × 1 texture with texels 0, 1, 2, 3 (all channels).
+    fn ramp() -> Texture {
+        Texture {
+            width: 4,
+            height: 1,
+            texels: (0..4).map(|i| Rgb::splat(i as f32)).collect(),
+        }
+    }
+
+    fn at(t: &Texture, u: f32, wrap: Wrap, filter: Filter) -> f32 {
+        t.sample(Vec2::new(u, 0.5), [wrap, Wrap::Repeat], filter).x
+    }
+
+    #[test]
+    fn wrap_modes_and_filters() {
+        let t = ramp();
+        // Texel centres at u = 0.125, 0.375, ...; u = 1.125 is texel 0 again when repeating,
+        // the last texel when clamping, texel 0 of the mirrored tile (mirrored back) when
+        // mirroring.
+        assert_eq!(at(&t, 0.375, Wrap::Repeat, Filter::Nearest), 1.0);
+        assert_eq!(at(&t, 1.125, Wrap::Repeat, Filter::Nearest), 0.0);
+        assert_eq!(at(&t, 1.125, Wrap::ClampToEdge, Filter::Nearest), 3.0);
+        assert_eq!(at(&t, 1.125, Wrap::MirroredRepeat, Filter::Nearest), 3.0);
+        assert_eq!(at(&t, 1.375, Wrap::MirroredRepeat, Filter::Nearest), 2.0);
+        assert_eq!(at(&t, -0.125, Wrap::MirroredRepeat, Filter::Nearest), 0.0);
+        assert_eq!(at(&t, -0.125, Wrap::Repeat, Filter::Nearest), 3.0);
+        // Halfway between texel centres 1 and 2.
+        assert_eq!(at(&t, 0.5, Wrap::Repeat, Filter::Linear), 1.5);
+        // A quarter past the last centre: repeat blends a quarter of texel 0 in, clamping
+        // stays at 3.
+        assert_eq!(at(&t, 0.9375, Wrap::Repeat, Filter::Linear), 2.25);
+        assert_eq!(at(&t, 0.9375, Wrap::ClampToEdge, Filter::Linear), 3.0);
+        assert_eq!(at(&t, f32::NAN, Wrap::Repeat, Filter::Linear), at(&t, 0.0, Wrap::Repeat, Filter::Linear));
+        assert_eq!(t.lookup(Vec2::new(0.5, 0.5)), t.sample(Vec2::new(0.5, 0.5), [Wrap::Repeat; 2], Filter::Linear));
+    }
+
+    /// The extension's matrix T · R · S: offset (0, 1), rotation π/2, scale (0.5, 0.5) maps
+    /// (1, 0) to (0, 1.5) and (0, 1) to (−0.5, 1).
+    #[test]
+    fn texture_transform_follows_the_extension() {
+        let m = texture_transform(Vec2::new(0.0, 1.0), std::f32::consts::FRAC_PI_2, Vec2::splat(0.5));
+        let close = |a: Vec2, b: Vec2| (a - b).length() < 1e-6;
+        assert!(close(m.transform_point2(Vec2::new(1.0, 0.0)), Vec2::new(0.0, 1.5)), "{}", m.transform_point2(Vec2::new(1.0, 0.0)));
+        assert!(close(m.transform_point2(Vec2::new(0.0, 1.0)), Vec2::new(-0.5, 1.0)), "{}", m.transform_point2(Vec2::new(0.0, 1.0)));
+        let shift = texture_transform(Vec2::new(0.25, 0.0), 0.0, Vec2::ONE);
+        let r = TextureRef { transform: Some(shift), ..TextureRef::new(0) };
+        assert_eq!(r.lookup(&[ramp()], Vec2::new(0.125, 0.5)), Rgb::splat(1.0));
+    }
+
+    #[test]
+    fn linear_and_srgb_decoding_of_png_and_jpeg() {
+        let mut png = Vec::new();
+        let pixel = image::RgbImage::from_pixel(2, 2, image::Rgb([128, 128, 128]));
+        pixel.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).unwrap();
+        let path = Path::new("scene.gltf");
+        let linear = Texture::from_encoded(&png, Encoding::Linear, path, "png").unwrap();
+        let srgb = Texture::from_encoded(&png, Encoding::Srgb, path, "png").unwrap();
+        assert!((linear.texels[0].x - 128.0 / 255.0).abs() < 1e-6);
+        assert!((srgb.texels[0].x - 0.2158605).abs() < 1e-5, "{}", srgb.texels[0].x);
+        let mut jpeg = Vec::new();
+        pixel.write_to(&mut std::io::Cursor::new(&mut jpeg), image::ImageFormat::Jpeg).unwrap();
+        let decoded = Texture::from_encoded(&jpeg, Encoding::Linear, path, "jpeg").unwrap();
+        assert!((decoded.texels[3].y - 128.0 / 255.0).abs() < 3.0 / 255.0, "{:?}", decoded.texels[3]);
+        let e = Texture::from_encoded(&jpeg[..jpeg.len() / 2], Encoding::Srgb, path, "image 0").unwrap_err().to_string();
+        assert!(e.contains("scene.gltf") && e.contains("cannot decode image 0"), "{e}");
+    }
+}
