@@ -168,21 +168,23 @@ impl RenderScene {
         })
     }
 
-    /// Texture coordinates at a surface point, interpolated from its triangle's vertices.
+    /// Texture coordinates of set `set` (0 or 1; set 1 falls back to set 0 where the scene has
+    /// none) at a surface point, interpolated from its triangle's vertices.
     #[inline]
-    pub fn uv(&self, sp: &SurfacePoint) -> Vec2 {
+    pub fn uv(&self, sp: &SurfacePoint, set: u32) -> Vec2 {
         let g = &self.geometry;
+        let uvs = if set == 1 && !g.uvs1.is_empty() { &g.uvs1 } else { &g.uvs };
         let [i0, i1, i2] = g.triangles[sp.triangle as usize];
         let b = sp.barycentric;
         let b0 = 1.0 - b.x - b.y;
-        g.uvs[i0 as usize] * b0 + g.uvs[i1 as usize] * b.x + g.uvs[i2 as usize] * b.y
+        uvs[i0 as usize] * b0 + uvs[i1 as usize] * b.x + uvs[i2 as usize] * b.y
     }
 
     /// The BSDF at a surface point; `None` where the surface does not scatter (the back of
     /// a single-sided material).
     #[inline]
     pub fn bsdf(&self, sp: &SurfacePoint) -> Option<Bsdf<'_>> {
-        self.materials.bsdf(sp.material, sp.front_face, || self.uv(sp))
+        self.materials.bsdf(sp.material, sp.front_face, |set| self.uv(sp, set))
     }
 
     /// Radiance emitted at a surface point toward the ray that hit it (front side only).

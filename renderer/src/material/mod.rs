@@ -19,7 +19,7 @@ use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::{Bsdf, Lambert, MetallicRoughness};
 use crate::neural::latent_library::LatentLibrary;
-use crate::scene::{Material, SurfaceModel, Texture};
+use crate::scene::{Material, SurfaceModel, Texture, TextureRef};
 use crate::{Error, Result, Rgb};
 use glam::Vec2;
 use std::collections::HashMap;
@@ -186,35 +186,31 @@ impl SceneMaterials {
     }
 
     /// The BSDF of `material` at a point seen from its front (`front_face`) or back, with
-    /// texture coordinates from `uv` (called only when the material's BSDF reads a texture:
-    /// base colour, metallic-roughness); `None`
-    /// where the surface does not scatter (the back of a single-sided material).
+    /// texture coordinates of a set from `uv(set)` (called only when the material's BSDF
+    /// reads a texture: base colour, metallic-roughness); `None` where the surface does not
+    /// scatter (the back of a single-sided material).
     #[inline]
-    pub fn bsdf(&self, material: u32, front_face: bool, uv: impl FnOnce() -> Vec2) -> Option<Bsdf<'_>> {
+    pub fn bsdf(&self, material: u32, front_face: bool, uv: impl Fn(u32) -> Vec2) -> Option<Bsdf<'_>> {
         let m = &self.materials[material as usize];
         if !front_face && !m.double_sided {
             return None;
         }
-        let uv = || match (&m.base_color_texture, &m.metallic_roughness_texture) {
-            (None, None) => Vec2::ZERO,
-            _ => uv(),
-        };
-        let base = |uv: Vec2| match &m.base_color_texture {
-            Some(t) => m.base_color * t.lookup(&self.textures, uv),
+        let lookup = |t: &TextureRef| t.lookup(&self.textures, uv(t.tex_coord));
+        let base = || match &m.base_color_texture {
+            Some(t) => m.base_color * lookup(t),
             None => m.base_color,
         };
         Some(match self.kinds[material as usize] {
-            Kind::Lambert => Bsdf::Lambert(Lambert { albedo: base(uv()) }),
+            Kind::Lambert => Bsdf::Lambert(Lambert { albedo: base() }),
             Kind::MetallicRoughness => {
-                let uv = uv();
                 let (metallic, roughness) = match &m.metallic_roughness_texture {
                     Some(t) => {
-                        let texel = t.lookup(&self.textures, uv);
+                        let texel = lookup(t);
                         (m.metallic * texel.z, m.roughness * texel.y)
                     }
                     None => (m.metallic, m.roughness),
                 };
-                Bsdf::MetallicRoughness(MetallicRoughness::new(base(uv), metallic, roughness))
+                Bsdf::MetallicRoughness(MetallicRoughness::new(base(), metallic, roughness))
             }
             Kind::Shared(i) => self.shared[i].as_bsdf(),
         })
@@ -310,11 +306,11 @@ mod tests {
         let materials = SceneMaterials::prepare(vec![textured.clone(), plain.clone()], vec![texture], &[true, true], &LatentLibrary::default()).unwrap();
         let (wo, wi) = (unit(0.4, 0.0), unit(0.5, 2.0));
         for (u, metallic, roughness) in [(0.25, 1.0, 0.4), (0.75, 0.0, 0.8)] {
-            let bsdf = materials.bsdf(0, true, || glam::Vec2::new(u, 0.5)).unwrap();
+            let bsdf = materials.bsdf(0, true, |_| glam::Vec2::new(u, 0.5)).unwrap();
             let expected = MetallicRoughness::new(textured.base_color, metallic, roughness);
             assert_eq!(bsdf.eval(wo, wi), expected.eval(wo, wi), "u = {u}");
         }
-        let bsdf = materials.bsdf(1, true, || panic!("no texture, no texture coordinates")).unwrap();
+        let bsdf = materials.bsdf(1, true, |_| panic!("no texture, no texture coordinates")).unwrap();
         assert_eq!(bsdf.eval(wo, wi), MetallicRoughness::new(plain.base_color, plain.metallic, plain.roughness).eval(wo, wi));
     }
 

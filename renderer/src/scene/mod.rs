@@ -21,6 +21,9 @@ pub struct Geometry {
     pub normals: Vec<Vec3>,
     /// Texture coordinates per vertex (glTF convention: v down), zero where a file has none.
     pub uvs: Vec<Vec2>,
+    /// A second set of texture coordinates (glTF TEXCOORD_1), one per vertex, or empty when
+    /// no mesh has one; a vertex whose mesh has none repeats its first set here.
+    pub uvs1: Vec<Vec2>,
     /// Vertex indices per triangle, counter-clockwise seen from the front side.
     pub triangles: Vec<[u32; 3]>,
     /// Index into [`SceneDescription::materials`] per triangle.
@@ -66,6 +69,12 @@ impl Geometry {
             .ok_or_else(|| Error::invalid_file(source, "more than 2^32 - 1 vertices in all"))?;
         self.positions.extend_from_slice(&other.positions);
         self.normals.extend_from_slice(&other.normals);
+        if self.uvs1.is_empty() && !other.uvs1.is_empty() {
+            self.uvs1 = self.uvs.clone();
+        }
+        if !self.uvs1.is_empty() {
+            self.uvs1.extend_from_slice(if other.uvs1.is_empty() { &other.uvs } else { &other.uvs1 });
+        }
         self.uvs.extend_from_slice(&other.uvs);
         self.triangles.extend(
             other
@@ -366,8 +375,11 @@ impl SceneDescription {
         if let Some(i) = g.normals.iter().position(|v| !v.is_finite()) {
             return fail(format!("non-finite vertex normal (vertex {i})"));
         }
-        if let Some(i) = g.uvs.iter().position(|v| !v.is_finite()) {
-            return fail(format!("non-finite texture coordinate (vertex {i})"));
+        if !g.uvs1.is_empty() && g.uvs1.len() != n {
+            return fail(format!("{n} positions but {} second texture coordinates", g.uvs1.len()));
+        }
+        if let Some(i) = g.uvs.iter().chain(&g.uvs1).position(|v| !v.is_finite()) {
+            return fail(format!("non-finite texture coordinate (vertex {})", i % n.max(1)));
         }
         if let Some(t) = g
             .triangles
@@ -430,6 +442,7 @@ mod tests {
             geometry: Geometry {
                 normals: vec![Vec3::Z; 3],
                 uvs: vec![Vec2::ZERO; 3],
+                uvs1: Vec::new(),
                 triangles: vec![[0, 1, 2]],
                 material_ids: vec![0],
                 positions,

@@ -252,6 +252,7 @@ fn convert_mesh(
         positions,
         normals,
         uvs,
+        uvs1: Vec::new(),
         triangles,
     })
 }

@@ -56,6 +56,8 @@ pub enum Filter {
 pub struct TextureRef {
     /// Index into the scene's textures.
     pub texture: usize,
+    /// The texture-coordinate set it reads (0 or 1; glTF `texCoord`).
+    pub tex_coord: u32,
     /// Wrap modes along u and v.
     pub wrap: [Wrap; 2],
     pub filter: Filter,
@@ -68,13 +70,15 @@ impl TextureRef {
     pub fn new(texture: usize) -> Self {
         TextureRef {
             texture,
+            tex_coord: 0,
             wrap: [Wrap::Repeat; 2],
             filter: Filter::Linear,
             transform: None,
         }
     }
 
-    /// The texel value at the surface's texture coordinates `uv` (before the transform).
+    /// The texel value at the surface's texture coordinates `uv` of set
+    /// [`TextureRef::tex_coord`] (before the transform).
     #[inline]
     pub fn lookup(&self, textures: &[Texture], uv: Vec2) -> Rgb {
         let uv = match &self.transform {

@@ -6,7 +6,8 @@
 //! - Mesh primitives of mode TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN (strips and fans are
 //!   converted to triangle lists as the glTF specification orders them); POINTS and LINES*
 //!   are errors. POSITION, NORMAL (transformed by the inverse transpose of the node's world
-//!   matrix), TEXCOORD_0 (only set 0, see the textures below), indices or
+//!   matrix), TEXCOORD_0 and TEXCOORD_1 (a primitive without set 1 repeats set 0 there),
+//!   indices or
 //!   none. Primitives without normals get area-weighted smooth vertex normals computed
 //!   from their triangles ([`super::smooth_vertex_normals`]); normals that cannot be
 //!   normalised are replaced the same way. Under a transform with a negative determinant
@@ -18,8 +19,8 @@
 //!   JPEG (8/16-bit; EXR and HDR as linear), each image decoded once per encoding and shared;
 //!   the sampler's `wrapS`/`wrapT` (repeat, clamp, mirrored repeat) and `magFilter` (nearest
 //!   or bilinear; no mipmaps) and `KHR_texture_transform` are honoured
-//!   ([`super::texture::TextureRef`]); a `texCoord` other than 0 reads TEXCOORD_0 with a
-//!   warning. Emissive, normal and occlusion textures are ignored; `doubleSided` is kept.
+//!   ([`super::texture::TextureRef`]), with `texCoord` 0 or 1 (another set reads set 0, with
+//!   a warning). Emissive, normal and occlusion textures are ignored; `doubleSided` is kept.
 //!   Primitives without a material get [`Material::default_diffuse`] (named "default").
 //! - Material `extras` choose the [`SurfaceModel`] (at most one of these keys):
 //!   - `{"bsdf": "diffuse"}` → [`SurfaceModel::Lambert`]; `{"bsdf": "metallic-roughness"}`
@@ -326,9 +327,9 @@ impl Loader<'_> {
     }
 
     /// A material's texture (`role` names it in messages): its image decoded with
-    /// `encoding`, its sampler's wrap and filter modes, `KHR_texture_transform`. Texture
-    /// coordinates other than TEXCOORD_0 are not read yet: a `texCoord` ≥ 1 reads set 0, with
-    /// a warning.
+    /// `encoding`, its texture-coordinate set, its sampler's wrap and filter modes,
+    /// `KHR_texture_transform`. Sets 0 and 1 are read: a `texCoord` ≥ 2 reads set 0, with a
+    /// warning.
     fn texture_ref(
         &mut self,
         document: &Document,
@@ -352,19 +353,23 @@ impl Loader<'_> {
         };
         let transform = info.texture_transform();
         let tex_coord = transform.as_ref().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord());
-        if tex_coord != 0 {
+        let tex_coord = if tex_coord > 1 {
             let warning = format!(
-                "{}: the {role} texture of material '{material}' uses TEXCOORD_{tex_coord}; only TEXCOORD_0 is read, and used instead",
+                "{}: the {role} texture of material '{material}' uses TEXCOORD_{tex_coord}; only sets 0 and 1 are read, and set 0 is used instead",
                 self.path.display()
             );
             self.scene.warnings.push(warning);
-        }
+            0
+        } else {
+            tex_coord
+        };
         let transform = transform.map(|t| texture_transform(Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale())));
         if transform.is_some_and(|m| !m.is_finite()) {
             return Err(self.invalid(format!("the {role} texture of material '{material}' has a non-finite KHR_texture_transform")));
         }
         Ok(TextureRef {
             texture: index,
+            tex_coord,
             wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
             filter,
             transform,

@@ -56,25 +56,23 @@ impl Loader<'_> {
             None => None,
         };
 
-        let uvs: Vec<Vec2> = match primitive.get(&::gltf::Semantic::TexCoords(0)) {
-            Some(accessor) => {
-                self.check_accessor(
-                    &accessor,
-                    &what("TEXCOORD_0"),
-                    &[DataType::F32, DataType::U8, DataType::U16],
-                    Dimensions::Vec2,
-                )?;
-                let uvs: Vec<Vec2> = reader
-                    .read_tex_coords(0)
-                    .ok_or_else(|| self.invalid(format!("cannot read {}", what("TEXCOORD_0"))))?
-                    .into_f32()
-                    .map(Vec2::from_array)
-                    .collect();
-                self.check_count(uvs.len(), vertex_count, &what("TEXCOORD_0"))?;
-                uvs
-            }
-            None => vec![Vec2::ZERO; vertex_count],
+        let tex_coords = |set: u32| -> Result<Option<Vec<Vec2>>> {
+            let Some(accessor) = primitive.get(&::gltf::Semantic::TexCoords(set)) else {
+                return Ok(None);
+            };
+            let name = what(&format!("TEXCOORD_{set}"));
+            self.check_accessor(&accessor, &name, &[DataType::F32, DataType::U8, DataType::U16], Dimensions::Vec2)?;
+            let uvs: Vec<Vec2> = reader
+                .read_tex_coords(set)
+                .ok_or_else(|| self.invalid(format!("cannot read {name}")))?
+                .into_f32()
+                .map(Vec2::from_array)
+                .collect();
+            self.check_count(uvs.len(), vertex_count, &name)?;
+            Ok(Some(uvs))
         };
+        let uvs = tex_coords(0)?.unwrap_or_else(|| vec![Vec2::ZERO; vertex_count]);
+        let uvs1 = tex_coords(1)?.unwrap_or_default();
 
         let indices: Vec<u32> = match primitive.indices() {
             Some(accessor) => {
@@ -150,6 +148,7 @@ impl Loader<'_> {
             positions,
             normals,
             uvs,
+            uvs1,
             triangles,
             material_ids,
         })

@@ -520,8 +520,8 @@ fn base_color_texture_is_decoded_from_srgb() {
 }
 
 /// One image used as sRGB base colour and as linear metallic-roughness data is decoded once
-/// per encoding; the samplers' wrap and filter modes and KHR_texture_transform are read; a
-/// texCoord other than 0 is a warning.
+/// per encoding; the samplers' wrap and filter modes, KHR_texture_transform and texCoord 0
+/// or 1 are read; a texCoord beyond 1 is a warning.
 #[test]
 fn texture_references_read_samplers_transforms_and_encodings() {
     use crate::scene::texture::{texture_transform, Filter, Wrap};
@@ -530,7 +530,8 @@ fn texture_references_read_samplers_transforms_and_encodings() {
         {"name": "a", "pbrMetallicRoughness": {
             "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.5, 0.0], "rotation": 0.25, "scale": [2.0, 3.0]}}},
             "metallicRoughnessTexture": {"index": 1, "texCoord": 1}}},
-        {"name": "b", "pbrMetallicRoughness": {"baseColorTexture": {"index": 1}}}
+        {"name": "b", "pbrMetallicRoughness": {"baseColorTexture": {"index": 1}}},
+        {"name": "c", "pbrMetallicRoughness": {"baseColorTexture": {"index": 1, "texCoord": 3}}}
     ]));
     doc["extensionsUsed"] = json!(["KHR_texture_transform"]);
     doc["samplers"] = json!([{"magFilter": 9728, "wrapS": 33071, "wrapT": 33648}]);
@@ -544,13 +545,39 @@ fn texture_references_read_samplers_transforms_and_encodings() {
     assert_eq!(base.filter, Filter::Nearest);
     assert_eq!(base.transform, Some(texture_transform(Vec2::new(0.5, 0.0), 0.25, Vec2::new(2.0, 3.0))));
     let mr = a.metallic_roughness_texture.expect("metallic-roughness texture");
-    assert_eq!((mr.wrap, mr.filter, mr.transform), ([Wrap::Repeat; 2], Filter::Linear, None));
+    assert_eq!((mr.wrap, mr.filter, mr.transform, mr.tex_coord), ([Wrap::Repeat; 2], Filter::Linear, None, 1));
+    assert_eq!(base.tex_coord, 0);
+    assert_eq!(scene.materials[2].base_color_texture.map(|t| t.tex_coord), Some(0));
     assert_ne!(mr.texture, base.texture);
     assert_eq!(b.base_color_texture.map(|t| t.texture), Some(base.texture), "the sRGB decoding is shared");
     assert!((scene.textures[mr.texture].texels[0].y - 128.0 / 255.0).abs() < 1e-6, "linear data");
     assert!((scene.textures[base.texture].texels[0].y - 0.215_861).abs() < 1e-4, "sRGB colour");
     assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
-    assert!(scene.warnings[0].contains("material 'a' uses TEXCOORD_1"), "{:?}", scene.warnings);
+    assert!(scene.warnings[0].contains("material 'c' uses TEXCOORD_3"), "{:?}", scene.warnings);
+}
+
+/// TEXCOORD_1 is read; a mesh without it repeats its TEXCOORD_0 in the second set.
+#[test]
+fn second_texture_coordinate_set_is_read_and_falls_back_to_the_first() {
+    let mut bin = Bin::default();
+    let p = bin.vec3(&TRIANGLE);
+    let t0 = bin.vec2(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
+    let t1 = bin.vec2(&[[0.5, 0.5], [0.25, 0.5], [0.5, 0.25]]);
+    let root = json!({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"mesh": 1}],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": p, "TEXCOORD_0": t0}}]},
+            {"primitives": [{"attributes": {"POSITION": p, "TEXCOORD_0": t0, "TEXCOORD_1": t1}}]}
+        ]
+    });
+    let scene = load_doc(&bin.embed(root)).expect("load");
+    let g = &scene.geometry;
+    assert_eq!(g.uvs1.len(), 6);
+    assert_eq!(g.uvs1[..3], g.uvs[..3]);
+    assert_eq!(g.uvs1[3..], [Vec2::new(0.5, 0.5), Vec2::new(0.25, 0.5), Vec2::new(0.5, 0.25)]);
+    let without = load_doc(&triangle_doc(json!([{"mesh": 0}]), json!([0]), json!({}))).expect("load");
+    assert!(without.geometry.uvs1.is_empty(), "no second set stored when no mesh has one");
 }
 
 #[test]
