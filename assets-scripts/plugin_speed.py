@@ -29,13 +29,14 @@ import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+from compare_mitsuba import parse_resolution, run_render  # noqa: E402
 
 
 def mitsuba_child(args):
     """Runs in a child process: one warm-up and one timed Mitsuba render; prints JSON."""
     import time
 
-    sys.path.insert(0, HERE)
     import make_material_preview as preview
     from compare_mitsuba import set_variant
 
@@ -70,25 +71,22 @@ def run_mitsuba(args, bsdf):
     return json.loads(out.strip().splitlines()[-1])["seconds"]
 
 
-def run_render(args, out_dir):
-    stats = os.path.join(out_dir, "stats.json")
+def run_ours(args, out_dir):
+    stats, exr = os.path.join(out_dir, "stats.json"), os.path.join(out_dir, "render.exr")
     command = [
         args.render_bin, os.path.join(ROOT, "scenes/material-preview/scene.gltf"),
         "--material", args.latent, "--bind", f"preview=neural:{args.code}",
         "--spp", str(args.spp), "--resolution", f"{args.resolution[0]}x{args.resolution[1]}",
-        "--max-depth", str(args.max_depth), "--output", os.path.join(out_dir, "render.exr"), "--stats", stats,
+        "--max-depth", str(args.max_depth), "--output", exr, "--stats", stats,
     ]
-    subprocess.run(command, check=True, capture_output=True)
-    with open(stats) as f:
-        s = json.load(f)
-    return s["wall_seconds"]
+    return run_render(command, exr, stats)[0]["wall_seconds"]
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--child", type=json.loads, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--variant", default="llvm_ad_rgb")
-    ap.add_argument("--resolution", default="128x128")
+    ap.add_argument("--resolution", type=parse_resolution, default=(128, 128), help="WxH or N")
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--warmup-spp", type=int, default=4)
     ap.add_argument("--max-depth", type=int, default=8)
@@ -97,7 +95,6 @@ def main():
     ap.add_argument("--code", default="alum-bronze")
     ap.add_argument("--render-bin", default=os.path.join(ROOT, "target/release/render"))
     args = ap.parse_args()
-    args.resolution = tuple(int(v) for v in args.resolution.lower().split("x"))
     if args.child is not None:
         args.bsdf = args.child
         mitsuba_child(args)
@@ -106,7 +103,7 @@ def main():
     configs = {
         "mitsuba-neural": lambda d: run_mitsuba(args, {"type": "neural_brdf", "filename": args.latent, "material": args.code}),
         "mitsuba-builtin": lambda d: run_mitsuba(args, {"type": "roughconductor", "distribution": "ggx", "alpha": 0.3, "material": "Cu"}),
-        "render-neural": lambda d: run_render(args, d),
+        "render-neural": lambda d: run_ours(args, d),
     }
     samples = args.resolution[0] * args.resolution[1] * args.spp
     times = {name: [] for name in configs}

@@ -6,6 +6,9 @@ use glam::{Vec2, Vec3};
 use std::ops::{Add, Mul, Sub};
 use std::f32::consts::{FRAC_1_PI, PI};
 
+/// The largest f32 below 1: where a number drawn in [0, 1) is clamped.
+pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
 /// Uniform point on the unit disk, concentric mapping (Shirley–Chiu), branch-free: the
 /// angle within the octant is at most π/4, where [`sin_cos_octant`] is exact to about
 /// one ulp.
@@ -162,7 +165,7 @@ impl Distribution1D {
         let (c0, c1) = (self.cdf[i], self.cdf[i + 1]);
         let du = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.5 };
         let n = self.func.len() as f32;
-        let x = ((i as f32 + du.clamp(0.0, 1.0)) / n).min(1.0 - f32::EPSILON / 2.0);
+        let x = ((i as f32 + du.clamp(0.0, 1.0)) / n).min(ONE_MINUS_EPSILON);
         (x, self.pdf_cell(i) * n, i)
     }
 
@@ -171,7 +174,7 @@ impl Distribution1D {
         let i = self.find_cell(u);
         let (c0, c1) = (self.cdf[i], self.cdf[i + 1]);
         let remapped = if c1 > c0 {
-            ((u - c0) / (c1 - c0)).clamp(0.0, 1.0 - f32::EPSILON / 2.0)
+            ((u - c0) / (c1 - c0)).clamp(0.0, ONE_MINUS_EPSILON)
         } else {
             0.5
         };

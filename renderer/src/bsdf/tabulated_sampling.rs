@@ -32,7 +32,7 @@
 //!
 //! The BRDF is never asked for a density: only its values enter the fit.
 
-use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, Distribution1D};
+use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, Distribution1D, ONE_MINUS_EPSILON};
 use crate::bsdf::{BsdfSample, Bxdf};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -469,9 +469,6 @@ enum Lobe {
     /// The table of θo node `node`, with φh − φo of sign `sign` (±1).
     Table { node: usize, sign: f32 },
 }
-
-/// The largest f32 below 1.
-const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// Vertex values of one θo node, line-major: f cos θi per unit solid angle of h, averaged
 /// over both signs of φh − φo.
