@@ -192,13 +192,13 @@ impl Renderer<'_> {
             counters.rays += active.len() as u64;
             rays.clear();
             rays.extend(active.iter().map(|&i| paths[i as usize].ray));
-            scene.bvh.intersect_all(rays, hits);
+            scene.intersect_all(rays, hits);
             self.integrator.step_batch(scene, paths, active, hits, buffers, step);
             let shadows = &step.shadows;
             counters.shadow_rays += shadows.len() as u64;
             rays.clear();
             rays.extend(shadows.iter().map(|(_, test)| test.ray));
-            scene.bvh.occluded_all(rays, blocked);
+            scene.occluded_all(rays, blocked);
             for ((i, test), &blocked) in shadows.iter().zip(blocked.iter()) {
                 if !blocked {
                     paths[*i as usize].l += test.contribution;

@@ -4,15 +4,17 @@
 //! some triangle uses, and the environment's sampling structures exist only when the scene
 //! has an environment.
 
-use crate::accel::{interpolate_point, Bvh, Hit};
+use crate::accel::{interpolate_point, Bvh, Hit, Ray};
 use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::neural::latent_library::LatentLibrary;
 use crate::lights::environment::Environment;
+use crate::lights::area::{EmissionTexture, Emitter};
 use crate::lights::LightSet;
 use crate::material::SceneMaterials;
-use crate::scene::{Geometry, SceneDescription};
+use crate::sampler::hash_float;
+use crate::scene::{AlphaMode, Geometry, SceneDescription};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -28,6 +30,9 @@ pub struct RenderScene {
     /// Centre and radius of a sphere bounding the geometry.
     pub bounds_centre: Vec3,
     pub bounds_radius: f32,
+    /// Whether some triangle's material lets rays through (alpha MASK or BLEND): rays are
+    /// then traced with [`Bvh::intersect_filtered`].
+    has_alpha: bool,
 }
 
 /// The per-triangle data a hit needs, in one record.
@@ -105,12 +110,23 @@ impl RenderScene {
                 }
             })
             .collect();
+        let has_alpha = materials.iter().zip(&used).any(|(m, &u)| u && m.has_alpha());
         let materials = SceneMaterials::prepare(materials, textures, &used, latents)?;
         let (bounds_centre, bounds_radius) = bounding_sphere(&geometry);
         let environment = environment.as_ref().map(Environment::load).transpose()?;
         let emissive = (0..geometry.triangle_count()).filter_map(|i| {
-            let e = materials.emission(geometry.material_ids[i]);
-            (e.max_element() > 0.0).then(|| (i as u32, geometry.triangle_positions(i), e))
+            let material = geometry.material_ids[i];
+            let radiance = materials.emission(material);
+            let texture = materials.materials()[material as usize].emissive_texture.map(|texture| EmissionTexture {
+                texture,
+                uvs: geometry.triangles[i].map(|v| vertex_uv(&geometry, v, texture.tex_coord)),
+            });
+            (radiance.max_element() > 0.0).then(|| Emitter {
+                triangle: i as u32,
+                corners: geometry.triangle_positions(i),
+                radiance,
+                texture,
+            })
         });
         let lights = LightSet::new(
             emissive,
@@ -118,6 +134,7 @@ impl RenderScene {
             &punctual,
             environment,
             bounds_radius,
+            materials.shared_textures(),
         );
         Ok(RenderScene {
             geometry,
@@ -127,7 +144,70 @@ impl RenderScene {
             lights,
             bounds_centre,
             bounds_radius,
+            has_alpha,
         })
+    }
+
+    /// The closest surface `ray` stops at within (0, ray.t_max): the closest hit, passing
+    /// through cut-outs and, with probability 1 − alpha, partly covering surfaces
+    /// ([`AlphaMode`]).
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        if self.has_alpha {
+            self.bvh.intersect_filtered(ray, |hit| self.stops(ray, hit))
+        } else {
+            self.bvh.intersect(ray)
+        }
+    }
+
+    /// Whether a surface blocks `ray` within (0, ray.t_max) (as [`RenderScene::intersect`]
+    /// decides what blocks).
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        if self.has_alpha {
+            self.bvh.occluded_filtered(ray, |hit| self.stops(ray, hit))
+        } else {
+            self.bvh.occluded(ray)
+        }
+    }
+
+    /// [`RenderScene::intersect`] of many rays: `out[i]` for `rays[i]`.
+    pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>) {
+        if self.has_alpha {
+            out.clear();
+            out.extend(rays.iter().map(|r| self.intersect(r)));
+        } else {
+            self.bvh.intersect_all(rays, out);
+        }
+    }
+
+    /// [`RenderScene::occluded`] of many rays: `out[i]` for `rays[i]`.
+    pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>) {
+        if self.has_alpha {
+            out.clear();
+            out.extend(rays.iter().map(|r| self.occluded(r)));
+        } else {
+            self.bvh.occluded_all(rays, out);
+        }
+    }
+
+    /// Whether `ray` stops at `hit` rather than passing through: always on opaque
+    /// materials; on a cut-out (MASK) where alpha ≥ the cutoff; on partial coverage (BLEND)
+    /// with probability alpha, decided by a hash of the ray and the triangle, so the same
+    /// ray always gets the same answer.
+    #[inline]
+    fn stops(&self, ray: &Ray, hit: &Hit) -> bool {
+        let material = self.geometry.material_ids[hit.triangle as usize];
+        let alpha = || self.materials.alpha(material, |set| self.uv_at(hit.triangle, hit.barycentric, set));
+        match self.materials.alpha_mode(material) {
+            AlphaMode::Opaque => true,
+            AlphaMode::Mask { cutoff } => alpha() >= cutoff,
+            AlphaMode::Blend => {
+                let [ox, oy, oz] = ray.origin.to_array().map(f32::to_bits);
+                let [dx, dy, dz] = ray.direction.to_array().map(f32::to_bits);
+                hash_float(&[ox, oy, oz, dx, dy, dz, hit.triangle]) < alpha()
+            }
+        }
     }
 
     /// The surface point of a hit of a ray with direction `direction`; `None` for a
@@ -152,6 +232,10 @@ impl RenderScene {
             let ns = g.normals[i0 as usize] * b0 + g.normals[i1 as usize] * b.x + g.normals[i2 as usize] * b.y;
             ns.try_normalize().unwrap_or(ng)
         };
+        let material = g.material_ids[tri];
+        if let Some(map) = self.materials.normal_map(material) {
+            ns = self.mapped_normal(tri, hit.barycentric, ns, map);
+        }
         if ns.dot(ng_facing) < 0.0 {
             ns = -ns;
         }
@@ -164,20 +248,43 @@ impl RenderScene {
             triangle: hit.triangle,
             barycentric: b,
             front_face,
-            material: g.material_ids[tri],
+            material,
         })
+    }
+
+    /// The shading normal `n` (interpolated, unit) bent by normal map `map` at a point of
+    /// triangle `tri`: the texel's tangent-space normal in the frame of the interpolated
+    /// tangent (made orthogonal to `n`), the bitangent w · n × t and `n`. `n` itself where the
+    /// vertices carry no tangent.
+    fn mapped_normal(&self, tri: usize, b: Vec2, n: Vec3, map: &crate::scene::NormalMap) -> Vec3 {
+        let g = &self.geometry;
+        if g.tangents.is_empty() {
+            return n;
+        }
+        let [i0, i1, i2] = g.triangles[tri].map(|i| g.tangents[i as usize]);
+        let t = (i0 * (1.0 - b.x - b.y) + i1 * b.x + i2 * b.y).truncate();
+        let w = if i0.w + i1.w + i2.w < 0.0 { -1.0 } else { 1.0 };
+        let Some(t) = (t - n * n.dot(t)).try_normalize() else {
+            return n;
+        };
+        let texel = map.texture.lookup(self.materials.textures(), self.uv_at(tri as u32, b, map.texture.tex_coord));
+        let v = (2.0 * texel - Vec3::ONE) * Vec3::new(map.scale, map.scale, 1.0);
+        (t * v.x + w * n.cross(t) * v.y + n * v.z).try_normalize().unwrap_or(n)
     }
 
     /// Texture coordinates of set `set` (0 or 1; set 1 falls back to set 0 where the scene has
     /// none) at a surface point, interpolated from its triangle's vertices.
     #[inline]
     pub fn uv(&self, sp: &SurfacePoint, set: u32) -> Vec2 {
-        let g = &self.geometry;
-        let uvs = if set == 1 && !g.uvs1.is_empty() { &g.uvs1 } else { &g.uvs };
-        let [i0, i1, i2] = g.triangles[sp.triangle as usize];
-        let b = sp.barycentric;
-        let b0 = 1.0 - b.x - b.y;
-        uvs[i0 as usize] * b0 + uvs[i1 as usize] * b.x + uvs[i2 as usize] * b.y
+        self.uv_at(sp.triangle, sp.barycentric, set)
+    }
+
+    /// Texture coordinates of set `set` at barycentric coordinates `b` of `triangle`.
+    #[inline]
+    fn uv_at(&self, triangle: u32, b: Vec2, set: u32) -> Vec2 {
+        let [i0, i1, i2] = self.geometry.triangles[triangle as usize];
+        let uv = |v| vertex_uv(&self.geometry, v, set);
+        uv(i0) * (1.0 - b.x - b.y) + uv(i1) * b.x + uv(i2) * b.y
     }
 
     /// The BSDF at a surface point; `None` where the surface does not scatter (the back of
@@ -191,11 +298,19 @@ impl RenderScene {
     #[inline]
     pub fn emission(&self, sp: &SurfacePoint) -> Rgb {
         if sp.front_face {
-            self.materials.emission(sp.material)
+            self.materials.emission_at(sp.material, |set| self.uv(sp, set))
         } else {
             Rgb::ZERO
         }
     }
+}
+
+/// Texture coordinates of set `set` (0 or 1; set 1 falls back to set 0 where the geometry
+/// has none) at vertex `v`.
+#[inline]
+fn vertex_uv(g: &Geometry, v: u32, set: u32) -> Vec2 {
+    let uvs = if set == 1 && !g.uvs1.is_empty() { &g.uvs1 } else { &g.uvs };
+    uvs[v as usize]
 }
 
 /// A sphere bounding all vertices (the box's centre and half-diagonal).
@@ -209,4 +324,134 @@ fn bounding_sphere(g: &Geometry) -> (Vec3, f32) {
     );
     let centre = 0.5 * (lo + hi);
     (centre, (0.5 * (hi - lo).length()).max(1e-3))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Material, NormalMap, Texture, TextureRef};
+    use crate::scene::texture::Filter;
+    use glam::Vec4;
+
+    /// Axis-aligned unit quads facing +z at the given depths (x, y ∈ [0, 1], texture
+    /// coordinates u = x, v = 1 − y), quad k with material k.
+    fn quads(depths: &[f32], materials: Vec<Material>, textures: Vec<Texture>) -> SceneDescription {
+        let mut g = Geometry::default();
+        for (k, &z) in depths.iter().enumerate() {
+            let base = g.positions.len() as u32;
+            for (x, y) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+                g.positions.push(Vec3::new(x, y, z));
+                g.normals.push(Vec3::Z);
+                g.uvs.push(Vec2::new(x, 1.0 - y));
+                g.tangents.push(Vec4::new(1.0, 0.0, 0.0, 1.0));
+            }
+            g.triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+            g.material_ids.extend([k as u32; 2]);
+        }
+        SceneDescription { source: "quads".into(), geometry: g, materials, textures, ..SceneDescription::default() }
+    }
+
+    /// A 2 × 1 texture: left texel `left`, right texel `right` (RGB and alpha).
+    fn two_texels(left: (Rgb, f32), right: (Rgb, f32)) -> Texture {
+        Texture { width: 2, height: 1, texels: vec![left.0, right.0], alpha: vec![left.1, right.1] }
+    }
+
+    fn nearest(texture: usize) -> TextureRef {
+        TextureRef { filter: Filter::Nearest, ..TextureRef::new(texture) }
+    }
+
+    fn down_at(x: f32) -> Ray {
+        Ray::new(Vec3::new(x, 0.5, 5.0), Vec3::NEG_Z)
+    }
+
+    /// A cut-out (alpha 0 on its left half) lets camera and shadow rays through there and
+    /// stops them on its right half.
+    #[test]
+    fn masked_surfaces_pass_rays_where_alpha_is_below_the_cutoff() {
+        let cutout = Material {
+            base_color_texture: Some(nearest(0)),
+            alpha_mode: AlphaMode::Mask { cutoff: 0.5 },
+            ..Material::default_diffuse("cutout")
+        };
+        let scene = quads(&[1.0, 0.0], vec![cutout, Material::default_diffuse("back")], vec![two_texels((Rgb::ONE, 0.0), (Rgb::ONE, 1.0))]);
+        let scene = RenderScene::new(scene).unwrap();
+        let left = scene.intersect(&down_at(0.25)).expect("the back quad");
+        assert_eq!(scene.geometry.material_ids[left.triangle as usize], 1);
+        assert!((left.t - 5.0).abs() < 1e-5);
+        let right = scene.intersect(&down_at(0.75)).expect("the cut-out");
+        assert_eq!(scene.geometry.material_ids[right.triangle as usize], 0);
+        let segment = |x: f32| Ray { t_max: 4.5, ..down_at(x) };
+        assert!(!scene.occluded(&segment(0.25)), "shadow rays pass through the hole");
+        assert!(scene.occluded(&segment(0.75)));
+        let mut hits = Vec::new();
+        scene.intersect_all(&[down_at(0.25), down_at(0.75)], &mut hits);
+        assert_eq!(hits, vec![Some(left), Some(right)]);
+        let mut blocked = Vec::new();
+        scene.occluded_all(&[segment(0.25), segment(0.75)], &mut blocked);
+        assert_eq!(blocked, vec![false, true]);
+    }
+
+    /// Partial coverage stops a fraction alpha of rays, the same ray always the same way.
+    #[test]
+    fn blended_surfaces_stop_a_fraction_alpha_of_rays() {
+        let glass = Material { base_alpha: 0.25, alpha_mode: AlphaMode::Blend, ..Material::default_diffuse("veil") };
+        let scene = RenderScene::new(quads(&[1.0], vec![glass], Vec::new())).unwrap();
+        let n = 20_000;
+        let rays: Vec<Ray> = (0..n).map(|i| down_at((i as f32 + 0.5) / n as f32)).collect();
+        let stopped = rays.iter().filter(|r| scene.intersect(r).is_some()).count();
+        let fraction = stopped as f64 / n as f64;
+        assert!((fraction - 0.25).abs() < 0.015, "{fraction}");
+        assert!(rays.iter().all(|r| scene.intersect(r).is_some() == scene.occluded(r)), "one decision per ray");
+    }
+
+    /// A normal map bends the shading normal in the tangent frame, scaled in x and y by
+    /// its scale; without one the interpolated normal is kept.
+    #[test]
+    fn normal_maps_bend_the_shading_normal() {
+        // Texel (0.8, 0.5, 0.9) encodes the tangent-space normal (0.6, 0, 0.8).
+        let texture = Texture { width: 1, height: 1, texels: vec![Rgb::new(0.8, 0.5, 0.9)], alpha: Vec::new() };
+        let material = |scale| Material { normal_texture: Some(NormalMap { texture: TextureRef::new(0), scale }), ..Material::default_diffuse("bumpy") };
+        let scene = quads(&[0.0, -1.0, -2.0], vec![material(1.0), material(0.5), Material::default_diffuse("flat")], vec![texture]);
+        let scene = RenderScene::new(scene).unwrap();
+        let ray = down_at(0.3);
+        let expected = [Vec3::new(0.6, 0.0, 0.8), Vec3::new(0.3, 0.0, 0.8).normalize(), Vec3::Z];
+        for (k, n) in expected.into_iter().enumerate() {
+            let hit = Hit { t: 5.0 + k as f32, triangle: 2 * k as u32, barycentric: Vec2::new(0.3, 0.3) };
+            let sp = scene.surface_point(&hit, ray.direction).unwrap();
+            assert!(sp.frame.n.abs_diff_eq(n, 1e-5), "quad {k}: {} vs {n}", sp.frame.n);
+            assert_eq!(sp.ng, Vec3::Z);
+        }
+        // Seen from behind (double-sided), the bent normal turns to the viewer's side.
+        let sp = scene.surface_point(&Hit { t: 5.0, triangle: 0, barycentric: Vec2::new(0.3, 0.3) }, Vec3::Z).unwrap();
+        assert!(sp.frame.n.abs_diff_eq(-Vec3::new(0.6, 0.0, 0.8), 1e-5), "{}", sp.frame.n);
+    }
+
+    /// An emissive texture scales the emission seen by rays and sampled by lights, and
+    /// the light's selection weight follows its mean.
+    #[test]
+    fn emissive_textures_vary_emission_over_the_surface() {
+        let red_blue = Texture { width: 2, height: 1, texels: vec![Rgb::new(1.0, 0.0, 0.0), Rgb::new(0.0, 0.0, 1.0)], alpha: Vec::new() };
+        let lamp = Material { emission: Rgb::splat(2.0), emissive_texture: Some(nearest(0)), ..Material::default_diffuse("lamp") };
+        let scene = RenderScene::new(quads(&[0.0], vec![lamp], vec![red_blue])).unwrap();
+        let at = |x: f32| {
+            let hit = scene.intersect(&down_at(x)).unwrap();
+            scene.emission(&scene.surface_point(&hit, Vec3::NEG_Z).unwrap())
+        };
+        assert_eq!(at(0.25), Rgb::new(2.0, 0.0, 0.0));
+        assert_eq!(at(0.75), Rgb::new(0.0, 0.0, 2.0));
+        // Light samples from a point above the lamp carry the texel where they land.
+        let p = Vec3::new(0.5, 0.5, 1.0);
+        let (mut red, mut blue) = (0, 0);
+        for i in 0..64 {
+            for j in 0..64 {
+                let u = Vec2::new((i as f32 + 0.5) / 64.0, (j as f32 + 0.5) / 64.0);
+                let s = scene.lights.sample(p, 0.5, u).expect("lamp sample");
+                let q = p + s.direction * s.distance;
+                let expected = if q.x < 0.5 { Rgb::new(2.0, 0.0, 0.0) } else { Rgb::new(0.0, 0.0, 2.0) };
+                assert_eq!(s.radiance, expected, "at {q}");
+                if q.x < 0.5 { red += 1 } else { blue += 1 }
+            }
+        }
+        assert!(red > 1000 && blue > 1000, "{red} {blue}");
+    }
 }

@@ -20,6 +20,15 @@ fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// A number in [0, 1) that is a deterministic hash of `words` (pbrt-v4's `HashFloat`): a
+/// random decision tied to what it is about (a ray and a triangle) rather than to a
+/// sample stream, so it is the same however the work is ordered.
+#[inline]
+pub fn hash_float(words: &[u32]) -> f32 {
+    let h = words.iter().fold(0x9e37_79b9_7f4a_7c15u64, |h, &w| mix64(h ^ u64::from(w)));
+    (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+}
+
 impl Sampler {
     /// The stream of sample `sample_index` of pixel `pixel_index` under `seed`.
     #[inline]
@@ -58,6 +67,17 @@ mod tests {
         assert_ne!(a, c);
         assert_ne!(a, d);
         assert!(a.iter().all(|&x| (0.0..1.0).contains(&x)));
+    }
+
+    #[test]
+    fn hash_float_is_uniform_and_deterministic() {
+        let n = 100_000u32;
+        let values: Vec<f32> = (0..n).map(|i| hash_float(&[i, 7])).collect();
+        assert!(values.iter().all(|&x| (0.0..1.0).contains(&x)));
+        let mean = values.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
+        assert!((mean - 0.5).abs() < 0.005, "{mean}");
+        assert_eq!(hash_float(&[3, 7]), values[3]);
+        assert_ne!(hash_float(&[3, 8]), values[3]);
     }
 
     #[test]

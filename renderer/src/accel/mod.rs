@@ -307,6 +307,121 @@ impl Bvh {
         self.any_portable(&bvh_ray)
     }
 
+    /// The closest hit with t in (0, ray.t_max) that `accept` takes, or `None`: for surfaces
+    /// rays can pass through (alpha cut-outs), `accept` decides for each hit triangle on the
+    /// way whether the ray stops there. It is asked only about hits closer than the closest
+    /// accepted one so far, in no particular order, and must be a pure function of its hit
+    /// (and of the ray it was made for).
+    pub fn intersect_filtered(&self, ray: &Ray, accept: impl Fn(&Hit) -> bool) -> Option<Hit> {
+        if self.is_empty() {
+            return None;
+        }
+        let bvh_ray = to_bvh_ray(ray);
+        let accept_slot = |slot: u32, t: f32, barycentric: Vec2| accept(&Hit { t, triangle: self.scene_triangle(slot), barycentric });
+        #[cfg(target_arch = "x86_64")]
+        let found = if has_avx2_fma() {
+            // SAFETY: the CPU supports AVX2 and FMA.
+            unsafe { self.closest_filtered_avx2(&bvh_ray, &accept_slot) }
+        } else {
+            self.closest_filtered_portable(&bvh_ray, &accept_slot)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let found = self.closest_filtered_portable(&bvh_ray, &accept_slot);
+        found.map(|(t, slot, barycentric)| Hit { t, triangle: self.scene_triangle(slot), barycentric })
+    }
+
+    /// True when a hit that `accept` takes (see [`Bvh::intersect_filtered`]) blocks the ray
+    /// within (0, ray.t_max).
+    pub fn occluded_filtered(&self, ray: &Ray, accept: impl Fn(&Hit) -> bool) -> bool {
+        if self.is_empty() {
+            return false;
+        }
+        let bvh_ray = to_bvh_ray(ray);
+        let (origin, direction) = (bvh_ray.origin, bvh_ray.direction);
+        let oct = node::octant_inv4(bvh_ray.direction);
+        let mut hit = false;
+        self.traverse(0, oct, bvh_ray.tmax, |n, t_max| node::intersect_portable(n, &bvh_ray, oct, t_max), |index, lanes, _| {
+            let (first_pack, slot_base) = (self.node_packs[index] as usize, self.bvh.nodes[index].primitive_base_idx);
+            for k in (0..24).filter(|k| lanes & (1 << k) != 0) {
+                let pack = &self.packs[first_pack + k / LANES];
+                if let Some((t, barycentric)) = pack.lane_hit(k % LANES, origin, direction, bvh_ray.tmax) {
+                    if accept(&Hit { t, triangle: self.scene_triangle(slot_base + k as u32), barycentric }) {
+                        hit = true;
+                        return true;
+                    }
+                }
+            }
+            false
+        });
+        hit
+    }
+
+    /// Closest accepted hit with the given node and pack kernels: each pack's closest hit
+    /// from `pack_closest`, and where `accept` refuses it, the pack's lanes one by one.
+    #[inline(always)]
+    fn closest_filtered_with(
+        &self,
+        ray: &BvhRay,
+        intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
+        mut pack_closest: impl FnMut(&TrianglePack, u32, f32) -> Option<PackHit>,
+        accept: &impl Fn(u32, f32, Vec2) -> bool,
+    ) -> Option<SlotHit> {
+        let mut best: Option<SlotHit> = None;
+        self.traverse(0, node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, t_max| {
+            let mut pack = self.node_packs[index] as usize;
+            let mut slot_base = self.bvh.nodes[index].primitive_base_idx;
+            while lanes != 0 {
+                let pack_lanes = lanes & 0xff;
+                if pack_lanes != 0 {
+                    let p = &self.packs[pack];
+                    if let Some((t, lane, b)) = pack_closest(p, pack_lanes, *t_max) {
+                        if accept(slot_base + lane, t, b) {
+                            *t_max = t;
+                            best = Some((t, slot_base + lane, b));
+                        } else {
+                            for lane in (0..LANES as u32).filter(|l| pack_lanes & (1 << l) != 0) {
+                                if let Some((t, b)) = p.lane_hit(lane as usize, ray.origin, ray.direction, *t_max) {
+                                    if accept(slot_base + lane, t, b) {
+                                        *t_max = t;
+                                        best = Some((t, slot_base + lane, b));
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                lanes >>= LANES;
+                pack += 1;
+                slot_base += LANES as u32;
+            }
+            false
+        });
+        best
+    }
+
+    fn closest_filtered_portable(&self, ray: &BvhRay, accept: &impl Fn(u32, f32, Vec2) -> bool) -> Option<SlotHit> {
+        let oct = node::octant_inv4(ray.direction);
+        self.closest_filtered_with(
+            ray,
+            |n, t_max| node::intersect_portable(n, ray, oct, t_max),
+            |p, lanes, t_max| p.closest_portable(ray.origin, ray.direction, lanes, t_max),
+            accept,
+        )
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn closest_filtered_avx2(&self, ray: &BvhRay, accept: &impl Fn(u32, f32, Vec2) -> bool) -> Option<SlotHit> {
+        let oct = node::octant_inv4(ray.direction);
+        self.closest_filtered_with(
+            ray,
+            // SAFETY (both kernels): this function runs only where AVX2 and FMA exist.
+            |n, t_max| unsafe { node::intersect_avx2(n, ray, oct, t_max) },
+            |p, lanes, t_max| unsafe { triangle_pack::avx2::closest(p, ray.origin, ray.direction, lanes, t_max) },
+            accept,
+        )
+    }
+
     /// Walks the CWBVH below node `root` front to back by octant order (as obvhs's
     /// `traverse!`), culling children beyond the current `t_max`. `intersect_node(node, t_max)` returns the hit mask
     /// of a node; `leaves(node_index, primitive_mask, t_max)` tests the node's hit leaf

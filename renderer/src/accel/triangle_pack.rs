@@ -57,7 +57,7 @@ impl TrianglePack {
 
     /// One lane, with exactly the arithmetic of the SIMD kernel (no fused operations).
     #[inline(always)]
-    fn lane_hit(&self, lane: usize, o: Vec3A, d: Vec3A, t_max: f32) -> Option<(f32, Vec2)> {
+    pub(super) fn lane_hit(&self, lane: usize, o: Vec3A, d: Vec3A, t_max: f32) -> Option<(f32, Vec2)> {
         let [v0, e1, e2] = [self.v0, self.e1, self.e2].map(|a| [a[0][lane], a[1][lane], a[2][lane]]);
         let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
         let cross = |a: [f32; 3], b: [f32; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];

@@ -121,6 +121,13 @@ pub struct MetallicRoughness {
     /// Perceptual roughness r in [0, 1]; the GGX roughness is α = r², raised to
     /// [`super::microfacet::MIN_ALPHA`] so that roughness 0 stays a finite (very sharp) lobe.
     pub roughness: f32,
+    /// The dielectric's reflectance at normal incidence per channel, in [0, 1]
+    /// ([`DIELECTRIC_F0`] by default; `KHR_materials_ior` and `KHR_materials_specular` set
+    /// it: see [`MetallicRoughness::with_dielectric`]).
+    pub dielectric_f0: Rgb,
+    /// The dielectric's reflectance at grazing incidence, in [0, 1] (1 by default;
+    /// `KHR_materials_specular`'s specular factor).
+    pub dielectric_f90: f32,
 }
 
 /// Clamps to [0, 1]; NaN becomes 0.
@@ -142,6 +149,24 @@ impl MetallicRoughness {
             base_color: base_color.max(Rgb::ZERO).min(Rgb::ONE),
             metallic: clamp01(metallic),
             roughness: clamp01(roughness),
+            dielectric_f0: Rgb::splat(DIELECTRIC_F0),
+            dielectric_f90: 1.0,
+        }
+    }
+
+    /// The same material with the dielectric's Fresnel reflectance F_d(μ) = f0 + (f90 − f0)
+    /// (1 − μ)⁵ (`KHR_materials_specular`: f0 = min(((ior − 1)/(ior + 1))² · specular
+    /// colour, 1) · specular, f90 = specular), clamped to [0, 1] with f0 ≤ f90 per channel;
+    /// NaN becomes 0. The diffuse lobe's normalisation follows (module documentation, with
+    /// T̄ = (1 − f0) − (f90 − f0)/21), and so does the metal's F90, mix(f90, 1, metallic).
+    #[inline]
+    pub fn with_dielectric(self, f0: Rgb, f90: f32) -> Self {
+        let f90 = clamp01(f90);
+        let f0 = Rgb::new(clamp01(f0.x), clamp01(f0.y), clamp01(f0.z)).min(Rgb::splat(f90));
+        MetallicRoughness {
+            dielectric_f0: f0,
+            dielectric_f90: f90,
+            ..self
         }
     }
 
@@ -151,10 +176,39 @@ impl MetallicRoughness {
         GgxDistribution::from_roughness(self.roughness)
     }
 
-    /// Reflectance at normal incidence, F0 = mix(0.04, base_color, metallic).
+    /// Reflectance at normal incidence, F0 = mix(dielectric f0 (0.04), base_color, metallic).
     #[inline]
     pub fn f0(&self) -> Rgb {
-        Rgb::splat(DIELECTRIC_F0).lerp(self.base_color, self.metallic)
+        self.dielectric_f0.lerp(self.base_color, self.metallic)
+    }
+
+    /// Reflectance at grazing incidence, F90 = mix(dielectric f90 (1), 1, metallic).
+    #[inline]
+    fn f90(&self) -> f32 {
+        self.dielectric_f90 + (1.0 - self.dielectric_f90) * self.metallic
+    }
+
+    /// The specular lobe's Fresnel factor F0 + (F90 − F0)(1 − cos θ)⁵.
+    #[inline]
+    fn fresnel(&self, cos_theta: f32) -> Rgb {
+        if self.dielectric_f90 == 1.0 {
+            return fresnel_schlick(self.f0(), cos_theta);
+        }
+        let f0 = self.f0();
+        f0 + (Rgb::splat(self.f90()) - f0) * schlick_weight(cos_theta)
+    }
+
+    /// The diffuse normalisation per channel, k = 0.995 / T̄ with T̄ = (1 − f0) − (f90 − f0)/21
+    /// the cosine-weighted mean of the dielectric's transmittance (zero where nothing is
+    /// transmitted).
+    #[inline]
+    fn diffuse_scale(&self) -> Rgb {
+        if self.dielectric_f0 == Rgb::splat(DIELECTRIC_F0) && self.dielectric_f90 == 1.0 {
+            return Rgb::splat(DIFFUSE_SCALE);
+        }
+        let (f0, f90) = (self.dielectric_f0, Rgb::splat(self.dielectric_f90));
+        let mean = Rgb::ONE - f0 - (f90 - f0) * (1.0 / 21.0);
+        Rgb::select(mean.cmpgt(Rgb::ZERO), DIFFUSE_RETURN / mean, Rgb::ZERO)
     }
 
     /// The diffuse albedo before Fresnel weighting, (1 − metallic) · base_color.
@@ -163,12 +217,13 @@ impl MetallicRoughness {
         self.base_color * (1.0 - self.metallic)
     }
 
-    /// The dielectric interface's transmittance T(μ) = 1 − F_d(μ) = 0.96 (1 − (1 − μ)⁵) at
-    /// the macroscopic cosine `cos_theta` (clamped to [0, 1]); in [0, 0.96], 0 on the
-    /// horizon.
+    /// The dielectric interface's transmittance T(μ) = 1 − F_d(μ) per channel at the
+    /// macroscopic cosine `cos_theta` (clamped to [0, 1]): 0.96 (1 − (1 − μ)⁵) by default,
+    /// in [0, 0.96], 0 on the horizon.
     #[inline]
-    fn dielectric_transmittance(cos_theta: f32) -> f32 {
-        (1.0 - DIELECTRIC_F0) * (1.0 - schlick_weight(cos_theta))
+    fn dielectric_transmittance(&self, cos_theta: f32) -> Rgb {
+        let w = schlick_weight(cos_theta);
+        Rgb::ONE - self.dielectric_f0 - (Rgb::splat(self.dielectric_f90) - self.dielectric_f0) * w
     }
 
     /// Probability with which [`Bxdf::sample`] draws from the specular lobe given `wo`.
@@ -185,9 +240,8 @@ impl MetallicRoughness {
             return 1.0;
         }
         let cos_o = wo.z.clamp(0.0, 1.0);
-        let specular_albedo = luminance(fresnel_schlick(self.f0(), cos_o));
-        let diffuse_albedo =
-            luminance(diffuse) * DIFFUSE_RETURN * Self::dielectric_transmittance(cos_o);
+        let specular_albedo = luminance(self.fresnel(cos_o));
+        let diffuse_albedo = luminance(diffuse * self.dielectric_transmittance(cos_o)) * DIFFUSE_RETURN;
         let total = specular_albedo + diffuse_albedo;
         let p = if total > 0.0 {
             specular_albedo / total
@@ -203,10 +257,9 @@ impl MetallicRoughness {
     /// and the half vector: F D V + (1 − m) c k T(μo) T(μi) / π.
     #[inline]
     fn value(&self, ggx: &GgxDistribution, wo: Vec3, wi: Vec3, h: Vec3) -> Rgb {
-        let specular = fresnel_schlick(self.f0(), wo.dot(h)) * (ggx.d(h) * ggx.visibility(wo, wi));
-        let transmittance =
-            Self::dielectric_transmittance(wo.z) * Self::dielectric_transmittance(wi.z);
-        specular + self.diffuse_color() * (transmittance * (DIFFUSE_SCALE * FRAC_1_PI))
+        let specular = self.fresnel(wo.dot(h)) * (ggx.d(h) * ggx.visibility(wo, wi));
+        let transmittance = self.dielectric_transmittance(wo.z) * self.dielectric_transmittance(wi.z);
+        specular + self.diffuse_color() * transmittance * (self.diffuse_scale() * FRAC_1_PI)
     }
 
     /// The mixture density for directions already known to lie above the horizon.
@@ -313,6 +366,13 @@ mod tests {
     /// ≈ 10⁻⁵ (≈ 2 · 10⁻⁴ for sharp bright lobes at θo ≥ 89°, where the μi > 0 cut-off
     /// crosses the grid); checked against 1 − ln 2 in `reference_quadrature_anchors`.
     fn reference_albedo(base: f64, metallic: f64, roughness: f64, theta_degrees: f64) -> f64 {
+        reference_albedo_with(base, metallic, roughness, theta_degrees, 0.04, 1.0)
+    }
+
+    /// [`reference_albedo`] with the dielectric's Fresnel F_d(μ) = f0 + (f90 − f0)(1 − μ)⁵
+    /// (`with_dielectric`), the metal's F90 = mix(f90, 1, metallic) and the diffuse
+    /// normalisation k = 0.995 / T̄ with T̄ by quadrature.
+    fn reference_albedo_with(base: f64, metallic: f64, roughness: f64, theta_degrees: f64, dielectric_f0: f64, dielectric_f90: f64) -> f64 {
         const S_NODES: usize = 512;
         const PHI_NODES: usize = 96;
         const MU_NODES: usize = 2048;
@@ -320,7 +380,8 @@ mod tests {
         let alpha2 = alpha * alpha;
         let theta = theta_degrees.to_radians();
         let wo = DVec3::new(theta.sin(), 0.0, theta.cos());
-        let f0 = 0.04 * (1.0 - metallic) + base * metallic;
+        let f0 = dielectric_f0 * (1.0 - metallic) + base * metallic;
+        let f90 = dielectric_f90 * (1.0 - metallic) + metallic;
         let projected = |w: DVec3| (w.z * w.z + alpha2 * (w.x * w.x + w.y * w.y)).sqrt();
         let azimuths: Vec<(f64, f64)> = (0..PHI_NODES)
             .map(|j| (PI64 * (j as f64 + 0.5) / PHI_NODES as f64).sin_cos())
@@ -340,12 +401,12 @@ mod tests {
                     continue;
                 }
                 let v = 0.5 / (wi.z * projected(wo) + wo.z * projected(wi));
-                let fresnel = f0 + (1.0 - f0) * (1.0 - cos_oh).max(0.0).powi(5);
+                let fresnel = f0 + (f90 - f0) * (1.0 - cos_oh).max(0.0).powi(5);
                 specular += fresnel * v * wi.z * 4.0 * cos_oh / cos_h * 2.0 * s;
             }
         }
         specular /= (S_NODES * PHI_NODES) as f64;
-        let transmittance = |mu: f64| 0.96 * (1.0 - (1.0 - mu).powi(5));
+        let transmittance = |mu: f64| 1.0 - dielectric_f0 - (dielectric_f90 - dielectric_f0) * (1.0 - mu).powi(5);
         let mean_transmittance = (0..MU_NODES)
             .map(|i| {
                 let mu = (i as f64 + 0.5) / MU_NODES as f64;
@@ -353,7 +414,10 @@ mod tests {
             })
             .sum::<f64>()
             / MU_NODES as f64;
-        let k = 0.995 * 35.0 / 32.0;
+        if mean_transmittance <= 0.0 {
+            return specular;
+        }
+        let k = 0.995 / mean_transmittance;
         specular + (1.0 - metallic) * base * k * transmittance(wo.z) * mean_transmittance
     }
 
@@ -550,6 +614,35 @@ mod tests {
             brightest_dielectric.0 > 0.997,
             "largest albedo {brightest_dielectric:?}"
         );
+    }
+
+    /// Other dielectrics (`KHR_materials_ior` / `KHR_materials_specular`): a white base
+    /// never reflects more than it receives, from f0 = 0 to a fully reflective interface
+    /// and with f90 < 1, and the BSDF matches the quadrature.
+    #[test]
+    fn other_dielectrics_conserve_energy_and_match_quadrature() {
+        let dielectrics = [(0.0, 1.0), (0.0816, 1.0), (0.25, 1.0), (0.04, 0.5), (0.5, 0.5), (1.0, 1.0)];
+        for (f0, f90) in dielectrics {
+            for roughness in [0.0, 0.1, 0.28, 0.6, 1.0] {
+                for theta in [0.0, 45.0, 70.0, 85.0, 89.0] {
+                    let albedo = reference_albedo_with(1.0, 0.0, roughness, theta, f0, f90);
+                    assert!(albedo <= 1.0, "f0 {f0}, f90 {f90}, roughness {roughness}, θo = {theta}°: {albedo}");
+                }
+            }
+        }
+        // The default dielectric is the one of `new`.
+        let plain = MetallicRoughness::new(Rgb::new(0.7, 0.4, 0.2), 0.3, 0.5);
+        assert_eq!(plain.with_dielectric(Rgb::splat(DIELECTRIC_F0), 1.0), plain);
+        for (f0, f90, metallic, roughness, theta) in [(0.25f32, 1.0f32, 0.0f32, 0.3f32, 30.0f32), (0.04, 0.5, 0.0, 0.5, 60.0), (0.5, 0.5, 0.5, 0.6, 45.0)] {
+            let m = MetallicRoughness::new(Rgb::new(0.9, 0.5, 0.2), metallic, roughness).with_dielectric(Rgb::splat(f0), f90);
+            let albedo = chi2::directional_albedo(&m, direction(theta, 0.0), 400_000);
+            for channel in 0..3 {
+                let reference = reference_albedo_with(m.base_color[channel].into(), metallic.into(), roughness.into(), theta.into(), f0.into(), f90.into());
+                assert!((albedo[channel] as f64 - reference).abs() < 2e-3, "{m:?}, θo = {theta}°, channel {channel}: {albedo} vs {reference}");
+            }
+        }
+        let clamped = MetallicRoughness::new(Rgb::ONE, 0.0, 0.5).with_dielectric(Rgb::new(2.0, 0.3, f32::NAN), 0.5);
+        assert_eq!((clamped.dielectric_f0, clamped.dielectric_f90), (Rgb::new(0.5, 0.3, 0.0), 0.5));
     }
 
     #[test]

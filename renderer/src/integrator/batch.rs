@@ -79,7 +79,7 @@ impl PathTracer {
                 };
                 let diffuse_triangle = match (&v.bsdf, v.light) {
                     (Bsdf::Lambert(b), Some((light, select_pdf))) if lanes_apply => {
-                        scene.lights.triangle(light).map(|t| (b.albedo, t, select_pdf))
+                        scene.lights.triangle(light).filter(|t| t.texture.is_none()).map(|t| (b.albedo, t, select_pdf))
                     }
                     _ => None,
                 };

@@ -276,7 +276,7 @@ mod tests {
                 rng.next_1d();
                 // Every eighth throughput is zero: the continuation must end there.
                 state.beta = if cases.len() % 8 == 0 { Rgb::ZERO } else { rng.next_2d().extend(rng.next_1d()) * 2.0 };
-                let hit = scene.bvh.intersect(&ray);
+                let hit = scene.intersect(&ray);
                 let Some(vertex) = tracer.begin(&scene, &mut state, hit) else { continue };
                 if let (Bsdf::Lambert(b), Some((light, select_pdf))) = (vertex.bsdf, vertex.light) {
                     let triangle = scene.lights.triangle(light).expect("the box's lights are triangles").clone();

@@ -290,11 +290,11 @@ impl PathTracer {
         };
         loop {
             counters.rays += 1;
-            let hit = scene.bvh.intersect(&path.ray);
+            let hit = scene.intersect(&path.ray);
             let (shadow, alive) = self.step(scene, &mut path, hit);
             if let Some(test) = shadow {
                 counters.shadow_rays += 1;
-                if !scene.bvh.occluded(&test.ray) {
+                if !scene.occluded(&test.ray) {
                     path.l += test.contribution;
                 }
             }

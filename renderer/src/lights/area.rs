@@ -3,6 +3,7 @@
 use super::LightSample;
 use crate::accel::{interpolate_point, offset_ray_origin};
 use crate::sampling::sample_uniform_triangle;
+use crate::scene::{Texture, TextureRef};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -14,8 +15,29 @@ pub struct TriangleLight {
     pub normal: Vec3,
     /// Area in scene units².
     pub area: f32,
-    /// Emitted radiance, W/(m² sr).
+    /// Emitted radiance, W/(m² sr) (times the texture's value where it has one).
     pub radiance: Rgb,
+    /// An emissive texture over the triangle, if any.
+    pub texture: Option<EmissionTexture>,
+}
+
+/// An emissive texture over a triangle: the material's texture reference and the texture
+/// coordinates (of the set it reads) at the triangle's corners.
+#[derive(Clone, Debug)]
+pub struct EmissionTexture {
+    pub texture: TextureRef,
+    pub uvs: [Vec2; 3],
+}
+
+/// An emissive triangle of a scene, as the light set is built from it.
+#[derive(Clone, Debug)]
+pub struct Emitter {
+    /// Index of the triangle in the scene's geometry.
+    pub triangle: u32,
+    pub corners: [Vec3; 3],
+    /// Emitted radiance, W/(m² sr), times `texture` where given.
+    pub radiance: Rgb,
+    pub texture: Option<EmissionTexture>,
 }
 
 /// A point drawn on an emissive triangle as seen from a shading point.
@@ -59,13 +81,16 @@ impl TriangleLight {
             normal: cross / len,
             area: 0.5 * len,
             radiance,
+            texture: None,
         })
     }
 
-    /// Uniform point by area, converted to a solid-angle density at `p`.
+    /// Uniform point by area, converted to a solid-angle density at `p`; `textures` are the
+    /// scene's (read where the light has an emissive texture).
     #[inline]
-    pub fn sample(&self, p: Vec3, u: Vec2) -> Option<AreaSample> {
-        let (q, q_error) = interpolate_point(self.corners, sample_uniform_triangle(u));
+    pub fn sample(&self, p: Vec3, u: Vec2, textures: &[Texture]) -> Option<AreaSample> {
+        let b = sample_uniform_triangle(u);
+        let (q, q_error) = interpolate_point(self.corners, b);
         let to = q - p;
         let d2 = to.length_squared();
         if d2 <= 0.0 {
@@ -78,10 +103,17 @@ impl TriangleLight {
             return None;
         }
         let pdf = d2 / (cos_light * self.area);
+        let radiance = match &self.texture {
+            Some(t) => {
+                let uv = t.uvs[0] * (1.0 - b.x - b.y) + t.uvs[1] * b.x + t.uvs[2] * b.y;
+                self.radiance * t.texture.lookup(textures, uv)
+            }
+            None => self.radiance,
+        };
         pdf.is_finite().then_some(AreaSample {
             direction,
             distance,
-            radiance: self.radiance,
+            radiance,
             pdf,
             shadow_target: offset_ray_origin(q, q_error, self.normal, -direction),
         })
@@ -114,10 +146,10 @@ mod tests {
         assert!((light.normal - -Vec3::Y).length() < 1e-6, "emits downward");
         assert!((light.area - 0.5).abs() < 1e-6);
         let p = Vec3::new(0.2, 0.0, 0.3);
-        let s = light.sample(p, Vec2::new(0.3, 0.6)).expect("visible from below");
+        let s = light.sample(p, Vec2::new(0.3, 0.6), &[]).expect("visible from below");
         let q = p + s.direction * s.distance;
         assert!((light.pdf(p, q) - s.pdf).abs() < 1e-4 * s.pdf);
-        assert!(light.sample(Vec3::new(0.2, 2.0, 0.3), Vec2::new(0.3, 0.6)).is_none());
+        assert!(light.sample(Vec3::new(0.2, 2.0, 0.3), Vec2::new(0.3, 0.6), &[]).is_none());
         assert!(TriangleLight::new([Vec3::ZERO, Vec3::X, Vec3::X * 2.0], Rgb::ONE).is_none());
     }
 }

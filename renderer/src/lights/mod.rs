@@ -13,9 +13,10 @@ pub mod punctual;
 
 use crate::color::luminance;
 use crate::sampling::Distribution1D;
-use crate::scene::PunctualLight;
+use crate::scene::{PunctualLight, Texture};
 use crate::Rgb;
-use area::TriangleLight;
+use area::{Emitter, TriangleLight};
+use std::sync::Arc;
 use environment::Environment;
 use glam::{Vec2, Vec3};
 
@@ -52,31 +53,37 @@ pub struct LightSet {
     triangle_to_light: Vec<u32>,
     environment: Option<Environment>,
     environment_light: usize,
+    /// The scene's textures (emissive textures of triangle lights read them).
+    textures: Arc<[Texture]>,
 }
 
 impl LightSet {
-    /// Builds the set. `emissive` lists (scene triangle index, corners, radiance) of the
-    /// emitting triangles; `triangle_count` is the number of scene triangles;
-    /// `scene_radius` bounds the scene (for the power of distant lights).
+    /// Builds the set. `emissive` lists the emitting triangles; `triangle_count` is the
+    /// number of scene triangles; `scene_radius` bounds the scene (for the power of distant
+    /// lights); `textures` are the scene's, which emissive textures index. A textured
+    /// triangle's power is estimated with the texture's mean.
     pub fn new(
-        emissive: impl IntoIterator<Item = (u32, [Vec3; 3], Rgb)>,
+        emissive: impl IntoIterator<Item = Emitter>,
         triangle_count: usize,
         punctual: &[PunctualLight],
         environment: Option<Environment>,
         scene_radius: f32,
+        textures: Arc<[Texture]>,
     ) -> Self {
         let mut lights = Vec::new();
         // Estimated power of each light, and the group each belongs to.
         let mut weights = Vec::new();
         let mut groups = Vec::new();
         let mut triangle_to_light = Vec::new();
-        for (tri, corners, radiance) in emissive {
-            if let Some(light) = TriangleLight::new(corners, radiance) {
+        for Emitter { triangle, corners, radiance, texture } in emissive {
+            if let Some(mut light) = TriangleLight::new(corners, radiance) {
                 if triangle_to_light.is_empty() {
                     triangle_to_light = vec![u32::MAX; triangle_count];
                 }
-                triangle_to_light[tri as usize] = lights.len() as u32;
-                weights.push(light.area * std::f32::consts::PI * luminance(radiance));
+                triangle_to_light[triangle as usize] = lights.len() as u32;
+                let mean = texture.as_ref().map_or(Rgb::ONE, |t| textures[t.texture.texture].mean());
+                light.texture = texture;
+                weights.push(light.area * std::f32::consts::PI * luminance(radiance * mean));
                 groups.push(0usize);
                 lights.push(Light::Triangle(light));
             }
@@ -99,6 +106,7 @@ impl LightSet {
             triangle_to_light,
             environment,
             environment_light,
+            textures,
         }
     }
 
@@ -152,7 +160,7 @@ impl LightSet {
     #[inline]
     pub fn sample_chosen(&self, index: u32, select_pdf: f32, p: Vec3, u: Vec2) -> Option<LightSample> {
         match &self.lights[index as usize] {
-            Light::Triangle(t) => t.sample(p, u).map(|s| s.with_selection(select_pdf)),
+            Light::Triangle(t) => t.sample(p, u, &self.textures).map(|s| s.with_selection(select_pdf)),
             Light::Punctual(l) => punctual::illuminate(l, p).map(|s| LightSample {
                 direction: s.direction,
                 distance: s.distance,
@@ -243,11 +251,12 @@ mod tests {
         let env = Environment::constant(Rgb::splat(1.0));
         let tri = [Vec3::ZERO, Vec3::X, Vec3::Z];
         let set = LightSet::new(
-            [(0, tri, Rgb::splat(5.0)), (1, tri.map(|v| v * 2.0), Rgb::splat(5.0))],
+            [(0, tri), (1, tri.map(|v| v * 2.0))].map(|(triangle, corners)| Emitter { triangle, corners, radiance: Rgb::splat(5.0), texture: None }),
             2,
             std::slice::from_ref(&point),
             Some(env),
             1000.0,
+            Arc::from([]),
         );
         assert_eq!(set.len(), 4);
         let p: Vec<f32> = (0..4).map(|i| set.selection_probability(i)).collect();

@@ -19,11 +19,12 @@ use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::{Bsdf, Lambert, MetallicRoughness};
 use crate::neural::latent_library::LatentLibrary;
-use crate::scene::{Material, SurfaceModel, Texture, TextureRef};
+use crate::scene::{AlphaMode, Material, NormalMap, SurfaceModel, Texture, TextureRef};
 use crate::{Error, Result, Rgb};
 use glam::Vec2;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// A BSDF made from data, opened once and shared by every shading point of the materials
 /// bound to it.
@@ -129,7 +130,8 @@ enum Kind {
 /// A scene's materials prepared for shading (see the module documentation).
 pub struct SceneMaterials {
     materials: Vec<Material>,
-    textures: Vec<Texture>,
+    /// Shared with the light set (emissive textures).
+    textures: Arc<[Texture]>,
     kinds: Vec<Kind>,
     shared: Vec<SharedBsdf>,
     /// Materials that bind a latent code while no latent file was given: (material, latent
@@ -168,7 +170,7 @@ impl SceneMaterials {
         }
         Ok(SceneMaterials {
             materials,
-            textures,
+            textures: textures.into(),
             kinds,
             shared,
             unbound_neural,
@@ -183,6 +185,11 @@ impl SceneMaterials {
     /// The textures the materials index.
     pub fn textures(&self) -> &[Texture] {
         &self.textures
+    }
+
+    /// The textures, shared (for the light set's emissive textures).
+    pub fn shared_textures(&self) -> Arc<[Texture]> {
+        Arc::clone(&self.textures)
     }
 
     /// The BSDF of `material` at a point seen from its front (`front_face`) or back, with
@@ -210,16 +217,63 @@ impl SceneMaterials {
                     }
                     None => (m.metallic, m.roughness),
                 };
-                Bsdf::MetallicRoughness(MetallicRoughness::new(base(), metallic, roughness))
+                let (f0, f90) = m.dielectric_fresnel();
+                Bsdf::MetallicRoughness(MetallicRoughness::new(base(), metallic, roughness).with_dielectric(f0, f90))
             }
             Kind::Shared(i) => self.shared[i].as_bsdf(),
         })
     }
 
-    /// Radiance `material` emits from its front side, W/(m² sr).
+    /// Radiance `material` emits from its front side, W/(m² sr): its emissive factor, times
+    /// its emissive texture when it has one (not applied here: see
+    /// [`SceneMaterials::emission_at`]).
     #[inline]
     pub fn emission(&self, material: u32) -> Rgb {
         self.materials[material as usize].emission
+    }
+
+    /// Radiance `material` emits from its front side at a point whose texture coordinates of
+    /// a set are `uv(set)` (asked only for an emissive texture), W/(m² sr).
+    #[inline]
+    pub fn emission_at(&self, material: u32, uv: impl Fn(u32) -> Vec2) -> Rgb {
+        let m = &self.materials[material as usize];
+        match &m.emissive_texture {
+            Some(t) if m.emission.max_element() > 0.0 => m.emission * t.lookup(&self.textures, uv(t.tex_coord)),
+            _ => m.emission,
+        }
+    }
+
+    /// The mean radiance `material` emits from its front side over its emissive texture
+    /// (the factor alone without one), W/(m² sr): the light's power for choosing lights.
+    pub fn mean_emission(&self, material: u32) -> Rgb {
+        let m = &self.materials[material as usize];
+        match &m.emissive_texture {
+            Some(t) => m.emission * self.textures[t.texture].mean(),
+            None => m.emission,
+        }
+    }
+
+    /// `material`'s normal map, if it has one.
+    #[inline]
+    pub fn normal_map(&self, material: u32) -> Option<&NormalMap> {
+        self.materials[material as usize].normal_texture.as_ref()
+    }
+
+    /// How `material` covers its surface.
+    #[inline]
+    pub fn alpha_mode(&self, material: u32) -> AlphaMode {
+        self.materials[material as usize].alpha_mode
+    }
+
+    /// `material`'s alpha (coverage in [0, 1]: the base colour factor's alpha times its
+    /// texture's) at a point whose texture coordinates of a set are `uv(set)`.
+    #[inline]
+    pub fn alpha(&self, material: u32, uv: impl Fn(u32) -> Vec2) -> f32 {
+        let m = &self.materials[material as usize];
+        match &m.base_color_texture {
+            Some(t) => m.base_alpha * t.lookup_alpha(&self.textures, uv(t.tex_coord)),
+            None => m.base_alpha,
+        }
     }
 
     /// The distinct shared BSDFs in use.
@@ -294,7 +348,7 @@ mod tests {
         use crate::bsdf::metallic_roughness::MetallicRoughness;
         use crate::scene::{Material, SurfaceModel, Texture, TextureRef};
         // Texel 0: metallic 1, roughness 0.5; texel 1: metallic 0, roughness 1.
-        let texture = Texture { width: 2, height: 1, texels: vec![Rgb::new(0.0, 0.5, 1.0), Rgb::new(0.0, 1.0, 0.0)] };
+        let texture = Texture { width: 2, height: 1, texels: vec![Rgb::new(0.0, 0.5, 1.0), Rgb::new(0.0, 1.0, 0.0)], alpha: Vec::new() };
         let textured = Material {
             model: SurfaceModel::MetallicRoughness,
             metallic: 1.0,

@@ -3,7 +3,7 @@
 
 use crate::material::Binding;
 use crate::{Error, Result, Rgb};
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 use std::path::{Path, PathBuf};
 
 pub mod gltf;
@@ -24,6 +24,11 @@ pub struct Geometry {
     /// A second set of texture coordinates (glTF TEXCOORD_1), one per vertex, or empty when
     /// no mesh has one; a vertex whose mesh has none repeats its first set here.
     pub uvs1: Vec<Vec2>,
+    /// Unit tangents per vertex, world space, with the handedness w = ±1 in the fourth
+    /// component (glTF TANGENT: bitangent = w · normal × tangent, pointing up the normal
+    /// map's image); empty when no material has a normal map. A vertex of a mesh without
+    /// a normal-mapped material, or whose tangent could not be computed, holds zero.
+    pub tangents: Vec<Vec4>,
     /// Vertex indices per triangle, counter-clockwise seen from the front side.
     pub triangles: Vec<[u32; 3]>,
     /// Index into [`SceneDescription::materials`] per triangle.
@@ -76,6 +81,13 @@ impl Geometry {
             self.uvs1.extend_from_slice(if other.uvs1.is_empty() { &other.uvs } else { &other.uvs1 });
         }
         self.uvs.extend_from_slice(&other.uvs);
+        if !self.tangents.is_empty() || !other.tangents.is_empty() {
+            self.tangents.resize(self.positions.len() - other.positions.len(), Vec4::ZERO);
+            match other.tangents.is_empty() {
+                true => self.tangents.resize(self.positions.len(), Vec4::ZERO),
+                false => self.tangents.extend_from_slice(&other.tangents),
+            }
+        }
         self.triangles.extend(
             other
                 .triangles
@@ -150,6 +162,43 @@ pub struct Material {
     /// Whether the back side scatters light too (glTF `doubleSided`). A single-sided
     /// material is black seen from behind, as Mitsuba's BSDFs are.
     pub double_sided: bool,
+    /// An emissive texture (sRGB) multiplying `emission`.
+    pub emissive_texture: Option<TextureRef>,
+    /// A tangent-space normal map (glTF `normalTexture`), read with the vertex tangents.
+    pub normal_texture: Option<NormalMap>,
+    /// How the base colour's alpha (the factor's times the texture's) covers the surface.
+    pub alpha_mode: AlphaMode,
+    /// The base colour factor's alpha (glTF `baseColorFactor[3]`), in [0, 1].
+    pub base_alpha: f32,
+    /// The dielectric's index of refraction (`KHR_materials_ior`; 1.5 by default).
+    pub ior: f32,
+    /// `KHR_materials_specular`'s specular factor (strength of the dielectric's specular
+    /// reflection, in [0, 1]; 1 by default) and specular colour (linear, scales its F0).
+    pub specular: f32,
+    pub specular_color: Rgb,
+}
+
+/// A tangent-space normal map: texel (r, g, b) ↦ n = normalize((2r − 1) s, (2g − 1) s, 2b − 1)
+/// in the frame (tangent, bitangent, normal), with s = `scale` (glTF `normalTexture`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NormalMap {
+    pub texture: TextureRef,
+    pub scale: f32,
+}
+
+/// How alpha covers a surface (glTF `alphaMode`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum AlphaMode {
+    /// Fully opaque; alpha is ignored (OPAQUE, the default).
+    #[default]
+    Opaque,
+    /// A cut-out: the surface exists where alpha ≥ `cutoff` and nowhere else (MASK,
+    /// `alphaCutoff`, default 0.5), for camera, bounce and shadow rays alike.
+    Mask { cutoff: f32 },
+    /// Partial coverage (BLEND), rendered as stochastic coverage: a ray passes through with
+    /// probability 1 − alpha, decided by a hash of the ray, so the image converges to the
+    /// alpha blend.
+    Blend,
 }
 
 impl Material {
@@ -165,7 +214,42 @@ impl Material {
             roughness: 1.0,
             emission: Rgb::ZERO,
             double_sided: true,
+            emissive_texture: None,
+            normal_texture: None,
+            alpha_mode: AlphaMode::Opaque,
+            base_alpha: 1.0,
+            ior: 1.5,
+            specular: 1.0,
+            specular_color: Rgb::ONE,
         }
+    }
+
+    /// The dielectric's Fresnel reflectance at normal and grazing incidence, (f0, f90), as
+    /// `KHR_materials_specular` defines them: f0 = min(((ior − 1)/(ior + 1))² · specular
+    /// colour, 1) · specular, f90 = specular; (0.04, 1) for the defaults.
+    pub fn dielectric_fresnel(&self) -> (Rgb, f32) {
+        let r = ((self.ior - 1.0) / (self.ior + 1.0)).powi(2);
+        ((r * self.specular_color).min(Rgb::ONE) * self.specular, self.specular)
+    }
+
+    /// Whether rays can pass through parts of the surface (a cut-out or partial coverage).
+    pub fn has_alpha(&self) -> bool {
+        match self.alpha_mode {
+            AlphaMode::Opaque => false,
+            AlphaMode::Mask { .. } | AlphaMode::Blend => true,
+        }
+    }
+
+    /// Every texture the material reads.
+    pub fn texture_refs(&self) -> impl Iterator<Item = &TextureRef> {
+        [
+            self.base_color_texture.as_ref(),
+            self.metallic_roughness_texture.as_ref(),
+            self.emissive_texture.as_ref(),
+            self.normal_texture.as_ref().map(|n| &n.texture),
+        ]
+        .into_iter()
+        .flatten()
     }
 }
 
@@ -378,6 +462,12 @@ impl SceneDescription {
         if !g.uvs1.is_empty() && g.uvs1.len() != n {
             return fail(format!("{n} positions but {} second texture coordinates", g.uvs1.len()));
         }
+        if !g.tangents.is_empty() && g.tangents.len() != n {
+            return fail(format!("{n} positions but {} tangents", g.tangents.len()));
+        }
+        if let Some(i) = g.tangents.iter().position(|v| !v.is_finite()) {
+            return fail(format!("non-finite vertex tangent (vertex {i})"));
+        }
         if let Some(i) = g.uvs.iter().chain(&g.uvs1).position(|v| !v.is_finite()) {
             return fail(format!("non-finite texture coordinate (vertex {})", i % n.max(1)));
         }
@@ -409,10 +499,7 @@ impl SceneDescription {
             ));
         }
         for m in &self.materials {
-            if [m.base_color_texture, m.metallic_roughness_texture]
-                .iter()
-                .flatten()
-                .any(|t| t.texture >= self.textures.len())
+            if m.texture_refs().any(|t| t.texture >= self.textures.len())
             {
                 return fail(format!("material '{}' uses a missing texture", m.name));
             }
@@ -443,6 +530,7 @@ mod tests {
                 normals: vec![Vec3::Z; 3],
                 uvs: vec![Vec2::ZERO; 3],
                 uvs1: Vec::new(),
+                tangents: Vec::new(),
                 triangles: vec![[0, 1, 2]],
                 material_ids: vec![0],
                 positions,
@@ -478,6 +566,15 @@ mod tests {
         let other = g.clone();
         g.append(&other, Path::new("x.obj")).expect("append");
         assert_eq!(g.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        assert!(g.tangents.is_empty(), "no tangents stored when neither part has any");
+        let mut bumpy = other.clone();
+        bumpy.tangents = vec![Vec4::X; 3];
+        g.append(&bumpy, Path::new("x.obj")).expect("append");
+        g.append(&other, Path::new("x.obj")).expect("append");
+        let mut expected = vec![Vec4::ZERO; 6];
+        expected.extend([Vec4::X; 3]);
+        expected.extend([Vec4::ZERO; 3]);
+        assert_eq!(g.tangents, expected, "parts without tangents are padded with zeros");
         assert_eq!(g.bounds(), Some((Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0))));
         assert_eq!(Geometry::default().bounds(), None);
     }

@@ -253,6 +253,7 @@ fn convert_mesh(
         normals,
         uvs,
         uvs1: Vec::new(),
+        tangents: Vec::new(),
         triangles,
     })
 }
@@ -304,6 +305,7 @@ fn convert_material(
         roughness,
         emission,
         double_sided: true,
+        ..Material::default_diffuse("")
     })
 }
 

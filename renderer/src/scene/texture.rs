@@ -10,12 +10,16 @@ use crate::{Error, Result, Rgb};
 use glam::{Mat3, Vec2};
 use std::path::Path;
 
-/// A texture of linear RGB texels, row-major from the top row (glTF's v = 0).
-#[derive(Clone, Debug)]
+/// A texture of linear RGB texels, row-major from the top row (glTF's v = 0), with the
+/// image's alpha channel where it has one that is not opaque everywhere.
+#[derive(Clone, Debug, Default)]
 pub struct Texture {
     pub width: u32,
     pub height: u32,
     pub texels: Vec<Rgb>,
+    /// Alpha (coverage, linear in [0, 1]) per texel, in the order of `texels`; empty when
+    /// the image has no alpha channel or every texel is opaque (alpha 1).
+    pub alpha: Vec<f32>,
 }
 
 /// How an image's 8- and 16-bit values map to linear values.
@@ -81,11 +85,21 @@ impl TextureRef {
     /// [`TextureRef::tex_coord`] (before the transform).
     #[inline]
     pub fn lookup(&self, textures: &[Texture], uv: Vec2) -> Rgb {
-        let uv = match &self.transform {
+        textures[self.texture].sample(self.transformed(uv), self.wrap, self.filter)
+    }
+
+    /// The texture's alpha at `uv` (as [`TextureRef::lookup`]); 1 where the image has none.
+    #[inline]
+    pub fn lookup_alpha(&self, textures: &[Texture], uv: Vec2) -> f32 {
+        textures[self.texture].sample_alpha(self.transformed(uv), self.wrap, self.filter)
+    }
+
+    #[inline]
+    fn transformed(&self, uv: Vec2) -> Vec2 {
+        match &self.transform {
             Some(m) => m.transform_point2(uv),
             None => uv,
-        };
-        textures[self.texture].sample(uv, self.wrap, self.filter)
+        }
     }
 }
 
@@ -123,32 +137,53 @@ impl Texture {
     /// The value at `uv` with the given wrap modes (u, v) and filter. Non-finite coordinates
     /// are read as (0, 0).
     pub fn sample(&self, uv: Vec2, wrap: [Wrap; 2], filter: Filter) -> Rgb {
+        self.filtered(uv, wrap, filter, |i| self.texels[i], Rgb::lerp)
+    }
+
+    /// The alpha at `uv`, filtered as [`Texture::sample`]; 1 when the texture has no alpha.
+    pub fn sample_alpha(&self, uv: Vec2, wrap: [Wrap; 2], filter: Filter) -> f32 {
+        if self.alpha.is_empty() {
+            return 1.0;
+        }
+        self.filtered(uv, wrap, filter, |i| self.alpha[i], |a, b, t| a + (b - a) * t)
+    }
+
+    /// Texels fetched by `texel(index)` at `uv`, wrapped and filtered.
+    #[inline]
+    fn filtered<T: Copy>(&self, uv: Vec2, wrap: [Wrap; 2], filter: Filter, texel: impl Fn(usize) -> T, lerp: impl Fn(T, T, f32) -> T) -> T {
         let (w, h) = (self.width as usize, self.height as usize);
         let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
         // Continuous texel coordinates, texel centres at integers; kept in a range where the
         // f32 → i64 conversion is exact enough (every wrap mode is periodic or clamps).
         let x = (uv.x * w as f32 - 0.5).clamp(-1e9, 1e9);
         let y = (uv.y * h as f32 - 0.5).clamp(-1e9, 1e9);
-        let t = |xx: i64, yy: i64| self.texels[wrap_index(xx, w, wrap[0]) + w * wrap_index(yy, h, wrap[1])];
+        let t = |xx: i64, yy: i64| texel(wrap_index(xx, w, wrap[0]) + w * wrap_index(yy, h, wrap[1]));
         match filter {
             Filter::Nearest => t(x.round() as i64, y.round() as i64),
             Filter::Linear => {
                 let (x0, y0) = (x.floor(), y.floor());
                 let (fx, fy) = (x - x0, y - y0);
                 let (xi, yi) = (x0 as i64, y0 as i64);
-                let top = t(xi, yi).lerp(t(xi + 1, yi), fx);
-                let bottom = t(xi, yi + 1).lerp(t(xi + 1, yi + 1), fx);
-                top.lerp(bottom, fy)
+                let top = lerp(t(xi, yi), t(xi + 1, yi), fx);
+                let bottom = lerp(t(xi, yi + 1), t(xi + 1, yi + 1), fx);
+                lerp(top, bottom, fy)
             }
         }
+    }
+
+    /// The mean texel value (e.g. the mean radiance of an emissive texture).
+    pub fn mean(&self) -> Rgb {
+        let sum = self.texels.iter().fold(glam::DVec3::ZERO, |s, t| s + t.as_dvec3());
+        (sum / self.texels.len().max(1) as f64).as_vec3()
     }
 
     /// Decodes an encoded image (PNG, JPEG, or the HDR/EXR formats the `image` crate is built
     /// with here) into linear texels.
     ///
     /// 8- and 16-bit images are decoded as `encoding` says; floating-point images are taken
-    /// as linear already. Alpha is dropped. `file` and `what` only name the image in error
-    /// messages (e.g. the scene file and "texture 'wood.png'").
+    /// as linear already. Alpha is always linear (glTF) and kept only where some texel is
+    /// not opaque. `file` and `what` only name the image in error messages (e.g. the scene
+    /// file and "texture 'wood.png'").
     pub fn from_encoded(bytes: &[u8], encoding: Encoding, file: &Path, what: &str) -> Result<Texture> {
         let image = image::load_from_memory(bytes)
             .map_err(|e| Error::invalid_file(file, format!("cannot decode {what}: {e}")))?;
@@ -161,15 +196,24 @@ impl Texture {
             image::ColorType::Rgb32F | image::ColorType::Rgba32F
         );
         let decode = |v: f32| if is_float || encoding == Encoding::Linear { v } else { srgb_to_linear(v) };
-        let texels = image
-            .to_rgb32f()
+        let rgba = image.to_rgba32f();
+        let texels = rgba
             .pixels()
             .map(|p| Rgb::new(decode(p.0[0]), decode(p.0[1]), decode(p.0[2])))
             .collect();
+        let mut alpha: Vec<f32> = if image.color().has_alpha() {
+            rgba.pixels().map(|p| p.0[3]).collect()
+        } else {
+            Vec::new()
+        };
+        if alpha.iter().all(|&a| a >= 1.0) {
+            alpha = Vec::new();
+        }
         Ok(Texture {
             width,
             height,
             texels,
+            alpha,
         })
     }
 
@@ -199,6 +243,7 @@ mod tests {
             width: 4,
             height: 1,
             texels: (0..4).map(|i| Rgb::splat(i as f32)).collect(),
+            alpha: Vec::new(),
         }
     }
 

@@ -4,7 +4,13 @@
 use super::*;
 
 /// The glTF extensions the loader reads (see the module documentation).
-pub(super) const SUPPORTED_EXTENSIONS: [&str; 3] = ["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_texture_transform"];
+pub(super) const SUPPORTED_EXTENSIONS: [&str; 5] = [
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_specular",
+    "KHR_texture_transform",
+];
 
 /// Parses a `.gltf` or `.glb` file (an unsupported extension in `extensionsRequired` is an
 /// error naming it) and runs the `gltf` crate's validation, which checks

@@ -14,14 +14,22 @@
 //!   the winding is flipped so triangles stay counter-clockwise seen from the front.
 //! - Materials: `pbrMetallicRoughness.baseColorFactor` (linear) times `baseColorTexture`
 //!   (sRGB-decoded to linear at load), `metallicFactor` and `roughnessFactor` times the blue
-//!   and green channels of `metallicRoughnessTexture` (linear data), and `emissiveFactor`
-//!   times `KHR_materials_emissive_strength` as [`Material::emission`]. Textures: PNG or
-//!   JPEG (8/16-bit; EXR and HDR as linear), each image decoded once per encoding and shared;
-//!   the sampler's `wrapS`/`wrapT` (repeat, clamp, mirrored repeat) and `magFilter` (nearest
-//!   or bilinear; no mipmaps) and `KHR_texture_transform` are honoured
-//!   ([`super::texture::TextureRef`]), with `texCoord` 0 or 1 (another set reads set 0, with
-//!   a warning). Emissive, normal and occlusion textures are ignored; `doubleSided` is kept.
+//!   and green channels of `metallicRoughnessTexture` (linear data), `emissiveFactor` times
+//!   `emissiveTexture` (sRGB) times `KHR_materials_emissive_strength` as
+//!   [`Material::emission`] and [`Material::emissive_texture`], `normalTexture` (linear, with
+//!   its `scale`) as [`Material::normal_texture`], `alphaMode` and `alphaCutoff` with the
+//!   base colour's alpha ([`AlphaMode`]), `KHR_materials_ior` and `KHR_materials_specular`'s
+//!   factors ([`Material::dielectric_fresnel`]; its textures are ignored with a warning).
+//!   Textures: PNG or JPEG (8/16-bit; EXR and HDR as linear), each image decoded once per
+//!   encoding and shared; the sampler's `wrapS`/`wrapT` (repeat, clamp, mirrored repeat) and
+//!   `magFilter` (nearest or bilinear; no mipmaps) and `KHR_texture_transform` (also on
+//!   normal textures, read from their JSON) are honoured ([`super::texture::TextureRef`]),
+//!   with `texCoord` 0 or 1 (another set reads set 0, with a warning). Occlusion textures
+//!   are ignored; `doubleSided` is kept.
 //!   Primitives without a material get [`Material::default_diffuse`] (named "default").
+//! - Tangents, for primitives whose material has a normal map: TANGENT (xyz turned by the
+//!   node's matrix, w flipped under a mirroring transform) or, without it, MikkTSpace
+//!   ([`primitives::mikktspace_tangents`]) over the world-space triangles.
 //! - Material `extras` choose the [`SurfaceModel`] (at most one of these keys):
 //!   - `{"bsdf": "diffuse"}` → [`SurfaceModel::Lambert`]; `{"bsdf": "metallic-roughness"}`
 //!     → [`SurfaceModel::MetallicRoughness`] (the default without extras);
@@ -48,7 +56,7 @@
 //!   read by the renderer's environment code, not here.
 //!
 //! - Not read: animations, skins and morph targets (the rest pose is used), sparse
-//!   accessors, and extensions other than the three above. A file that *requires* another
+//!   accessors, and extensions other than the five named above. A file that *requires* another
 //!   extension (`extensionsRequired`) is an error naming it; one that only *uses* another
 //!   (`extensionsUsed`, e.g. `KHR_materials_transmission`, `KHR_texture_transform`) loads
 //!   with a warning naming it once ([`SceneDescription::warnings`]), and its materials render
@@ -60,8 +68,8 @@
 
 use super::texture::{texture_transform, Encoding, Filter, Wrap};
 use super::{
-    smooth_vertex_normals, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Material,
-    PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef,
+    smooth_vertex_normals, AlphaMode, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Material,
+    NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef,
 };
 use crate::material::Binding;
 use crate::{Error, Result, Rgb};
@@ -70,7 +78,7 @@ use ::gltf::camera::Projection;
 use ::gltf::khr_lights_punctual::Kind as LightKind;
 use ::gltf::mesh::Mode;
 use ::gltf::{Accessor, Document, Gltf, Node, Primitive};
-use glam::{Mat3, Mat4, Vec2, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -291,22 +299,64 @@ impl Loader<'_> {
     }
 
     fn material(&mut self, document: &Document, material: &::gltf::Material) -> Result<Material> {
+        use ::gltf::material::AlphaMode as GltfAlpha;
         let name = material
             .name()
             .map(str::to_string)
             .unwrap_or_else(|| format!("material{}", material.index().unwrap_or(0)));
         let pbr = material.pbr_metallic_roughness();
-        let [r, g, b, _] = pbr.base_color_factor();
+        let [r, g, b, a] = pbr.base_color_factor();
         let base_color_texture = match pbr.base_color_texture() {
-            Some(info) => Some(self.texture_ref(document, &info, Encoding::Srgb, &name, "base colour")?),
+            Some(info) => Some(self.texture_ref(document, &TextureUse::info(&info), Encoding::Srgb, &name, "base colour")?),
             None => None,
         };
         let metallic_roughness_texture = match pbr.metallic_roughness_texture() {
-            Some(info) => Some(self.texture_ref(document, &info, Encoding::Linear, &name, "metallic-roughness")?),
+            Some(info) => Some(self.texture_ref(document, &TextureUse::info(&info), Encoding::Linear, &name, "metallic-roughness")?),
             None => None,
+        };
+        let emissive_texture = match material.emissive_texture() {
+            Some(info) => Some(self.texture_ref(document, &TextureUse::info(&info), Encoding::Srgb, &name, "emissive")?),
+            None => None,
+        };
+        let normal_texture = match material.normal_texture() {
+            Some(normal) => {
+                let texture = self.texture_ref(document, &TextureUse::normal(&normal), Encoding::Linear, &name, "normal")?;
+                if !normal.scale().is_finite() {
+                    return Err(self.invalid(format!("material '{name}' has a non-finite normalTexture scale")));
+                }
+                Some(NormalMap { texture, scale: normal.scale() })
+            }
+            None => None,
+        };
+        let alpha_mode = match material.alpha_mode() {
+            GltfAlpha::Opaque => AlphaMode::Opaque,
+            GltfAlpha::Mask => {
+                let cutoff = material.alpha_cutoff().unwrap_or(0.5);
+                if cutoff.is_nan() || cutoff < 0.0 {
+                    return Err(self.invalid(format!("material '{name}' has alphaCutoff {cutoff} (must be ≥ 0)")));
+                }
+                AlphaMode::Mask { cutoff }
+            }
+            GltfAlpha::Blend => AlphaMode::Blend,
         };
         let emission = Rgb::from_array(material.emissive_factor())
             * material.emissive_strength().unwrap_or(1.0);
+        let ior = material.ior().unwrap_or(1.5);
+        let (specular, specular_color) = match material.specular() {
+            Some(spec) => {
+                for (texture, what) in [(spec.specular_texture().is_some(), "specularTexture"), (spec.specular_color_texture().is_some(), "specularColorTexture")] {
+                    if texture {
+                        let warning = format!("{}: material '{name}': KHR_materials_specular's {what} is not supported and is ignored (its factor is used)", self.path.display());
+                        self.scene.warnings.push(warning);
+                    }
+                }
+                (spec.specular_factor(), Rgb::from_array(spec.specular_color_factor()))
+            }
+            None => (1.0, Rgb::ONE),
+        };
+        if !(ior == 0.0 || ior >= 1.0) || !specular.is_finite() || !specular_color.is_finite() {
+            return Err(self.invalid(format!("material '{name}' has an invalid KHR_materials_ior or KHR_materials_specular (ior {ior}, specular {specular}, colour {specular_color}): ior must be 0 or at least 1 and the factors finite")));
+        }
         let model = surface_model(material.extras(), &name, self.base)
             .map_err(|reason| self.invalid(reason))?;
         let result = Material {
@@ -318,9 +368,16 @@ impl Loader<'_> {
             roughness: pbr.roughness_factor().clamp(0.0, 1.0),
             emission,
             double_sided: material.double_sided(),
+            emissive_texture,
+            normal_texture,
+            alpha_mode,
+            base_alpha: a.clamp(0.0, 1.0),
+            ior,
+            specular: specular.clamp(0.0, 1.0),
+            specular_color: specular_color.max(Rgb::ZERO),
             name,
         };
-        if !result.base_color.is_finite() || !result.emission.is_finite() {
+        if !result.base_color.is_finite() || !result.emission.is_finite() || !a.is_finite() {
             return Err(self.invalid(format!("material '{}' has non-finite factors", result.name)));
         }
         Ok(result)
@@ -333,13 +390,13 @@ impl Loader<'_> {
     fn texture_ref(
         &mut self,
         document: &Document,
-        info: &::gltf::texture::Info,
+        used: &TextureUse,
         encoding: Encoding,
         material: &str,
         role: &str,
     ) -> Result<TextureRef> {
         use ::gltf::texture::{MagFilter, WrappingMode};
-        let texture = info.texture();
+        let texture = &used.texture;
         let index = self.texture(document, texture.source().index(), encoding, &format!("{role} of material '{material}'"))?;
         let wrap = |mode: WrappingMode| match mode {
             WrappingMode::ClampToEdge => Wrap::ClampToEdge,
@@ -351,8 +408,10 @@ impl Loader<'_> {
             Some(MagFilter::Nearest) => Filter::Nearest,
             _ => Filter::Linear,
         };
-        let transform = info.texture_transform();
-        let tex_coord = transform.as_ref().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord());
+        let transform = used.transform.as_ref().map(|t| t.parse()).transpose().map_err(|reason| {
+            self.invalid(format!("the {role} texture of material '{material}' has an invalid KHR_texture_transform: {reason}"))
+        })?;
+        let tex_coord = transform.and_then(|t| t.3).unwrap_or(used.tex_coord);
         let tex_coord = if tex_coord > 1 {
             let warning = format!(
                 "{}: the {role} texture of material '{material}' uses TEXCOORD_{tex_coord}; only sets 0 and 1 are read, and set 0 is used instead",
@@ -363,7 +422,7 @@ impl Loader<'_> {
         } else {
             tex_coord
         };
-        let transform = transform.map(|t| texture_transform(Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale())));
+        let transform = transform.map(|(offset, rotation, scale, _)| texture_transform(offset, rotation, scale));
         if transform.is_some_and(|m| !m.is_finite()) {
             return Err(self.invalid(format!("the {role} texture of material '{material}' has a non-finite KHR_texture_transform")));
         }
@@ -407,6 +466,69 @@ impl Loader<'_> {
         self.scene.textures.push(texture);
         self.texture_of_image.insert((image, encoding), t);
         Ok(t)
+    }
+}
+
+/// A texture as one material slot uses it: the texture, its `texCoord` and its
+/// `KHR_texture_transform` (as the `gltf` crate parses it for texture infos, as JSON for
+/// normal textures, whose extensions it leaves unparsed).
+struct TextureUse<'a> {
+    texture: ::gltf::Texture<'a>,
+    tex_coord: u32,
+    transform: Option<TransformSource<'a>>,
+}
+
+enum TransformSource<'a> {
+    Parsed(::gltf::texture::TextureTransform<'a>),
+    Json(&'a Value),
+}
+
+/// offset, rotation (radians), scale and the texCoord override of a `KHR_texture_transform`.
+type TransformParts = (Vec2, f32, Vec2, Option<u32>);
+
+impl<'a> TextureUse<'a> {
+    fn info(info: &::gltf::texture::Info<'a>) -> Self {
+        TextureUse {
+            texture: info.texture(),
+            tex_coord: info.tex_coord(),
+            transform: info.texture_transform().map(TransformSource::Parsed),
+        }
+    }
+
+    fn normal(normal: &'a ::gltf::material::NormalTexture<'a>) -> Self {
+        TextureUse {
+            texture: normal.texture(),
+            tex_coord: normal.tex_coord(),
+            transform: normal.extension_value("KHR_texture_transform").map(TransformSource::Json),
+        }
+    }
+}
+
+impl TransformSource<'_> {
+    fn parse(&self) -> std::result::Result<TransformParts, String> {
+        match self {
+            TransformSource::Parsed(t) => Ok((Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale()), t.tex_coord())),
+            TransformSource::Json(value) => {
+                let pair = |key: &str, default: Vec2| -> std::result::Result<Vec2, String> {
+                    match value.get(key) {
+                        None => Ok(default),
+                        Some(v) => match v.as_array().map(|a| a.iter().map(Value::as_f64).collect::<Option<Vec<_>>>()) {
+                            Some(Some(a)) if a.len() == 2 => Ok(Vec2::new(a[0] as f32, a[1] as f32)),
+                            _ => Err(format!("'{key}' must be an array of two numbers")),
+                        },
+                    }
+                };
+                let rotation = match value.get("rotation") {
+                    None => 0.0,
+                    Some(v) => v.as_f64().ok_or("'rotation' must be a number")? as f32,
+                };
+                let tex_coord = match value.get("texCoord") {
+                    None => None,
+                    Some(v) => Some(v.as_u64().and_then(|t| u32::try_from(t).ok()).ok_or("'texCoord' must be a non-negative integer")?),
+                };
+                Ok((pair("offset", Vec2::ZERO)?, rotation, pair("scale", Vec2::ONE)?, tex_coord))
+            }
+        }
     }
 }
 

@@ -143,12 +143,46 @@ impl Loader<'_> {
             Some(i) => u32::try_from(i).map_err(|_| self.invalid("too many materials"))?,
             None => self.default_material_id()?,
         };
+        let normal_map_set = self
+            .scene
+            .materials
+            .get(material_id as usize)
+            .and_then(|m| m.normal_texture)
+            .map(|n| n.texture.tex_coord);
+        let tangents = match normal_map_set {
+            None => Vec::new(),
+            Some(set) => match primitive.get(&::gltf::Semantic::Tangents) {
+                Some(accessor) => {
+                    let name = what("TANGENT");
+                    self.check_accessor(&accessor, &name, &[DataType::F32], Dimensions::Vec4)?;
+                    let local: Vec<Vec4> = reader
+                        .read_tangents()
+                        .ok_or_else(|| self.invalid(format!("cannot read {name}")))?
+                        .map(Vec4::from_array)
+                        .collect();
+                    self.check_count(local.len(), vertex_count, &name)?;
+                    let handedness = linear.determinant().signum();
+                    local
+                        .iter()
+                        .map(|t| match (linear * t.truncate()).try_normalize() {
+                            Some(xyz) if t.w.is_finite() => xyz.extend(if t.w < 0.0 { -handedness } else { handedness }),
+                            _ => Vec4::ZERO,
+                        })
+                        .collect()
+                }
+                None => {
+                    let uvs = if set == 1 && !uvs1.is_empty() { &uvs1 } else { &uvs };
+                    mikktspace_tangents(&positions, &normals, uvs, &triangles)
+                }
+            },
+        };
         let material_ids = vec![material_id; triangles.len()];
         Ok(Geometry {
             positions,
             normals,
             uvs,
             uvs1,
+            tangents,
             triangles,
             material_ids,
         })
@@ -224,6 +258,47 @@ impl Loader<'_> {
             )))
         }
     }
+}
+
+/// Per-vertex tangents of an indexed triangle mesh by MikkTSpace (the algorithm glTF names
+/// for meshes without TANGENT), with the normal map's image up as the bitangent: texture
+/// coordinates are given to it with v flipped (glTF's v points down the image). Each vertex
+/// takes the tangent of its last corner; a vertex MikkTSpace gives none (degenerate texture
+/// coordinates, no triangle) gets zero, which shading reads as "no normal map here".
+pub(super) fn mikktspace_tangents(positions: &[Vec3], normals: &[Vec3], uvs: &[Vec2], triangles: &[[u32; 3]]) -> Vec<Vec4> {
+    struct Mesh<'a> {
+        positions: &'a [Vec3],
+        normals: &'a [Vec3],
+        uvs: &'a [Vec2],
+        triangles: &'a [[u32; 3]],
+        tangents: Vec<Vec4>,
+    }
+    impl bevy_mikktspace::Geometry for Mesh<'_> {
+        fn num_faces(&self) -> usize {
+            self.triangles.len()
+        }
+        fn num_vertices_of_face(&self, _face: usize) -> usize {
+            3
+        }
+        fn position(&self, face: usize, vert: usize) -> [f32; 3] {
+            self.positions[self.triangles[face][vert] as usize].to_array()
+        }
+        fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
+            self.normals[self.triangles[face][vert] as usize].to_array()
+        }
+        fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
+            let uv = self.uvs[self.triangles[face][vert] as usize];
+            [uv.x, 1.0 - uv.y]
+        }
+        fn set_tangent(&mut self, tangent_space: Option<bevy_mikktspace::TangentSpace>, face: usize, vert: usize) {
+            let tangent = tangent_space.map_or(Vec4::ZERO, |t| Vec4::from_array(t.tangent_encoded()));
+            self.tangents[self.triangles[face][vert] as usize] = if tangent.is_finite() { tangent } else { Vec4::ZERO };
+        }
+    }
+    let mut mesh = Mesh { positions, normals, uvs, triangles, tangents: vec![Vec4::ZERO; positions.len()] };
+    // The error type has no variants: generation cannot fail.
+    let _ = bevy_mikktspace::generate_tangents(&mut mesh);
+    mesh.tangents
 }
 
 /// The glTF spelling of a primitive mode.

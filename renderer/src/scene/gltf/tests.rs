@@ -924,3 +924,107 @@ fn unsupported_extensions_warn_once_or_fail_when_required() {
     let scene = load_doc(&triangle_doc(json!([{"mesh": 0}]), json!([0]), supported)).expect("load");
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
 }
+
+/// Normal, emissive and alpha slots: the normal texture's scale, texCoord and
+/// KHR_texture_transform (which the `gltf` crate leaves unparsed there), decoded as linear
+/// data; the emissive texture as sRGB; alphaMode with its cutoff (default 0.5) and the base
+/// colour factor's alpha; a malformed transform is an error naming the material.
+#[test]
+fn normal_emissive_and_alpha_slots_are_read() {
+    use crate::scene::texture::texture_transform;
+    let png = two_texel_png();
+    let mut doc = material_doc(json!([
+        {"name": "bumpy", "alphaMode": "MASK", "alphaCutoff": 0.25,
+         "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 0.6]},
+         "normalTexture": {"index": 0, "scale": 0.5, "texCoord": 1,
+            "extensions": {"KHR_texture_transform": {"offset": [0.5, 0.0], "scale": [2.0, 2.0]}}},
+         "emissiveTexture": {"index": 0}, "emissiveFactor": [1.0, 1.0, 1.0]},
+        {"name": "veil", "alphaMode": "BLEND"},
+        {"name": "cut", "alphaMode": "MASK"},
+        {"name": "plain"}
+    ]));
+    doc["textures"] = json!([{"source": 0}]);
+    doc["images"] = json!([{"uri": format!("data:image/png;base64,{}", base64(&png))}]);
+    let scene = load_doc(&doc).expect("load");
+    let m = &scene.materials;
+    let normal = m[0].normal_texture.expect("normal map");
+    assert_eq!((normal.scale, normal.texture.tex_coord), (0.5, 1));
+    assert_eq!(normal.texture.transform, Some(texture_transform(Vec2::new(0.5, 0.0), 0.0, Vec2::splat(2.0))));
+    assert!((scene.textures[normal.texture.texture].texels[0].y - 128.0 / 255.0).abs() < 1e-6, "linear");
+    let emissive = m[0].emissive_texture.expect("emissive texture");
+    assert!((scene.textures[emissive.texture].texels[0].y - 0.215_861).abs() < 1e-4, "sRGB");
+    assert_eq!((m[0].alpha_mode, m[0].base_alpha), (AlphaMode::Mask { cutoff: 0.25 }, 0.6));
+    assert_eq!(m[1].alpha_mode, AlphaMode::Blend);
+    assert_eq!(m[2].alpha_mode, AlphaMode::Mask { cutoff: 0.5 });
+    assert_eq!((m[3].alpha_mode, m[3].base_alpha, m[3].has_alpha()), (AlphaMode::Opaque, 1.0, false));
+
+    doc["materials"][0]["normalTexture"]["extensions"]["KHR_texture_transform"]["scale"] = json!("big");
+    expect_error(&doc, "the normal texture of material 'bumpy' has an invalid KHR_texture_transform: 'scale' must be an array of two numbers");
+}
+
+/// Tangents: read from TANGENT (turned with the node, the handedness flipped by a mirroring
+/// transform) or, without it, computed by MikkTSpace with the bitangent pointing up the
+/// image (−v); only meshes with a normal-mapped material get any.
+#[test]
+fn tangents_come_from_the_file_or_mikktspace() {
+    let png = two_texel_png();
+    let mut bin = Bin::default();
+    let p = bin.vec3(&TRIANGLE);
+    let n = bin.vec3(&[[0.0, 0.0, 1.0]; 3]);
+    let uv = bin.vec2(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
+    let data: Vec<u8> = [[0.0f32, 1.0, 0.0, 1.0]; 3].iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+    let tangent = bin.push(&data, json!({"componentType": 5126, "count": 3, "type": "VEC4"}));
+    let root = json!({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1, 2]}],
+        "nodes": [{"mesh": 0}, {"mesh": 1, "scale": [-1.0, 1.0, 1.0]}, {"mesh": 2}],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": p, "NORMAL": n, "TEXCOORD_0": uv}, "material": 0}]},
+            {"primitives": [{"attributes": {"POSITION": p, "NORMAL": n, "TEXCOORD_0": uv, "TANGENT": tangent}, "material": 0}]},
+            {"primitives": [{"attributes": {"POSITION": p, "NORMAL": n, "TEXCOORD_0": uv}, "material": 1}]}
+        ],
+        "materials": [{"name": "bumpy", "normalTexture": {"index": 0}}, {"name": "smooth"}],
+        "textures": [{"source": 0}],
+        "images": [{"uri": format!("data:image/png;base64,{}", base64(&png))}]
+    });
+    let scene = load_doc(&bin.embed(root)).expect("load");
+    let t = &scene.geometry.tangents;
+    assert_eq!(t.len(), 9);
+    // u runs along +x and v along +y, so the image's up (−v) is −y = −(n × t): w = −1.
+    for v in &t[0..3] {
+        assert!(v.abs_diff_eq(Vec4::new(1.0, 0.0, 0.0, -1.0), 1e-5), "MikkTSpace: {v}");
+    }
+    for v in &t[3..6] {
+        assert!(v.abs_diff_eq(Vec4::new(0.0, 1.0, 0.0, -1.0), 1e-6), "mirrored file tangent: {v}");
+    }
+    assert_eq!(t[6..], [Vec4::ZERO; 3], "no normal map, no tangents");
+    let without = load_doc(&triangle_doc(json!([{"mesh": 0}]), json!([0]), json!({}))).expect("load");
+    assert!(without.geometry.tangents.is_empty(), "nothing stored when no material has a normal map");
+}
+
+/// Bad textures: a missing image file is an I/O error naming it; a truncated image, an
+/// image in a format the renderer does not decode (GIF here) and a texture naming a missing
+/// image are one-line errors naming the glTF file, the image and the material slot.
+#[test]
+fn bad_textures_are_errors_naming_the_file_and_the_image() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = material_doc(json!([{"name": "tex", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]));
+    doc["textures"] = json!([{"source": 0}]);
+    doc["images"] = json!([{"uri": "wood.png"}]);
+    let path = write(dir.path(), "scene.gltf", &doc);
+    let error = load(&path).expect_err("missing image");
+    assert!(matches!(error, Error::Io { ref path, .. } if path.ends_with("wood.png")), "{error}");
+
+    let png = two_texel_png();
+    std::fs::write(dir.path().join("wood.png"), &png[..png.len() / 2]).expect("write");
+    let message = load(&path).expect_err("truncated").to_string();
+    assert!(message.starts_with(&path.display().to_string()) && message.contains("cannot decode image 0 (base colour of material 'tex')"), "{message}");
+    assert!(!message.contains('\n'), "{message}");
+
+    std::fs::write(dir.path().join("wood.png"), b"GIF89a\x01\x00\x01\x00\x00\x00\x00;").expect("write");
+    let message = load(&path).expect_err("GIF").to_string();
+    assert!(message.contains("cannot decode image 0"), "{message}");
+
+    doc["textures"] = json!([{"source": 0}, {"source": 3}]);
+    doc["materials"][0]["emissiveTexture"] = json!({"index": 1});
+    expect_error(&doc, "");
+}
