@@ -12,7 +12,7 @@ use renderer::formats::latent_file::{LatentFile, WeightType};
 use renderer::neural::mapping::MappingForm;
 use renderer::neural::nbrdf::TENSOR_NAMES;
 use renderer_fuzz::{
-    latent_mode2_input, merl_header, valid_npy_tensors, CORNELL_BIN, MTL_SEPARATOR,
+    fuzz_path, latent_mode2_input, merl_header, render_probe, scene_file, valid_npy_tensors, CORNELL_BIN, MTL_SEPARATOR,
 };
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -48,6 +48,15 @@ fn main() {
     write("gltf", "cornell-data-uri.gltf", &to_json(&doc));
     let (strip, strip_bin) = strip_scene();
     write("gltf", "strip.glb", &glb(&strip, &strip_bin));
+    let (features, features_bin) = features_scene();
+    let features = glb(&features, &features_bin);
+    let loaded = renderer::scene::gltf::load_from_bytes_with(&features, &fuzz_path("scene.gltf"), |p| scene_file(p, &[]))
+        .expect("the features seed loads");
+    let tangents = &loaded.geometry.tangents;
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    assert!(tangents.len() == 20 && tangents[..16].iter().all(|t| t.w.abs() == 1.0), "file and MikkTSpace tangents: {tangents:?}");
+    render_probe(loaded);
+    write("gltf", "features.glb", &features);
 
     // OBJ (+ MTL after the separator line).
     write(
@@ -233,6 +242,78 @@ fn strip_scene() -> (Value, Vec<u8>) {
     (doc, bin)
 }
 
+/// A quad with every texture feature the loader reads: normal maps (one mesh with TANGENT,
+/// one without, so MikkTSpace runs), an emissive texture with emissive strength,
+/// `KHR_texture_transform` on a base colour and (as raw JSON) on a normal texture, a
+/// second texture-coordinate set, a clamped nearest sampler, alpha MASK and BLEND, ior and
+/// specular, a JPEG and PNGs, and one mesh on two nodes.
+fn features_scene() -> (Value, Vec<u8>) {
+    let positions: [[f32; 3]; 4] = [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
+    let normals = [[0f32, 0., 1.]; 4];
+    let uvs: [[f32; 2]; 4] = [[0., 1.], [1., 1.], [1., 0.], [0., 0.]];
+    let uvs1: [[f32; 2]; 4] = [[0.5, 0.5], [0.25, 0.5], [0.25, 0.25], [0.5, 0.25]];
+    let tangents = [[1f32, 0., 0., 1.]; 4];
+    let mut bin: Vec<u8> = Vec::new();
+    let mut views = Vec::new();
+    let mut push = |bytes: Vec<u8>| {
+        views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}));
+        bin.extend(bytes);
+    };
+    let floats = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    push(floats(positions.as_flattened()));
+    push(floats(normals.as_flattened()));
+    push(floats(uvs.as_flattened()));
+    push(floats(uvs1.as_flattened()));
+    push(floats(tangents.as_flattened()));
+    push([0u16, 1, 2, 0, 2, 3].iter().flat_map(|v| v.to_le_bytes()).collect());
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_materials_emissive_strength", "KHR_materials_ior", "KHR_materials_specular", "KHR_texture_transform"],
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2, 3]}],
+        "nodes": [
+            {"mesh": 0},
+            {"mesh": 0, "translation": [0.0, 0.0, -1.0], "scale": [-1.0, 1.0, 1.0]},
+            {"mesh": 1, "translation": [0.0, 0.0, -2.0]},
+            {"camera": 0, "translation": [0.5, 0.5, 3.0]}
+        ],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.01}}],
+        "meshes": [
+            {"primitives": [
+                {"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2, "TEXCOORD_1": 3, "TANGENT": 4}, "indices": 5, "material": 0},
+                {"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2, "TEXCOORD_1": 3}, "indices": 5, "material": 1}
+            ]},
+            {"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 2}, "indices": 5, "material": 2}]}
+        ],
+        "materials": [
+            {"name": "bumpy-lamp",
+             "normalTexture": {"index": 1, "scale": 0.8, "extensions": {"KHR_texture_transform": {"offset": [0.1, 0.2], "rotation": 0.3, "scale": [2.0, 2.0]}}},
+             "emissiveTexture": {"index": 0}, "emissiveFactor": [1.0, 0.5, 0.25],
+             "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 3.0}},
+             "pbrMetallicRoughness": {"baseColorTexture": {"index": 2, "extensions": {"KHR_texture_transform": {"scale": [4.0, 4.0]}}}}},
+            {"name": "cutout", "alphaMode": "MASK", "alphaCutoff": 0.4, "doubleSided": true,
+             "normalTexture": {"index": 1, "texCoord": 1},
+             "pbrMetallicRoughness": {"baseColorTexture": {"index": 3, "texCoord": 1}, "metallicRoughnessTexture": {"index": 1}}},
+            {"name": "veil", "alphaMode": "BLEND",
+             "extensions": {"KHR_materials_ior": {"ior": 1.8}, "KHR_materials_specular": {"specularFactor": 0.7, "specularColorFactor": [1.0, 0.9, 0.8]}},
+             "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 0.4], "baseColorTexture": {"index": 0}}}
+        ],
+        "samplers": [{"magFilter": 9728, "wrapS": 33071, "wrapT": 33648}],
+        "textures": [{"source": 0}, {"source": 1}, {"source": 2}, {"source": 0, "sampler": 0}],
+        "images": [{"uri": "sign.png"}, {"uri": "bumps.png"}, {"uri": "tiles.jpg"}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 4, "componentType": 5126, "count": 4, "type": "VEC4"},
+            {"bufferView": 5, "componentType": 5123, "count": 6, "type": "SCALAR"}
+        ],
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}]
+    });
+    (doc, bin)
+}
 
 fn to_json(doc: &Value) -> Vec<u8> {
     serde_json::to_vec_pretty(doc).expect("serialise JSON")

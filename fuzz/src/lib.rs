@@ -24,32 +24,88 @@ pub const FREF_MARKER: &[u8] = b"FREF";
 /// f_ref value (f16, 1/sr) filled in by mode 2 of the `latent` target.
 pub const FREF_FILL: f32 = 0.25;
 
-/// A 2×2 RGB PNG, served for every `.png` a scene asks for.
+/// A 2×2 RGBA PNG (alpha 255, 0, 128 and 200, so cut-outs and blending have holes and
+/// partial cover), served for every `.png` a scene asks for.
 pub fn tiny_png() -> &'static [u8] {
     static PNG: OnceLock<Vec<u8>> = OnceLock::new();
-    PNG.get_or_init(|| {
-        let image = image::RgbImage::from_raw(2, 2, vec![255, 0, 0, 0, 255, 0, 0, 0, 255, 9, 9, 9])
-            .expect("2x2 image");
-        let mut png = Vec::new();
-        image
-            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-            .expect("encode PNG");
-        png
-    })
+    PNG.get_or_init(|| encode(image::DynamicImage::ImageRgba8(
+        image::RgbaImage::from_raw(2, 2, vec![255, 0, 0, 255, 0, 255, 0, 0, 0, 0, 255, 128, 9, 9, 9, 200]).expect("2x2 image"),
+    ), image::ImageFormat::Png))
+}
+
+/// A 2×2 RGB JPEG, served for every `.jpg` or `.jpeg` a scene asks for.
+pub fn tiny_jpeg() -> &'static [u8] {
+    static JPEG: OnceLock<Vec<u8>> = OnceLock::new();
+    JPEG.get_or_init(|| encode(image::DynamicImage::ImageRgb8(
+        image::RgbImage::from_raw(2, 2, vec![200, 100, 50, 20, 40, 60, 128, 128, 255, 250, 250, 250]).expect("2x2 image"),
+    ), image::ImageFormat::Jpeg))
+}
+
+fn encode(image: image::DynamicImage, format: image::ImageFormat) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    image.write_to(&mut std::io::Cursor::new(&mut bytes), format).expect("encode image");
+    bytes
 }
 
 /// The in-memory files a fuzzed scene may refer to: `scene.bin` (the Cornell box buffer),
-/// any `.png` ([`tiny_png`]) and any `.mtl` (`mtl`); everything else is "not found".
+/// any `.png` ([`tiny_png`]), `.jpg`/`.jpeg` ([`tiny_jpeg`]) and any `.mtl` (`mtl`);
+/// everything else is "not found".
 pub fn scene_file(path: &Path, mtl: &[u8]) -> std::io::Result<Vec<u8>> {
     let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
     if name == "scene.bin" {
         Ok(CORNELL_BIN.to_vec())
     } else if name.ends_with(".png") {
         Ok(tiny_png().to_vec())
+    } else if name.ends_with(".jpg") || name.ends_with(".jpeg") {
+        Ok(tiny_jpeg().to_vec())
     } else if name.ends_with(".mtl") {
         Ok(mtl.to_vec())
     } else {
         Err(std::io::ErrorKind::NotFound.into())
+    }
+}
+
+/// Prepares a loaded scene for rendering and traces a grid of camera rays through it (hits,
+/// surface points with normal maps, alpha tests, BSDFs, textured emission, shadow rays),
+/// which must give finite values. Bindings to data files and environment images are
+/// replaced first (they would read the disk: a fuzzed path may name any file); scenes of
+/// more than 4,096 triangles are only loaded, to keep inputs fast.
+pub fn render_probe(mut scene: renderer::scene::SceneDescription) {
+    use renderer::bsdf::Bxdf;
+    use renderer::scene::{EnvironmentSource, SurfaceModel};
+    if scene.geometry.triangle_count() > 4096 {
+        return;
+    }
+    for m in &mut scene.materials {
+        if matches!(m.model, SurfaceModel::Bound(_)) {
+            m.model = SurfaceModel::MetallicRoughness;
+        }
+    }
+    if let Some(env) = &mut scene.environment {
+        if matches!(env.source, EnvironmentSource::Image(_)) {
+            env.source = EnvironmentSource::Constant(renderer::Rgb::splat(0.5));
+        }
+    }
+    let Ok(camera) = scene.camera_or_default(None, Some(1.0)) else { return };
+    let scene = match renderer::render_scene::RenderScene::new(scene) {
+        Ok(scene) => scene,
+        Err(error) => return check_file_error(&error),
+    };
+    let camera = renderer::camera::PinholeCamera::new(&camera, 8, 8);
+    for y in 0..8 {
+        for x in 0..8 {
+            let ray = camera.generate_ray(glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
+            let Some(hit) = scene.intersect(&ray) else { continue };
+            let Some(sp) = scene.surface_point(&hit, ray.direction) else { continue };
+            assert!(sp.frame.n.is_finite() && sp.p.is_finite(), "surface point {sp:?}");
+            assert!(scene.emission(&sp).is_finite(), "emission");
+            if let Some(bsdf) = scene.bsdf(&sp) {
+                let wo = sp.frame.to_local(-ray.direction);
+                assert!(bsdf.eval(wo, glam::Vec3::Z).is_finite(), "BSDF value");
+            }
+            let toward = renderer::accel::Ray { t_max: 1.0, ..renderer::accel::Ray::new(sp.p + sp.ng_facing * 1e-3, glam::Vec3::Y) };
+            let _ = scene.occluded(&toward);
+        }
     }
 }
 

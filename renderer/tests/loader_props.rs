@@ -971,3 +971,22 @@ fn regression_latent_hidden_width_zero() {
         "{message}"
     );
 }
+
+/// `gltf` target (with the render probe): a scene whose vertices lie near 10³⁵ units from
+/// the origin loaded, then broke the BVH build (`obvhs`: surface-area costs overflow f32 and
+/// an assertion on its split decisions fails). Such coordinates are now an error.
+#[test]
+fn regression_gltf_coordinates_near_f32_max() {
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "nodes": [{"mesh": 0}, {"mesh": 0, "scale": [1e30, 1e30, 1e30]}],
+        "scenes": [{"nodes": [0, 1]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1e5, 1e5, 0.0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "buffers": [{"byteLength": 36}]
+    });
+    let bin: Vec<u8> = [0f32, 0.0, 0.0, 1e5, 0.0, 0.0, 0.0, 1e5, 0.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+    let message = load_gltf(&glb(&doc, &bin)).expect_err("coordinates near f32::MAX").to_string();
+    assert!(message.starts_with("/props/scene.gltf: vertex 4 lies 1e35 scene units from the origin"), "{message}");
+}

@@ -360,6 +360,11 @@ pub struct EnvironmentSpec {
     pub rotation: f32,
 }
 
+/// The largest vertex coordinate magnitude a scene may have, in scene units: beyond it the
+/// BVH builder's surface-area costs (products of extents, summed over millions of nodes)
+/// would overflow f32 (a fuzzed file with coordinates near 10³⁵ broke `obvhs`'s build).
+pub const MAX_COORDINATE: f32 = 1e12;
+
 /// What a scene file describes, in world space.
 #[derive(Clone, Debug, Default)]
 pub struct SceneDescription {
@@ -446,6 +451,12 @@ impl SceneDescription {
         }
         if let Some(i) = g.positions.iter().position(|p| !p.is_finite()) {
             return fail(format!("non-finite vertex position (vertex {i})"));
+        }
+        if let Some(i) = g.positions.iter().position(|p| p.abs().max_element() > MAX_COORDINATE) {
+            return fail(format!(
+                "vertex {i} lies {:e} scene units from the origin (at most {MAX_COORDINATE:e} are supported)",
+                g.positions[i].abs().max_element()
+            ));
         }
         let n = g.positions.len();
         if g.normals.len() != n || g.uvs.len() != n {
@@ -583,7 +594,7 @@ mod tests {
     fn validate_rejects_what_the_renderer_cannot_use() {
         assert!(triangle_scene().validate().is_ok());
         type Breakage = (fn(&mut SceneDescription), &'static str);
-        let cases: [Breakage; 5] = [
+        let cases: [Breakage; 6] = [
             (
                 |s| s.geometry = Geometry::default(),
                 "mem.gltf: contains no triangles",
@@ -595,6 +606,10 @@ mod tests {
             (
                 |s| s.geometry.triangles[0][2] = 3,
                 "vertex index out of range",
+            ),
+            (
+                |s| s.geometry.positions[2].y = -1e35,
+                "mem.gltf: vertex 2 lies 1e35 scene units from the origin (at most 1e12 are supported)",
             ),
             (|s| s.geometry.material_ids[0] = 1, "uses material 1 of 1"),
             (

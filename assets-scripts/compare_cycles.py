@@ -1,0 +1,153 @@
+#!/usr/bin/env python3
+"""Compares our render of the feature-showcase scene with a Cycles reference.
+
+    python3 assets-scripts/compare_cycles.py OURS.exr CYCLES.exr [--png OUT.png]
+        [--exposure STOPS] [--diff-scale S] [--no-png]
+
+OURS.exr: `target/release/render scenes/feature-showcase/scene.gltf --resolution 256x256 -o ...`;
+CYCLES.exr: `blender ... --python assets-scripts/cycles_reference.py -- ... --resolution 256x256`
+(both linear RGB, same resolution). Prints the mean radiance per channel of both images and
+the ratio ours / Cycles, for the whole image and for named pixel boxes (REGIONS, picked on the
+256 x 256 feature-showcase image; at another resolution they are scaled), then writes a
+side-by-side PNG: ours | Cycles | difference (default docs/images/feature-showcase-vs-cycles.png).
+
+The first two panels share one exposure (`--exposure`, stops, default 0), are clamped to
+[0, 1] and sRGB-encoded (no tone mapping, like `render -o x.png --tonemap clamp`). The third
+shows the luminance difference ours - Cycles times `--diff-scale` (default 4): red where ours
+is brighter, blue where Cycles is brighter, black where they agree (sRGB-encoded too, so small
+differences stay visible). Single fireflies show up as isolated dots.
+
+EXR reading: the OpenEXR module if installed, else Mitsuba 3's `mi.Bitmap` (scalar_rgb).
+Needs numpy and Pillow.
+"""
+
+import argparse
+import os
+import sys
+
+import numpy as np
+
+try:
+    from PIL import Image
+except ImportError:  # pragma: no cover
+    sys.exit("compare_cycles.py needs Pillow: python3 -m pip install pillow")
+
+REPO = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+DEFAULT_PNG = os.path.join(REPO, "docs", "images", "feature-showcase-vs-cycles.png")
+REFERENCE_SIZE = 256
+
+# (name, x0, y0, x1, y1): pixel boxes [x0, x1) x [y0, y1) on the 256 x 256 image (x right,
+# y down), chosen by looking at the render; each lies inside the object it is named after.
+REGIONS = [
+    ("sky (environment)", 0, 0, 256, 30),
+    ("ground far (tiles, sun)", 0, 34, 256, 56),
+    ("ground near (tiles, sun)", 0, 210, 256, 256),
+    ("fence shadow on ground", 84, 140, 124, 190),
+    ("fence (with ground through it)", 24, 118, 74, 196),
+    ("emissive sign", 124, 72, 152, 88),
+    ("brick slab (front face)", 24, 84, 76, 106),
+    ("cylinder (ior 1.8, specular)", 92, 60, 110, 96),
+    ("copper sphere", 196, 64, 234, 108),
+    ("stained glass", 156, 82, 186, 116),
+    ("rocks", 140, 140, 245, 205),
+]
+
+
+def read_exr(path):
+    """Linear RGB float32 array (height, width, 3)."""
+    try:
+        import OpenEXR
+        import Imath
+        f = OpenEXR.InputFile(path)
+        dw = f.header()["dataWindow"]
+        w, h = dw.max.x - dw.min.x + 1, dw.max.y - dw.min.y + 1
+        pt = Imath.PixelType(Imath.PixelType.FLOAT)
+        return np.stack([np.frombuffer(f.channel(c, pt), np.float32).reshape(h, w)
+                         for c in "RGB"], axis=-1)
+    except ImportError:
+        pass
+    try:
+        import mitsuba as mi
+    except ImportError:
+        sys.exit("compare_cycles.py needs OpenEXR (pip install OpenEXR) or Mitsuba 3 "
+                 "(pip install mitsuba) to read EXR files")
+    mi.set_variant("scalar_rgb")
+    a = np.array(mi.Bitmap(path), dtype=np.float32)
+    if a.ndim == 2:
+        a = a[..., None]
+    if a.shape[2] == 1:
+        a = np.repeat(a, 3, axis=2)
+    return a[..., :3]
+
+
+def srgb8(linear):
+    x = np.clip(linear, 0.0, 1.0)
+    x = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return (x * 255.0 + 0.5).astype(np.uint8)
+
+
+def luminance(a):
+    return a[..., 0] * 0.2126 + a[..., 1] * 0.7152 + a[..., 2] * 0.0722
+
+
+def fmt3(v):
+    return " ".join("%.4f" % x for x in v)
+
+
+def table(ours, cycles):
+    h, w = ours.shape[:2]
+    rows = [("whole image", 0, 0, w, h)]
+    for name, x0, y0, x1, y1 in REGIONS:
+        sx, sy = w / REFERENCE_SIZE, h / REFERENCE_SIZE
+        rows.append((name, round(x0 * sx), round(y0 * sy), round(x1 * sx), round(y1 * sy)))
+    print("%-32s %-19s %-22s %-22s %s" % ("region", "box x0,y0-x1,y1", "ours R G B",
+                                          "Cycles R G B", "ours/Cycles R G B"))
+    for name, x0, y0, x1, y1 in rows:
+        mo = ours[y0:y1, x0:x1].reshape(-1, 3).astype(np.float64).mean(0)
+        mc = cycles[y0:y1, x0:x1].reshape(-1, 3).astype(np.float64).mean(0)
+        ratio = mo / np.maximum(mc, 1e-12)
+        print("%-32s %-19s %-22s %-22s %s" % (name, "%d,%d-%d,%d" % (x0, y0, x1, y1),
+                                              fmt3(mo), fmt3(mc), fmt3(ratio)))
+
+
+def side_by_side(ours, cycles, exposure, diff_scale, gap=4):
+    k = 2.0 ** exposure
+    d = (luminance(ours) - luminance(cycles)) * diff_scale
+    diff = np.zeros_like(ours)
+    diff[..., 0] = np.maximum(d, 0.0)
+    diff[..., 2] = np.maximum(-d, 0.0)
+    h, w = ours.shape[:2]
+    out = np.full((h, 3 * w + 2 * gap, 3), 255, np.uint8)
+    for i, panel in enumerate((srgb8(ours * k), srgb8(cycles * k), srgb8(diff))):
+        out[:, i * (w + gap):i * (w + gap) + w] = panel
+    return Image.fromarray(out)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("ours")
+    p.add_argument("cycles")
+    p.add_argument("--png", default=DEFAULT_PNG, help="side-by-side output (default %(default)s)")
+    p.add_argument("--no-png", action="store_true", help="print the table only")
+    p.add_argument("--exposure", type=float, default=0.0, help="stops, both renders")
+    p.add_argument("--diff-scale", type=float, default=4.0)
+    args = p.parse_args()
+
+    ours, cycles = read_exr(args.ours), read_exr(args.cycles)
+    if ours.shape != cycles.shape:
+        sys.exit("compare_cycles.py: sizes differ: %s vs %s" % (ours.shape, cycles.shape))
+    for name, a in (("ours", ours), ("cycles", cycles)):
+        bad = ~np.isfinite(a)
+        if bad.any():
+            print("warning: %s has %d non-finite values (set to 0)" % (name, bad.sum()))
+            a[bad] = 0.0
+    table(ours, cycles)
+    if not args.no_png:
+        os.makedirs(os.path.dirname(os.path.abspath(args.png)), exist_ok=True)
+        side_by_side(ours, cycles, args.exposure, args.diff_scale).save(
+            args.png, optimize=True)
+        print("wrote %s (%d bytes)" % (args.png, os.path.getsize(args.png)))
+
+
+if __name__ == "__main__":
+    main()
