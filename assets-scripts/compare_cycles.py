@@ -2,7 +2,7 @@
 """Compares our render of the feature-showcase scene with a Cycles reference.
 
     python3 assets-scripts/compare_cycles.py OURS.exr CYCLES.exr [--png OUT.png]
-        [--exposure STOPS] [--diff-scale S] [--no-png]
+        [--exposure STOPS] [--diff-scale S] [--max-kb KB] [--no-png]
 
 OURS.exr: `target/release/render scenes/feature-showcase/scene.gltf --resolution 256x256 -o ...`;
 CYCLES.exr: `blender ... --python assets-scripts/cycles_reference.py -- ... --resolution 256x256`
@@ -15,7 +15,9 @@ The first two panels share one exposure (`--exposure`, stops, default 0), are cl
 [0, 1] and sRGB-encoded (no tone mapping, like `render -o x.png --tonemap clamp`). The third
 shows the luminance difference ours - Cycles times `--diff-scale` (default 4): red where ours
 is brighter, blue where Cycles is brighter, black where they agree (sRGB-encoded too, so small
-differences stay visible). Single fireflies show up as isolated dots.
+differences stay visible). Single fireflies show up as isolated dots. The PNG is written
+with 8 bits per channel, or, when that is larger than `--max-kb` (default 300), with the low
+bits dropped (7, then 6, ... bits: noisy renders compress badly; 7 bits is visually the same).
 
 EXR reading: the OpenEXR module if installed, else Mitsuba 3's `mi.Bitmap` (scalar_rgb).
 Needs numpy and Pillow.
@@ -28,7 +30,7 @@ import sys
 import numpy as np
 
 try:
-    from PIL import Image
+    from PIL import Image, ImageOps
 except ImportError:  # pragma: no cover
     sys.exit("compare_cycles.py needs Pillow: python3 -m pip install pillow")
 
@@ -131,6 +133,8 @@ def main():
     p.add_argument("--no-png", action="store_true", help="print the table only")
     p.add_argument("--exposure", type=float, default=0.0, help="stops, both renders")
     p.add_argument("--diff-scale", type=float, default=4.0)
+    p.add_argument("--max-kb", type=float, default=300.0,
+                   help="drop low bits (7, then 6, 5 bits per channel) until the PNG fits")
     args = p.parse_args()
 
     ours, cycles = read_exr(args.ours), read_exr(args.cycles)
@@ -144,9 +148,16 @@ def main():
     table(ours, cycles)
     if not args.no_png:
         os.makedirs(os.path.dirname(os.path.abspath(args.png)), exist_ok=True)
-        side_by_side(ours, cycles, args.exposure, args.diff_scale).save(
-            args.png, optimize=True)
-        print("wrote %s (%d bytes)" % (args.png, os.path.getsize(args.png)))
+        image = side_by_side(ours, cycles, args.exposure, args.diff_scale)
+        bits = 8
+        while True:
+            out = image if bits == 8 else ImageOps.posterize(image, bits)
+            out.save(args.png, optimize=True)
+            size = os.path.getsize(args.png)
+            if size <= args.max_kb * 1024 or bits <= 5:
+                break
+            bits -= 1
+        print("wrote %s (%d bytes, %d bits per channel)" % (args.png, size, bits))
 
 
 if __name__ == "__main__":

@@ -52,7 +52,14 @@ reading io_scene_gltf2 3.4.50 and by the material dump this script prints):
   mismatch.
 - KHR_materials_emissive_strength: read (Principled "Emission Strength" = emissiveStrength x
   the grey emissiveFactor; emissiveTexture -> "Emission" colour, sRGB).
-- KHR_texture_transform: read (a Mapping node, converted to Blender's v-up UVs).
+- KHR_texture_transform: read (a Mapping node, converted to Blender's v-up UVs). Worked
+  through, the importer's conversion gives u' = sx cos(r) u + sy sin(r) v + ox,
+  v' = -sx sin(r) u + sy cos(r) v + oy: the rotation as corrected in KhronosGroup/glTF#1563
+  (and as the extension's own JSON example, three.js, Babylon.js and cesium-native do it).
+  The GLSL listing in the extension's README, read literally (GLSL is column-major), rotates
+  the other way; our renderer follows that listing, so with rotation != 0 the two disagree.
+  NOT fixed up: it is a finding (negating the rotation in a copy of the glTF makes the
+  ground tiles of both renders coincide).
 - texCoord 1: read (a UV Map node "UVMap.001").
 - Samplers: REPEAT/REPEAT -> extension REPEAT, CLAMP/CLAMP -> EXTEND, mixed modes -> EXTEND
   plus per-axis Math WRAP (repeat) / PINGPONG (mirrored repeat) nodes; NEAREST/NEAREST ->
@@ -71,7 +78,9 @@ reading io_scene_gltf2 3.4.50 and by the material dump this script prints):
 - KHR_materials_specular (no textures): Specular = lum(specularColorFactor) x f0(ior) / 0.08
   and a "Specular Tint" derived from the colour ratios; specularFactor is DROPPED (so the
   cylinder's F0 would be 0.075 instead of the specified ~0.052). FIXED UP below.
-- doubleSided: only `use_backface_culling` (EEVEE); Cycles shades both sides of everything.
+- doubleSided: only `use_backface_culling` (EEVEE); Cycles shades both sides of everything
+  (our renderer: a single-sided surface is black from behind). Not fixed up: no single-sided
+  surface of the feature-showcase scene is seen from behind.
 - The Principled node's distribution is left at the node default (GGX, single scattering
   in 3.4, printed below); `--multiscatter` switches to Multiscatter GGX.
 
@@ -85,6 +94,13 @@ Fix-ups applied by hand (all printed; `--no-fixups` renders the importer's resul
   extension's definition; Y = Rec. 709 luminance). What stays different: Blender's F0 is
   grey (the specular colour's tint is lost), its Fresnel goes to 1 at grazing angles (the
   extension's f90 = specularFactor), and its diffuse layer is not weighted by 1 - F.
+- 8-bit sRGB textures (base colour, emissive): Cycles stores them as bytes and converts
+  sRGB to linear AFTER bilinear interpolation (svm_image_texture's
+  NODE_IMAGE_COMPRESS_AS_SRGB path), i.e. it filters sRGB-encoded values, while glTF (and
+  our renderer) decode to linear first. Measured on this scene at 256 x 256: the emissive
+  sign's minified lettering comes out 10 % darker that way, the brick slab 1-2 %, everything
+  else within 0.3 %. Each such image is replaced by a float copy of its decoded linear
+  values (premultiplied by alpha, as Blender's float buffers are), colour space Linear.
 - Single-sided emission: glTF (and our renderer) emits from the front face only; Cycles'
   emission is two-sided. For materials that are not doubleSided, Emission Strength is
   multiplied by 1 - Backfacing (Geometry node), so the sign's back does not light the
@@ -98,13 +114,18 @@ Known model differences that are NOT fixed (they are what the comparison measure
   cent brighter, more at grazing angles.
 - Principled's dielectric Fresnel interpolates F0 -> 1 with the true dielectric Fresnel of
   the equivalent ior, ours is Schlick's; metals use the base colour as F0 in both.
+- Normal maps: Cycles' Normal Map node bends the mapped normal back towards the geometric
+  normal wherever the view direction's mirror image would fall below the surface
+  (ensure_valid_reflection); our renderer uses the mapped normal as is, and its BSDFs are
+  zero where the view direction lies below the shading normal's hemisphere. With the ground's
+  egg-crate bumps (tilts up to 23 degrees) the two differ near grazing view angles.
 - Pixel filter: equal (1 px box); texture filtering: both bilinear without mipmaps, but
   Blender decodes the JPEG with its own libjpeg (sub-LSB differences).
 
 Light units (`--check-units`): renders, with max bounces 0 and a black world, a diffuse
 plane (albedo 0.5) under (a) a sun of strength 3 W/m^2 at normal incidence and (b) a point
 light of 4 pi W (1 W/sr) 1 m above it, and compares the plane's radiance with
-albedo x E / pi (0.4775 and 0.1592).
+albedo x E / pi (0.4775 and 0.1592). Blender 3.4.1: both ratios 1.0000.
 
 NumPy: Blender 3.4's importer still uses `np.bool`, which NumPy 1.24 removed (Debian's
 python3-numpy is newer, so the import fails with AttributeError); the script sets
@@ -120,6 +141,7 @@ import os
 import sys
 
 import bpy
+from mathutils import Vector
 
 LUMENS_PER_WATT = 683.0
 
@@ -340,15 +362,19 @@ def print_materials(label):
 def print_lights(label):
     print("\n== lights (%s) ==" % label)
     for obj in bpy.data.objects:
-        if obj.type == "LIGHT":
-            l = obj.data
-            extra = ("angle %.5f rad" % l.angle if l.type == "SUN"
-                     else "radius %.4f m" % l.shadow_soft_size)
-            print("light %r: %s energy %.6f %s color %s, %s, direction %s" % (
-                obj.name, l.type, l.energy, "W/m^2" if l.type == "SUN" else "W",
-                tuple(round(c, 4) for c in l.color), extra,
-                tuple(round(x, 4) for x in (obj.matrix_world.to_3x3() @ __import__(
-                    "mathutils").Vector((0, 0, -1))).normalized())))
+        if obj.type != "LIGHT":
+            continue
+        light = obj.data
+        if light.type == "SUN":
+            direction = (obj.matrix_world.to_3x3() @ Vector((0.0, 0.0, -1.0))).normalized()
+            where = "angle %.5f rad, travelling along %s (Blender z-up)" % (
+                light.angle, tuple(round(x, 4) for x in direction))
+        else:
+            where = "radius %.4f m, at %s (Blender z-up)" % (
+                light.shadow_soft_size, tuple(round(x, 4) for x in obj.matrix_world.translation))
+        print("light %r: %s energy %.6f %s, colour %s, %s" % (
+            obj.name, light.type, light.energy, "W/m^2" if light.type == "SUN" else "W",
+            tuple(round(c, 4) for c in light.color), where))
 
 
 # ------------------------------------------------------------------------------- checks
@@ -467,8 +493,46 @@ def fix_one_sided_emission(mat):
     print("fix-up: %r single-sided emission: Emission Strength x (1 - Backfacing)" % mat.name)
 
 
+def linearize_srgb_images():
+    """Cycles keeps 8-bit sRGB images as bytes and decodes sRGB AFTER bilinear filtering
+    (svm_image_texture: interpolate, then color_srgb_to_linear), i.e. it filters sRGB-encoded
+    values; glTF and our renderer decode to linear first and filter linear values. Replace
+    every 8-bit sRGB image by a float copy holding the decoded linear values (premultiplied
+    by alpha: Blender's float buffers are premultiplied, and Cycles un-premultiplies where
+    the Alpha output is used), colour space Linear, so Cycles filters in linear space too."""
+    import numpy as np
+    converted = {}
+    for img in list(bpy.data.images):
+        if img.colorspace_settings.name != "sRGB" or img.is_float or img.size[0] == 0:
+            continue
+        w, h = img.size
+        px = np.empty(w * h * 4, np.float32)
+        img.pixels.foreach_get(px)  # byte images: the stored sRGB-encoded values / 255
+        px = px.reshape(-1, 4)
+        rgb = px[:, :3]
+        px[:, :3] = np.where(rgb <= 0.04045, rgb / 12.92,
+                             ((rgb + 0.055) / 1.055) ** 2.4) * px[:, 3:4]
+        new = bpy.data.images.new(img.name + "-linear", w, h, alpha=True, float_buffer=True)
+        new.colorspace_settings.name = "Linear"
+        new.alpha_mode = "PREMUL"
+        new.pixels.foreach_set(px.ravel())
+        new.pack()
+        converted[img.name] = new
+    for mat in bpy.data.materials:
+        if not mat.use_nodes:
+            continue
+        for node in mat.node_tree.nodes:
+            if node.bl_idname == "ShaderNodeTexImage" and node.image and \
+                    node.image.name in converted:
+                node.image = converted[node.image.name]
+    for name in sorted(converted):
+        print("fix-up: image %r (8-bit sRGB) -> linear float %r (filtered in linear space)" % (
+            name, converted[name].name))
+
+
 def apply_fixups(gltf, multiscatter):
     fix_lights()
+    linearize_srgb_images()
     by_name = {m.get("name"): m for m in gltf.get("materials", [])}
     for mat in bpy.data.materials:
         p = principled(mat)

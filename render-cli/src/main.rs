@@ -90,6 +90,10 @@ struct Args {
     /// Exposure in stops applied before tone mapping (PNG output only).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_finite)]
     exposure: f32,
+    /// Copy every instanced mesh into world space (as if the file had no instancing): for
+    /// comparing memory and speed with and without two-level acceleration.
+    #[arg(long)]
+    flatten_instances: bool,
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -123,7 +127,16 @@ fn parse_binding(s: &str) -> Result<(String, String), String> {
 #[derive(Serialize)]
 struct StatsFile<'a> {
     scene: &'a Path,
+    /// Reading the scene file (and the latent files).
+    parse_seconds: f64,
+    /// Preparing it for rendering: BVHs, materials, lights.
+    prepare_seconds: f64,
+    /// The two together.
     load_seconds: f64,
+    /// Triangles stored, and triangles in the world (each instance counting its mesh's).
+    stored_triangles: usize,
+    triangle_instances: u64,
+    instances: usize,
     /// Neural BSDF evaluations whose value the inverse mapping sent below 0, clamped to 0.
     clamped_bsdf_values: u64,
     #[serde(flatten)]
@@ -261,6 +274,10 @@ fn run(args: Args) -> Result<()> {
     let load_start = Instant::now();
     let latents = LatentLibrary::load(&args.material)?;
     let mut description = SceneDescription::load(&args.scene)?;
+    if args.flatten_instances {
+        description = description.flatten_instances()?;
+    }
+    let geometry_counts = (description.geometry.triangle_count(), description.triangle_instance_count(), description.instances.len());
     for warning in &description.warnings {
         eprintln!("warning: {warning}");
     }
@@ -282,6 +299,7 @@ fn run(args: Args) -> Result<()> {
         }
         None => None,
     };
+    let parse_seconds = load_start.elapsed().as_secs_f64();
     let mut scene = RenderScene::with_latents(description, &latents)?;
     for (material, latent) in scene.materials.unbound_neural() {
         eprintln!("note: material '{material}' binds latent '{latent}' but no --material file was given: rendering its glTF parameters");
@@ -326,7 +344,12 @@ fn run(args: Args) -> Result<()> {
     if let Some(path) = &args.stats {
         let json = serde_json::to_string_pretty(&StatsFile {
             scene: &args.scene,
+            parse_seconds,
+            prepare_seconds: load_seconds - parse_seconds,
             load_seconds,
+            stored_triangles: geometry_counts.0,
+            triangle_instances: geometry_counts.1,
+            instances: geometry_counts.2,
             clamped_bsdf_values: scene.materials.clamped_bsdf_values(),
             render: &stats,
         })?;

@@ -4,7 +4,7 @@
 //! some triangle uses, and the environment's sampling structures exist only when the scene
 //! has an environment.
 
-use crate::accel::{interpolate_point, Bvh, Hit, Ray};
+use crate::accel::{gamma, interpolate_point, Bvh, Hit, InstanceBvh, Ray, NO_INSTANCE};
 use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
@@ -16,7 +16,7 @@ use crate::material::SceneMaterials;
 use crate::sampler::hash_float;
 use crate::scene::{AlphaMode, Geometry, SceneDescription};
 use crate::Rgb;
-use glam::{Vec2, Vec3};
+use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
 
 /// Everything the integrator needs, built once from a [`SceneDescription`].
 pub struct RenderScene {
@@ -33,6 +33,25 @@ pub struct RenderScene {
     /// Whether some triangle's material lets rays through (alpha MASK or BLEND): rays are
     /// then traced with [`Bvh::intersect_filtered`].
     has_alpha: bool,
+    /// Meshes placed by instances (two-level acceleration); `None` without instances.
+    instances: Option<Instances>,
+}
+
+/// The instanced part of a scene: one BVH per mesh, in the mesh's space, and a BVH over
+/// the instances ([`InstanceBvh`]).
+struct Instances {
+    bvh: InstanceBvh,
+    /// Per mesh: its BVH (hits index its triangles from 0) and its first scene triangle.
+    meshes: Vec<(Bvh, u32)>,
+    placements: Vec<Placement>,
+}
+
+/// One instance: its mesh and the transforms a hit on it needs.
+struct Placement {
+    mesh: u32,
+    object_to_world: Affine3A,
+    /// Inverse transpose of the linear part, for normals.
+    normal_matrix: Mat3A,
 }
 
 /// The per-triangle data a hit needs, in one record.
@@ -80,6 +99,9 @@ impl RenderScene {
     /// `latents` (each distinct code once); an unknown latent name is an error listing the
     /// available ones.
     pub fn with_latents(description: SceneDescription, latents: &LatentLibrary) -> Result<Self> {
+        let (bounds_centre, bounds_radius) = bounding_sphere(description.world_bounds());
+        let world_triangles = description.world_triangle_count();
+        let instances = (!description.instances.is_empty()).then(|| Instances::build(&description));
         let SceneDescription {
             geometry,
             materials,
@@ -92,7 +114,7 @@ impl RenderScene {
         for &m in &geometry.material_ids {
             used[m as usize] = true;
         }
-        let bvh = Bvh::build((0..geometry.triangle_count()).map(|i| geometry.triangle_positions(i)));
+        let bvh = Bvh::build((0..world_triangles).map(|i| geometry.triangle_positions(i)));
         let hit_records = (0..geometry.triangle_count())
             .map(|i| {
                 let corners = geometry.triangle_positions(i);
@@ -112,9 +134,8 @@ impl RenderScene {
             .collect();
         let has_alpha = materials.iter().zip(&used).any(|(m, &u)| u && m.has_alpha());
         let materials = SceneMaterials::prepare(materials, textures, &used, latents)?;
-        let (bounds_centre, bounds_radius) = bounding_sphere(&geometry);
         let environment = environment.as_ref().map(Environment::load).transpose()?;
-        let emissive = (0..geometry.triangle_count()).filter_map(|i| {
+        let emissive = (0..world_triangles).filter_map(|i| {
             let material = geometry.material_ids[i];
             let radiance = materials.emission(material);
             let texture = materials.materials()[material as usize].emissive_texture.map(|texture| EmissionTexture {
@@ -145,6 +166,7 @@ impl RenderScene {
             bounds_centre,
             bounds_radius,
             has_alpha,
+            instances,
         })
     }
 
@@ -153,27 +175,53 @@ impl RenderScene {
     /// ([`AlphaMode`]).
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        if self.has_alpha {
+        let mut best = if self.has_alpha {
             self.bvh.intersect_filtered(ray, |hit| self.stops(ray, hit))
         } else {
             self.bvh.intersect(ray)
+        };
+        if let Some(inst) = &self.instances {
+            let bounded = Ray { t_max: best.map_or(ray.t_max, |h| h.t), ..*ray };
+            inst.bvh.closest(&bounded, |instance, object_ray| {
+                let (mesh, first) = &inst.meshes[inst.placements[instance as usize].mesh as usize];
+                let placed = |h: Hit| Hit { triangle: h.triangle + first, instance, ..h };
+                let hit = if self.has_alpha {
+                    mesh.intersect_filtered(object_ray, |h| self.stops(ray, &placed(*h)))
+                } else {
+                    mesh.intersect(object_ray)
+                }?;
+                best = Some(placed(hit));
+                Some(hit.t)
+            });
         }
+        best
     }
 
     /// Whether a surface blocks `ray` within (0, ray.t_max) (as [`RenderScene::intersect`]
     /// decides what blocks).
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        if self.has_alpha {
+        let world = if self.has_alpha {
             self.bvh.occluded_filtered(ray, |hit| self.stops(ray, hit))
         } else {
             self.bvh.occluded(ray)
-        }
+        };
+        world
+            || self.instances.as_ref().is_some_and(|inst| {
+                inst.bvh.any(ray, |instance, object_ray| {
+                    let (mesh, first) = &inst.meshes[inst.placements[instance as usize].mesh as usize];
+                    if self.has_alpha {
+                        mesh.occluded_filtered(object_ray, |h| self.stops(ray, &Hit { triangle: h.triangle + first, instance, ..*h }))
+                    } else {
+                        mesh.occluded(object_ray)
+                    }
+                })
+            })
     }
 
     /// [`RenderScene::intersect`] of many rays: `out[i]` for `rays[i]`.
     pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>) {
-        if self.has_alpha {
+        if self.has_alpha || self.instances.is_some() {
             out.clear();
             out.extend(rays.iter().map(|r| self.intersect(r)));
         } else {
@@ -183,7 +231,7 @@ impl RenderScene {
 
     /// [`RenderScene::occluded`] of many rays: `out[i]` for `rays[i]`.
     pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>) {
-        if self.has_alpha {
+        if self.has_alpha || self.instances.is_some() {
             out.clear();
             out.extend(rays.iter().map(|r| self.occluded(r)));
         } else {
@@ -220,9 +268,7 @@ impl RenderScene {
         if ng == Vec3::ZERO {
             return None;
         }
-        let (p, p_error) = interpolate_point(corners, hit.barycentric);
-        let front_face = direction.dot(ng) < 0.0;
-        let ng_facing = if front_face { ng } else { -ng };
+        let (mut p, mut p_error) = interpolate_point(corners, hit.barycentric);
         let b = hit.barycentric;
         let b0 = 1.0 - b.x - b.y;
         let mut ns = if flat_normal != Vec3::ZERO {
@@ -233,11 +279,27 @@ impl RenderScene {
             ns.try_normalize().unwrap_or(ng)
         };
         let material = g.material_ids[tri];
-        if let Some(map) = self.materials.normal_map(material) {
+        let normal_map = self.materials.normal_map(material);
+        if let Some(map) = normal_map {
             ns = self.mapped_normal(tri, hit.barycentric, ns, map);
         }
+        let mut ng = ng;
+        if hit.instance != NO_INSTANCE {
+            let placement = &self.instances.as_ref()?.placements[hit.instance as usize];
+            (p, p_error) = placement.to_world(p, p_error);
+            ng = (placement.normal_matrix * Vec3A::from(ng)).normalize_or_zero().into();
+            ns = Vec3::from(placement.normal_matrix * Vec3A::from(ns)).try_normalize().unwrap_or(ng);
+            if ng == Vec3::ZERO {
+                return None;
+            }
+        }
+        let front_face = direction.dot(ng) < 0.0;
+        let ng_facing = if front_face { ng } else { -ng };
         if ns.dot(ng_facing) < 0.0 {
             ns = -ns;
+        }
+        if normal_map.is_some() {
+            ns = keep_viewer_above(ns, -direction, ng_facing);
         }
         Some(SurfacePoint {
             p,
@@ -305,6 +367,21 @@ impl RenderScene {
     }
 }
 
+/// A normal-mapped shading normal `ns` tilted toward the viewer direction `wo` (unit, on
+/// the side of `ng`) just enough that the viewer stays above its hemisphere: where a bump
+/// faces away at grazing view, the BSDF would otherwise see `wo` below its horizon and the
+/// path would end black (dark speckles on normal-mapped ground far away). The bound,
+/// min(0.9 wo·ng, 0.01), follows Cycles' `ensure_valid_reflection`.
+#[inline]
+fn keep_viewer_above(ns: Vec3, wo: Vec3, ng: Vec3) -> Vec3 {
+    let least = (0.9 * wo.dot(ng)).min(0.01);
+    let cos = ns.dot(wo);
+    if cos >= least {
+        return ns;
+    }
+    (ns + (least - cos) * wo).try_normalize().unwrap_or(ng)
+}
+
 /// Texture coordinates of set `set` (0 or 1; set 1 falls back to set 0 where the geometry
 /// has none) at vertex `v`.
 #[inline]
@@ -313,15 +390,51 @@ fn vertex_uv(g: &Geometry, v: u32, set: u32) -> Vec2 {
     uvs[v as usize]
 }
 
-/// A sphere bounding all vertices (the box's centre and half-diagonal).
-fn bounding_sphere(g: &Geometry) -> (Vec3, f32) {
-    if g.positions.is_empty() {
-        return (Vec3::ZERO, 1.0);
+impl Instances {
+    fn build(description: &SceneDescription) -> Instances {
+        let g = &description.geometry;
+        let meshes = description
+            .meshes
+            .iter()
+            .map(|m| {
+                let triangles = m.first_triangle as usize..(m.first_triangle + m.triangle_count) as usize;
+                (Bvh::build(triangles.map(|i| g.triangle_positions(i))), m.first_triangle)
+            })
+            .collect();
+        let placements: Vec<Placement> = description
+            .instances
+            .iter()
+            .map(|i| {
+                let object_to_world = Affine3A::from_mat4(i.object_to_world);
+                Placement { mesh: i.mesh, object_to_world, normal_matrix: object_to_world.matrix3.inverse().transpose() }
+            })
+            .collect();
+        let bvh = InstanceBvh::build(
+            description.instances.iter().zip(&placements).map(|(i, p)| (description.instance_bounds(i), p.object_to_world.inverse())),
+        );
+        Instances { bvh, meshes, placements }
     }
-    let (lo, hi) = g.positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
+}
+
+impl Placement {
+    /// A point of the instance's mesh and its absolute error bound, in world space: the
+    /// transformed point, and the transformed bound plus the rounding of the transform
+    /// itself (pbrt-v4's bound for applying a transform to a point with error).
+    #[inline]
+    fn to_world(&self, p: Vec3, p_error: Vec3) -> (Vec3, Vec3) {
+        let m = &self.object_to_world;
+        let abs = Mat3A::from_cols(m.matrix3.x_axis.abs(), m.matrix3.y_axis.abs(), m.matrix3.z_axis.abs());
+        let world = m.transform_point3(p);
+        let error = (gamma(3.0) + 1.0) * (abs * Vec3A::from(p_error)) + gamma(3.0) * (abs * Vec3A::from(p).abs() + m.translation.abs());
+        (world, error.into())
+    }
+}
+
+/// A sphere bounding the world bounds `(min, max)` (the box's centre and half-diagonal).
+fn bounding_sphere(bounds: Option<(Vec3, Vec3)>) -> (Vec3, f32) {
+    let Some((lo, hi)) = bounds else {
+        return (Vec3::ZERO, 1.0);
+    };
     let centre = 0.5 * (lo + hi);
     (centre, (0.5 * (hi - lo).length()).max(1e-3))
 }
@@ -416,14 +529,25 @@ mod tests {
         let ray = down_at(0.3);
         let expected = [Vec3::new(0.6, 0.0, 0.8), Vec3::new(0.3, 0.0, 0.8).normalize(), Vec3::Z];
         for (k, n) in expected.into_iter().enumerate() {
-            let hit = Hit { t: 5.0 + k as f32, triangle: 2 * k as u32, barycentric: Vec2::new(0.3, 0.3) };
+            let hit = Hit { t: 5.0 + k as f32, triangle: 2 * k as u32, barycentric: Vec2::new(0.3, 0.3), instance: NO_INSTANCE };
             let sp = scene.surface_point(&hit, ray.direction).unwrap();
             assert!(sp.frame.n.abs_diff_eq(n, 1e-5), "quad {k}: {} vs {n}", sp.frame.n);
             assert_eq!(sp.ng, Vec3::Z);
         }
         // Seen from behind (double-sided), the bent normal turns to the viewer's side.
-        let sp = scene.surface_point(&Hit { t: 5.0, triangle: 0, barycentric: Vec2::new(0.3, 0.3) }, Vec3::Z).unwrap();
+        let sp = scene.surface_point(&Hit { t: 5.0, triangle: 0, barycentric: Vec2::new(0.3, 0.3), instance: NO_INSTANCE }, Vec3::Z).unwrap();
         assert!(sp.frame.n.abs_diff_eq(-Vec3::new(0.6, 0.0, 0.8), 1e-5), "{}", sp.frame.n);
+    }
+
+    /// A bump facing away from a grazing viewer is tilted so the viewer stays above it.
+    #[test]
+    fn normal_maps_keep_the_viewer_above_the_shading_normal() {
+        let n = Vec3::new(-0.6, 0.0, 0.8);
+        let wo = Vec3::new(0.99, 0.0, 0.141).normalize();
+        assert!(n.dot(wo) < 0.0);
+        let tilted = keep_viewer_above(n, wo, Vec3::Z);
+        assert!((0.01..0.02).contains(&tilted.dot(wo)) && (tilted.length() - 1.0).abs() < 1e-6, "{tilted}");
+        assert_eq!(keep_viewer_above(Vec3::Z, wo, Vec3::Z), Vec3::Z, "a normal the viewer sees is kept");
     }
 
     /// An emissive texture scales the emission seen by rays and sampled by lights, and

@@ -990,3 +990,26 @@ fn regression_gltf_coordinates_near_f32_max() {
     let message = load_gltf(&glb(&doc, &bin)).expect_err("coordinates near f32::MAX").to_string();
     assert!(message.starts_with("/props/scene.gltf: vertex 4 lies 1e35 scene units from the origin"), "{message}");
 }
+
+/// `gltf` target: an image stored in a bufferView without a mimeType (or with neither a uri
+/// nor a bufferView) made the `gltf` crate unwrap `None` when the texture was read.
+#[test]
+fn regression_gltf_image_source_without_mime_type() {
+    for image in [json!({"bufferView": 0}), json!({"name": "nothing"})] {
+        let doc = json!({
+            "asset": {"version": "2.0"},
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+            "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+            "textures": [{"source": 0}],
+            "images": [image],
+            "nodes": [{"mesh": 0}],
+            "scenes": [{"nodes": [0]}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]}],
+            "bufferViews": [{"buffer": 0, "byteLength": 36}],
+            "buffers": [{"byteLength": 36}]
+        });
+        let bin: Vec<u8> = [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let message = load_gltf(&glb(&doc, &bin)).expect_err("bad image source").to_string();
+        assert!(message.starts_with("/props/scene.gltf: not a valid glTF file: images[0]"), "{message}");
+    }
+}

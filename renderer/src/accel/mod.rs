@@ -2,12 +2,14 @@
 //! of a scene, closest-hit and occlusion queries (eight children and up to eight leaf
 //! triangles per SIMD step), and robust ray-origin offsets.
 
+mod instances;
 mod node;
 #[cfg(target_arch = "x86_64")]
 mod packet;
 mod policy;
 mod triangle_pack;
 
+pub use instances::InstanceBvh;
 pub use policy::TracePolicy;
 
 use crate::support::cpu::{has_avx2_fma, has_avx512f};
@@ -61,7 +63,13 @@ pub struct Hit {
     pub triangle: u32,
     /// Barycentric coordinates (b1, b2) of the hit: p = (1 − b1 − b2) v0 + b1 v1 + b2 v2.
     pub barycentric: Vec2,
+    /// The instance whose mesh the triangle belongs to ([`NO_INSTANCE`] for triangles stored
+    /// in world space).
+    pub instance: u32,
 }
+
+/// [`Hit::instance`] of a triangle stored in world space.
+pub const NO_INSTANCE: u32 = u32::MAX;
 
 /// Bounding volume hierarchy over a triangle soup: an obvhs CWBVH whose leaf triangles are
 /// stored per node in packs of eight, so a node's leaves are tested in one SIMD pass.
@@ -219,6 +227,7 @@ impl Bvh {
             t,
             triangle: self.scene_triangle(slot),
             barycentric,
+            instance: NO_INSTANCE,
         })
     }
 
@@ -317,7 +326,7 @@ impl Bvh {
             return None;
         }
         let bvh_ray = to_bvh_ray(ray);
-        let accept_slot = |slot: u32, t: f32, barycentric: Vec2| accept(&Hit { t, triangle: self.scene_triangle(slot), barycentric });
+        let accept_slot = |slot: u32, t: f32, barycentric: Vec2| accept(&Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE });
         #[cfg(target_arch = "x86_64")]
         let found = if has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 and FMA.
@@ -327,7 +336,7 @@ impl Bvh {
         };
         #[cfg(not(target_arch = "x86_64"))]
         let found = self.closest_filtered_portable(&bvh_ray, &accept_slot);
-        found.map(|(t, slot, barycentric)| Hit { t, triangle: self.scene_triangle(slot), barycentric })
+        found.map(|(t, slot, barycentric)| Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE })
     }
 
     /// True when a hit that `accept` takes (see [`Bvh::intersect_filtered`]) blocks the ray
@@ -345,7 +354,7 @@ impl Bvh {
             for k in (0..24).filter(|k| lanes & (1 << k) != 0) {
                 let pack = &self.packs[first_pack + k / LANES];
                 if let Some((t, barycentric)) = pack.lane_hit(k % LANES, origin, direction, bvh_ray.tmax) {
-                    if accept(&Hit { t, triangle: self.scene_triangle(slot_base + k as u32), barycentric }) {
+                    if accept(&Hit { t, triangle: self.scene_triangle(slot_base + k as u32), barycentric, instance: NO_INSTANCE }) {
                         hit = true;
                         return true;
                     }
@@ -422,49 +431,17 @@ impl Bvh {
         )
     }
 
-    /// Walks the CWBVH below node `root` front to back by octant order (as obvhs's
-    /// `traverse!`), culling children beyond the current `t_max`. `intersect_node(node, t_max)` returns the hit mask
-    /// of a node; `leaves(node_index, primitive_mask, t_max)` tests the node's hit leaf
-    /// primitives (bits of slots from the node's primitive base), may lower `t_max`, and
-    /// returns true to stop.
+    /// [`traverse_nodes`] over this hierarchy's nodes.
     #[inline(always)]
     fn traverse(
         &self,
         root: u32,
         oct_inv4: u32,
-        mut t_max: f32,
-        mut intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
-        mut leaves: impl FnMut(usize, u32, &mut f32) -> bool,
+        t_max: f32,
+        intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
+        leaves: impl FnMut(usize, u32, &mut f32) -> bool,
     ) {
-        let nodes = &self.bvh.nodes;
-        let mut stack = Stack::<UVec2>::new();
-        // (first child index, inner-child hit bits in the high byte | inner-child mask).
-        let mut group = UVec2::new(root, 0x8000_0000);
-        loop {
-            if group.y & 0xff00_0000 != 0 {
-                let hits = group.y;
-                let child_bit = 31 - hits.leading_zeros();
-                group.y &= !(1 << child_bit);
-                if group.y & 0xff00_0000 != 0 {
-                    stack.push(group);
-                }
-                let slot = (child_bit - 24) ^ (oct_inv4 & 0xff);
-                let index = (group.x + (hits & !(u32::MAX << slot)).count_ones()) as usize;
-                let node = &nodes[index];
-                let hit_mask = intersect_node(node, t_max);
-                group = UVec2::new(node.child_base_idx, (hit_mask & 0xff00_0000) | node.imask as u32);
-                let primitives = hit_mask & 0x00ff_ffff;
-                if primitives != 0 && leaves(index, primitives, &mut t_max) {
-                    return;
-                }
-            }
-            if group.y & 0xff00_0000 == 0 {
-                match stack.pop() {
-                    Some(g) => group = g,
-                    None => return,
-                }
-            }
-        }
+        traverse_nodes(&self.bvh.nodes, root, oct_inv4, t_max, intersect_node, leaves)
     }
 
     /// Closest hit with the given node and pack kernels.
@@ -581,6 +558,50 @@ impl Bvh {
             |n, t_max| unsafe { node::intersect_avx2(n, ray, oct, t_max) },
             |p, lanes| unsafe { triangle_pack::avx2::any(p, ray.origin, ray.direction, lanes, ray.tmax) },
         )
+    }
+}
+
+/// Walks the CWBVH `nodes` below node `root` front to back by octant order (as obvhs's
+/// `traverse!`), culling children beyond the current `t_max`. `intersect_node(node, t_max)`
+/// returns the hit mask of a node; `leaves(node_index, primitive_mask, t_max)` tests the
+/// node's hit leaf primitives (bits of slots from the node's primitive base), may lower
+/// `t_max`, and returns true to stop.
+#[inline(always)]
+fn traverse_nodes(
+    nodes: &[CwBvhNode],
+    root: u32,
+    oct_inv4: u32,
+    mut t_max: f32,
+    mut intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
+    mut leaves: impl FnMut(usize, u32, &mut f32) -> bool,
+) {
+    let mut stack = Stack::<UVec2>::new();
+    // (first child index, inner-child hit bits in the high byte | inner-child mask).
+    let mut group = UVec2::new(root, 0x8000_0000);
+    loop {
+        if group.y & 0xff00_0000 != 0 {
+            let hits = group.y;
+            let child_bit = 31 - hits.leading_zeros();
+            group.y &= !(1 << child_bit);
+            if group.y & 0xff00_0000 != 0 {
+                stack.push(group);
+            }
+            let slot = (child_bit - 24) ^ (oct_inv4 & 0xff);
+            let index = (group.x + (hits & !(u32::MAX << slot)).count_ones()) as usize;
+            let node = &nodes[index];
+            let hit_mask = intersect_node(node, t_max);
+            group = UVec2::new(node.child_base_idx, (hit_mask & 0xff00_0000) | node.imask as u32);
+            let primitives = hit_mask & 0x00ff_ffff;
+            if primitives != 0 && leaves(index, primitives, &mut t_max) {
+                return;
+            }
+        }
+        if group.y & 0xff00_0000 == 0 {
+            match stack.pop() {
+                Some(g) => group = g,
+                None => return,
+            }
+        }
     }
 }
 

@@ -311,6 +311,7 @@ impl Bvh {
                 t: t[i],
                 triangle: self.scene_triangle(slot[i] as u32),
                 barycentric: glam::Vec2::new(b1[i], b2[i]),
+                instance: super::NO_INSTANCE,
             });
         }
     }

@@ -3,7 +3,7 @@
 
 use crate::material::Binding;
 use crate::{Error, Result, Rgb};
-use glam::{Mat4, Vec2, Vec3, Vec4};
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use std::path::{Path, PathBuf};
 
 pub mod gltf;
@@ -12,7 +12,8 @@ pub mod texture;
 
 pub use texture::{Texture, TextureRef};
 
-/// All triangles of a scene, flattened into world space.
+/// All triangles of a scene: those placed once, in world space, followed by the
+/// [`Mesh`]es that [`Instance`]s place, each in its own object space.
 #[derive(Clone, Debug, Default)]
 pub struct Geometry {
     /// Vertex positions, world space.
@@ -61,6 +62,39 @@ impl Geometry {
                 .iter()
                 .fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p))),
         )
+    }
+
+    /// Moves every vertex by `object_to_world`: positions; normals by the inverse transpose
+    /// (normals that cannot be normalised afterwards become area-weighted smooth normals of
+    /// the moved triangles); tangents by the linear part, their handedness w flipped under a
+    /// mirroring transform (zero tangents stay zero); and triangles' winding flipped under a
+    /// mirroring transform, so they stay counter-clockwise seen from the front (glTF: the
+    /// determinant's sign decides the winding).
+    pub fn transform(&mut self, object_to_world: Mat4) {
+        for p in &mut self.positions {
+            *p = object_to_world.transform_point3(*p);
+        }
+        let linear = Mat3::from_mat4(object_to_world);
+        let handedness = linear.determinant().signum();
+        if handedness < 0.0 {
+            for t in &mut self.triangles {
+                t.swap(1, 2);
+            }
+        }
+        let normal_matrix = linear.inverse().transpose();
+        let normals: Vec<Option<Vec3>> = self.normals.iter().map(|&n| (normal_matrix * n).try_normalize()).collect();
+        self.normals = if normals.iter().all(Option::is_some) {
+            normals.into_iter().flatten().collect()
+        } else {
+            let smooth = smooth_vertex_normals(&self.positions, &self.triangles);
+            normals.into_iter().zip(smooth).map(|(n, s)| n.unwrap_or(s)).collect()
+        };
+        for t in &mut self.tangents {
+            *t = match (linear * t.truncate()).try_normalize() {
+                Some(xyz) if *t != Vec4::ZERO => xyz.extend(t.w * handedness),
+                _ => Vec4::ZERO,
+            };
+        }
     }
 
     /// Appends `other`, offsetting its vertex indices; its material ids are kept as they are.
@@ -365,12 +399,36 @@ pub struct EnvironmentSpec {
 /// would overflow f32 (a fuzzed file with coordinates near 10³⁵ broke `obvhs`'s build).
 pub const MAX_COORDINATE: f32 = 1e12;
 
-/// What a scene file describes, in world space.
+/// A mesh stored once, in its own object space, and placed by [`Instance`]s: triangles
+/// `first_triangle..first_triangle + triangle_count` and vertices
+/// `first_vertex..first_vertex + vertex_count` of the scene's [`Geometry`] (after all
+/// world-space triangles and their vertices).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Mesh {
+    pub first_triangle: u32,
+    pub triangle_count: u32,
+    pub first_vertex: u32,
+    pub vertex_count: u32,
+}
+
+/// A placement of a [`Mesh`] in the world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    /// Index into [`SceneDescription::meshes`].
+    pub mesh: u32,
+    /// Object-to-world transform (affine, invertible).
+    pub object_to_world: Mat4,
+}
+
+/// What a scene file describes: triangles in world space, and meshes placed by instances.
 #[derive(Clone, Debug, Default)]
 pub struct SceneDescription {
     /// The file it was read from (for error messages).
     pub source: PathBuf,
     pub geometry: Geometry,
+    /// Meshes stored once (their triangles at the end of `geometry`), placed by `instances`.
+    pub meshes: Vec<Mesh>,
+    pub instances: Vec<Instance>,
     pub materials: Vec<Material>,
     pub textures: Vec<Texture>,
     pub cameras: Vec<Camera>,
@@ -397,6 +455,84 @@ impl SceneDescription {
                 "unknown scene format (expected a .gltf, .glb or .obj file)",
             )),
         }
+    }
+
+    /// Number of triangles stored in world space (the first ones of the geometry; the rest
+    /// belong to instanced meshes).
+    pub fn world_triangle_count(&self) -> usize {
+        self.meshes.first().map_or(self.geometry.triangle_count(), |m| m.first_triangle as usize)
+    }
+
+    /// Number of triangles in the world: world-space ones plus each instance's mesh.
+    pub fn triangle_instance_count(&self) -> u64 {
+        let instanced: u64 = self.instances.iter().map(|i| u64::from(self.meshes[i.mesh as usize].triangle_count)).sum();
+        self.world_triangle_count() as u64 + instanced
+    }
+
+    /// World-space bounds of a mesh's vertices under a transform (the transformed box of its
+    /// object-space bounds).
+    pub fn instance_bounds(&self, instance: &Instance) -> (Vec3, Vec3) {
+        let m = &self.meshes[instance.mesh as usize];
+        let vertices = &self.geometry.positions[m.first_vertex as usize..(m.first_vertex + m.vertex_count) as usize];
+        let (lo, hi) = vertices.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+        (0..8u32)
+            .map(|c| Vec3::new([lo.x, hi.x][(c & 1) as usize], [lo.y, hi.y][(c >> 1 & 1) as usize], [lo.z, hi.z][(c >> 2) as usize]))
+            .map(|corner| instance.object_to_world.transform_point3(corner))
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)))
+    }
+
+    /// Bounds of everything in the world: world-space vertices and instances; `None` when
+    /// there is nothing.
+    pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
+        let world_vertices = self.meshes.first().map_or(self.geometry.positions.len(), |m| m.first_vertex as usize);
+        let mut bounds = self.geometry.positions[..world_vertices]
+            .iter()
+            .fold(None, |b: Option<(Vec3, Vec3)>, &p| Some(b.map_or((p, p), |(lo, hi)| (lo.min(p), hi.max(p)))));
+        for instance in &self.instances {
+            let (lo, hi) = self.instance_bounds(instance);
+            bounds = Some(bounds.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        }
+        bounds
+    }
+
+    /// The same scene with every instance's mesh copied into world space (memory grows with
+    /// the instances): for comparing instancing against its absence.
+    pub fn flatten_instances(mut self) -> Result<SceneDescription> {
+        let world_triangles = self.world_triangle_count();
+        let world_vertices = self.meshes.first().map_or(self.geometry.positions.len(), |m| m.first_vertex as usize);
+        let g = &self.geometry;
+        let part = |m: &Mesh| {
+            let vertices = m.first_vertex as usize..(m.first_vertex + m.vertex_count) as usize;
+            let triangles = m.first_triangle as usize..(m.first_triangle + m.triangle_count) as usize;
+            Geometry {
+                positions: g.positions[vertices.clone()].to_vec(),
+                normals: g.normals[vertices.clone()].to_vec(),
+                uvs: g.uvs[vertices.clone()].to_vec(),
+                uvs1: if g.uvs1.is_empty() { Vec::new() } else { g.uvs1[vertices.clone()].to_vec() },
+                tangents: if g.tangents.is_empty() { Vec::new() } else { g.tangents[vertices].to_vec() },
+                triangles: g.triangles[triangles.clone()].iter().map(|t| t.map(|v| v - m.first_vertex)).collect(),
+                material_ids: g.material_ids[triangles].to_vec(),
+            }
+        };
+        let parts: Vec<Geometry> = self.meshes.iter().map(part).collect();
+        let mut world = Geometry {
+            positions: g.positions[..world_vertices].to_vec(),
+            normals: g.normals[..world_vertices].to_vec(),
+            uvs: g.uvs[..world_vertices].to_vec(),
+            uvs1: if g.uvs1.is_empty() { Vec::new() } else { g.uvs1[..world_vertices].to_vec() },
+            tangents: if g.tangents.is_empty() { Vec::new() } else { g.tangents[..world_vertices].to_vec() },
+            triangles: g.triangles[..world_triangles].to_vec(),
+            material_ids: g.material_ids[..world_triangles].to_vec(),
+        };
+        for instance in &self.instances {
+            let mut placed = parts[instance.mesh as usize].clone();
+            placed.transform(instance.object_to_world);
+            world.append(&placed, &self.source)?;
+        }
+        self.geometry = world;
+        self.meshes.clear();
+        self.instances.clear();
+        Ok(self)
     }
 
     /// The camera named `name`, or the file's first camera when `name` is `None`.
@@ -432,7 +568,7 @@ impl SceneDescription {
         aspect_ratio: Option<f32>,
     ) -> Result<Camera> {
         if name.is_none() && self.cameras.is_empty() {
-            let (min, max) = self.geometry.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+            let (min, max) = self.world_bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
             return Ok(Camera::look_at_bounds("default", min, max, aspect_ratio));
         }
         self.camera(name).cloned()
@@ -513,6 +649,43 @@ impl SceneDescription {
             if m.texture_refs().any(|t| t.texture >= self.textures.len())
             {
                 return fail(format!("material '{}' uses a missing texture", m.name));
+            }
+        }
+        let (world_triangles, world_vertices) = match self.meshes.first() {
+            Some(m) => (m.first_triangle as usize, m.first_vertex as usize),
+            None => (g.triangles.len(), n),
+        };
+        let (mut next_triangle, mut next_vertex) = (world_triangles, world_vertices);
+        for (k, m) in self.meshes.iter().enumerate() {
+            let contiguous = m.first_triangle as usize == next_triangle && m.first_vertex as usize == next_vertex;
+            next_triangle += m.triangle_count as usize;
+            next_vertex += m.vertex_count as usize;
+            if !contiguous || next_triangle > g.triangles.len() || next_vertex > n {
+                return fail(format!("mesh {k} does not follow the world-space triangles and the meshes before it"));
+            }
+            let vertices = m.first_vertex..m.first_vertex + m.vertex_count;
+            let triangles = m.first_triangle as usize..next_triangle;
+            if g.triangles[triangles].iter().flatten().any(|v| !vertices.contains(v)) {
+                return fail(format!("mesh {k} has a triangle using a vertex outside it"));
+            }
+        }
+        if next_triangle != g.triangles.len() || next_vertex != n {
+            return fail("triangles or vertices after the last mesh".into());
+        }
+        if g.triangles[..world_triangles].iter().flatten().any(|&v| v as usize >= world_vertices) {
+            return fail("a world-space triangle uses a vertex of an instanced mesh".into());
+        }
+        for (k, instance) in self.instances.iter().enumerate() {
+            let m = instance.object_to_world;
+            if instance.mesh as usize >= self.meshes.len() {
+                return fail(format!("instance {k} places mesh {} of {}", instance.mesh, self.meshes.len()));
+            }
+            if !m.is_finite() || m.determinant().abs().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || !m.inverse().is_finite() || m.row(3) != glam::Vec4::W {
+                return fail(format!("instance {k} has a transform that is not affine and invertible"));
+            }
+            let (lo, hi) = self.instance_bounds(instance);
+            if lo.abs().max(hi.abs()).max_element() > MAX_COORDINATE {
+                return fail(format!("instance {k} reaches {:e} scene units from the origin (at most {MAX_COORDINATE:e} are supported)", lo.abs().max(hi.abs()).max_element()));
             }
         }
         for c in &self.cameras {

@@ -103,13 +103,15 @@ impl TextureRef {
     }
 }
 
-/// `KHR_texture_transform`'s matrix: uv' = T(offset) · R(rotation) · S(scale) · uv, exactly
-/// as the extension's GLSL builds it (rotation in radians; R's columns (cos, sin) and
-/// (−sin, cos)).
+/// `KHR_texture_transform`'s matrix: uv' = T(offset) · R(rotation) · S(scale) · uv, with
+/// u' = cos θ u + sin θ v, v' = −sin θ u + cos θ v for the rotation θ (radians): the
+/// direction of the extension's JSON example and of Blender, three.js, Babylon.js and
+/// cesium-native (the GLSL listing in the extension's README has it transposed, glTF issue
+/// #1563; a Cycles render of `scenes/feature-showcase` confirmed this one).
 pub fn texture_transform(offset: Vec2, rotation: f32, scale: Vec2) -> Mat3 {
     let (s, c) = rotation.sin_cos();
     let translation = Mat3::from_translation(offset);
-    let rotation = Mat3::from_cols_array(&[c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0]);
+    let rotation = Mat3::from_cols_array(&[c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0]);
     translation * rotation * Mat3::from_scale(scale)
 }
 
@@ -275,13 +277,19 @@ mod tests {
     }
 
     /// The extension's matrix T · R · S: offset (0, 1), rotation π/2, scale (0.5, 0.5) maps
-    /// (1, 0) to (0, 1.5) and (0, 1) to (−0.5, 1).
+    /// (1, 0) to (0, 0.5) and (0, 1) to (0.5, 1) (the extension's example: a quarter turn
+    /// with offset (0, 1) keeps the unit square's image in the unit square).
     #[test]
     fn texture_transform_follows_the_extension() {
         let m = texture_transform(Vec2::new(0.0, 1.0), std::f32::consts::FRAC_PI_2, Vec2::splat(0.5));
         let close = |a: Vec2, b: Vec2| (a - b).length() < 1e-6;
-        assert!(close(m.transform_point2(Vec2::new(1.0, 0.0)), Vec2::new(0.0, 1.5)), "{}", m.transform_point2(Vec2::new(1.0, 0.0)));
-        assert!(close(m.transform_point2(Vec2::new(0.0, 1.0)), Vec2::new(-0.5, 1.0)), "{}", m.transform_point2(Vec2::new(0.0, 1.0)));
+        assert!(close(m.transform_point2(Vec2::new(1.0, 0.0)), Vec2::new(0.0, 0.5)), "{}", m.transform_point2(Vec2::new(1.0, 0.0)));
+        assert!(close(m.transform_point2(Vec2::new(0.0, 1.0)), Vec2::new(0.5, 1.0)), "{}", m.transform_point2(Vec2::new(0.0, 1.0)));
+        let quarter = texture_transform(Vec2::new(0.0, 1.0), std::f32::consts::FRAC_PI_2, Vec2::ONE);
+        for corner in [Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::ONE] {
+            let mapped = quarter.transform_point2(corner);
+            assert!(mapped.cmpge(Vec2::splat(-1e-6)).all() && mapped.cmple(Vec2::splat(1.0 + 1e-6)).all(), "{corner} -> {mapped}");
+        }
         let shift = texture_transform(Vec2::new(0.25, 0.0), 0.0, Vec2::ONE);
         let r = TextureRef { transform: Some(shift), ..TextureRef::new(0) };
         assert_eq!(r.lookup(&[ramp()], Vec2::new(0.125, 0.5)), Rgb::splat(1.0));

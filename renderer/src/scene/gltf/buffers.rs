@@ -14,11 +14,12 @@ pub(super) const SUPPORTED_EXTENSIONS: [&str; 5] = [
 
 /// Parses a `.gltf` or `.glb` file (an unsupported extension in `extensionsRequired` is an
 /// error naming it) and runs the `gltf` crate's validation, which checks
-/// every index into the document's arrays. Two inputs that make the `gltf` crate (1.4)
+/// every index into the document's arrays. Three inputs that make the `gltf` crate (1.4)
 /// panic are turned into errors first: a GLB header whose total length is below the
-/// header's own 12 bytes (an overflowing subtraction in `binary.rs`), and a primitive whose
+/// header's own 12 bytes (an overflowing subtraction in `binary.rs`), a primitive whose
 /// POSITION names a missing accessor (the validation indexes the accessors with it
-/// unchecked, `gltf-json` `mesh.rs`).
+/// unchecked, `gltf-json` `mesh.rs`), and an image in a bufferView without a mimeType or with
+/// neither a uri nor a bufferView (`image.rs` unwraps them).
 pub(super) fn parse_and_validate(bytes: &[u8], path: &Path) -> Result<Gltf> {
     let invalid = |e: &dyn std::fmt::Display| {
         Error::invalid_file(path, format!("not a valid glTF file: {e}"))
@@ -55,6 +56,14 @@ pub(super) fn parse_and_validate(bytes: &[u8], path: &Path) -> Result<Gltf> {
                     )));
                 }
             }
+        }
+    }
+    for (i, image) in json.images.iter().enumerate() {
+        // The `gltf` crate (1.4) unwraps both when it reads an image's source.
+        match (&image.buffer_view, &image.mime_type, &image.uri) {
+            (Some(_), None, _) => return Err(invalid(&format!("images[{i}]: an image in a bufferView needs a mimeType"))),
+            (None, _, None) => return Err(invalid(&format!("images[{i}]: has neither a uri nor a bufferView"))),
+            _ => {}
         }
     }
     let document = Document::from_json(json).map_err(|e| invalid(&e))?;

@@ -68,8 +68,8 @@
 
 use super::texture::{texture_transform, Encoding, Filter, Wrap};
 use super::{
-    smooth_vertex_normals, AlphaMode, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Material,
-    NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef,
+    smooth_vertex_normals, AlphaMode, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Instance, Material,
+    Mesh, NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef,
 };
 use crate::material::Binding;
 use crate::{Error, Result, Rgb};
@@ -78,7 +78,7 @@ use ::gltf::camera::Projection;
 use ::gltf::khr_lights_punctual::Kind as LightKind;
 use ::gltf::mesh::Mode;
 use ::gltf::{Accessor, Document, Gltf, Node, Primitive};
-use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -135,6 +135,8 @@ pub fn load_from_bytes_with(
         texture_of_image: HashMap::new(),
         default_material: None,
         saw_orthographic: false,
+        instanced: HashMap::new(),
+        meshes: Geometry::default(),
     };
     for material in document.materials() {
         let material = loader.material(&document, &material)?;
@@ -144,7 +146,9 @@ pub fn load_from_bytes_with(
         .default_scene()
         .or_else(|| document.scenes().next())
         .ok_or_else(|| Error::invalid_file(path, "defines no scene"))?;
+    loader.choose_instanced_meshes(&document, &gltf_scene);
     loader.walk(&gltf_scene)?;
+    loader.place_meshes()?;
     if loader.scene.cameras.is_empty() && loader.saw_orthographic {
         return Err(Error::invalid_file(
             path,
@@ -160,6 +164,10 @@ pub fn load_from_bytes_with(
     Ok(loader.scene)
 }
 
+/// A mesh is instanced when copying it to every node using it would store at least this
+/// many extra triangles (the Cornell box's walls, a few triangles on three nodes, are copied).
+pub const INSTANCING_MIN_SAVED_TRIANGLES: usize = 1024;
+
 /// The state of one load.
 struct Loader<'a> {
     path: &'a Path,
@@ -173,6 +181,12 @@ struct Loader<'a> {
     /// Index of the material given to primitives without one, once created.
     default_material: Option<u32>,
     saw_orthographic: bool,
+    /// glTF meshes stored once and placed by instances → their index in
+    /// `scene.meshes` once stored (see [`Loader::choose_instanced_meshes`]).
+    instanced: HashMap<usize, Option<u32>>,
+    /// The instanced meshes' triangles, in their own space, appended to the world-space
+    /// geometry at the end ([`Loader::place_meshes`]); `scene.meshes` index into it until then.
+    meshes: Geometry,
 }
 
 impl Loader<'_> {
@@ -201,15 +215,73 @@ impl Loader<'_> {
         Ok(())
     }
 
+    /// Chooses the meshes to store once and instance: those that nodes of the scene use
+    /// often enough that copying them would store [`INSTANCING_MIN_SAVED_TRIANGLES`] or more
+    /// extra triangles, unless one of their materials emits light (emissive triangles are
+    /// lights, kept in world space). Smaller repeats are copied: a flat BVH traces faster.
+    fn choose_instanced_meshes(&mut self, document: &Document, gltf_scene: &::gltf::Scene) {
+        let mut uses: HashMap<usize, usize> = HashMap::new();
+        let mut visited = HashSet::new();
+        let mut stack: Vec<Node> = gltf_scene.nodes().collect();
+        while let Some(node) = stack.pop() {
+            if !visited.insert(node.index()) {
+                continue;
+            }
+            if let Some(mesh) = node.mesh() {
+                *uses.entry(mesh.index()).or_default() += 1;
+            }
+            stack.extend(node.children());
+        }
+        let emits = |m: Option<usize>| m.and_then(|m| self.scene.materials.get(m)).is_some_and(|m| m.emission.max_element() > 0.0);
+        for mesh in document.meshes() {
+            let copies = uses.get(&mesh.index()).map_or(0, |&n| n.saturating_sub(1));
+            // Close enough for the choice (a strip of n indices has n − 2 triangles).
+            let vertices = |p: &Primitive| p.indices().or_else(|| p.get(&::gltf::Semantic::Positions)).map_or(0, |a| a.count());
+            let triangles: usize = mesh.primitives().map(|p| vertices(&p) / 3).sum();
+            if copies * triangles >= INSTANCING_MIN_SAVED_TRIANGLES && !mesh.primitives().any(|p| emits(p.material().index())) {
+                self.instanced.insert(mesh.index(), None);
+            }
+        }
+    }
+
+    /// Appends the instanced meshes after the world-space triangles and points
+    /// `scene.meshes` at them.
+    fn place_meshes(&mut self) -> Result<()> {
+        let (triangles, vertices) = (self.scene.geometry.triangle_count() as u32, self.scene.geometry.positions.len() as u32);
+        let meshes = std::mem::take(&mut self.meshes);
+        self.scene.geometry.append(&meshes, self.path)?;
+        for m in &mut self.scene.meshes {
+            m.first_triangle += triangles;
+            m.first_vertex += vertices;
+        }
+        Ok(())
+    }
+
     fn visit(&mut self, node: &Node, world: Mat4) -> Result<()> {
         if let Some(mesh) = node.mesh() {
             let name = mesh
                 .name()
                 .map(str::to_string)
                 .unwrap_or_else(|| format!("#{}", mesh.index()));
-            for primitive in mesh.primitives() {
-                let part = self.primitive(&name, &primitive, world)?;
-                self.scene.geometry.append(&part, self.path)?;
+            match self.instanced.get(&mesh.index()).copied() {
+                None => {
+                    for primitive in mesh.primitives() {
+                        let part = self.primitive(&name, &primitive, world)?;
+                        self.scene.geometry.append(&part, self.path)?;
+                    }
+                }
+                Some(stored) => {
+                    let id = match stored {
+                        Some(id) => id,
+                        None => self.store_mesh(&mesh, &name)?,
+                    };
+                    // A transform that cannot be inverted flattens the mesh to nothing
+                    // visible (as degenerate triangles would be); such a node is skipped.
+                    let invertible = world.is_finite() && world.determinant() != 0.0 && world.inverse().is_finite();
+                    if invertible {
+                        self.scene.instances.push(Instance { mesh: id, object_to_world: world });
+                    }
+                }
             }
         }
         if let Some(camera) = node.camera() {
@@ -283,6 +355,24 @@ impl Loader<'_> {
             self.scene.lights.push(light);
         }
         Ok(())
+    }
+
+    /// Stores a glTF mesh once, in its own space, as the next of `scene.meshes`.
+    fn store_mesh(&mut self, mesh: &::gltf::Mesh, name: &str) -> Result<u32> {
+        let (first_triangle, first_vertex) = (self.meshes.triangle_count() as u32, self.meshes.positions.len() as u32);
+        for primitive in mesh.primitives() {
+            let part = self.primitive(name, &primitive, Mat4::IDENTITY)?;
+            self.meshes.append(&part, self.path)?;
+        }
+        let id = self.scene.meshes.len() as u32;
+        self.scene.meshes.push(Mesh {
+            first_triangle,
+            triangle_count: self.meshes.triangle_count() as u32 - first_triangle,
+            first_vertex,
+            vertex_count: self.meshes.positions.len() as u32 - first_vertex,
+        });
+        self.instanced.insert(mesh.index(), Some(id));
+        Ok(id)
     }
 
     fn default_material_id(&mut self) -> Result<u32> {

@@ -4,7 +4,9 @@
 use super::*;
 
 impl Loader<'_> {
-    /// One primitive's triangles in world space, with material ids set.
+    /// One primitive's triangles moved by `world` (its vertices read in the mesh's space,
+    /// missing normals and tangents computed there, then [`Geometry::transform`]ed), with
+    /// material ids set.
     pub(super) fn primitive(&mut self, mesh: &str, primitive: &Primitive, world: Mat4) -> Result<Geometry> {
         let index = primitive.index();
         let mode = primitive.mode();
@@ -97,7 +99,7 @@ impl Loader<'_> {
                 "index {bad} out of range ({vertex_count} vertices) in primitive {index} of mesh '{mesh}'"
             )));
         }
-        let mut triangles = assemble_triangles(mode, &indices).ok_or_else(|| {
+        let triangles = assemble_triangles(mode, &indices).ok_or_else(|| {
             self.invalid(format!(
                 "{} index count {} is not a multiple of 3 in primitive {index} of mesh '{mesh}'",
                 mode_name(mode),
@@ -105,35 +107,15 @@ impl Loader<'_> {
             ))
         })?;
 
-        let positions: Vec<Vec3> = local_positions
-            .iter()
-            .map(|&p| world.transform_point3(p))
-            .collect();
-        if positions.iter().any(|p| !p.is_finite()) {
-            return Err(self.invalid(format!("non-finite vertex position in mesh '{mesh}'")));
-        }
-        let linear = Mat3::from_mat4(world);
-        if linear.determinant() < 0.0 {
-            for t in &mut triangles {
-                t.swap(1, 2);
-            }
-        }
-        let normal_matrix = linear.inverse().transpose();
+        let positions = local_positions;
         let normals = match local_normals {
             Some(local) => {
-                let transformed: Vec<Option<Vec3>> = local
-                    .iter()
-                    .map(|&n| (normal_matrix * n).try_normalize())
-                    .collect();
-                if transformed.iter().all(Option::is_some) {
-                    transformed.into_iter().flatten().collect()
+                let unit: Vec<Option<Vec3>> = local.iter().map(|n| n.try_normalize()).collect();
+                if unit.iter().all(Option::is_some) {
+                    unit.into_iter().flatten().collect()
                 } else {
                     let smooth = smooth_vertex_normals(&positions, &triangles);
-                    transformed
-                        .into_iter()
-                        .zip(smooth)
-                        .map(|(n, s)| n.unwrap_or(s))
-                        .collect()
+                    unit.into_iter().zip(smooth).map(|(n, s)| n.unwrap_or(s)).collect()
                 }
             }
             None => smooth_vertex_normals(&positions, &triangles),
@@ -161,11 +143,10 @@ impl Loader<'_> {
                         .map(Vec4::from_array)
                         .collect();
                     self.check_count(local.len(), vertex_count, &name)?;
-                    let handedness = linear.determinant().signum();
                     local
                         .iter()
-                        .map(|t| match (linear * t.truncate()).try_normalize() {
-                            Some(xyz) if t.w.is_finite() => xyz.extend(if t.w < 0.0 { -handedness } else { handedness }),
+                        .map(|t| match t.truncate().try_normalize() {
+                            Some(xyz) if t.w.is_finite() => xyz.extend(if t.w < 0.0 { -1.0 } else { 1.0 }),
                             _ => Vec4::ZERO,
                         })
                         .collect()
@@ -177,7 +158,7 @@ impl Loader<'_> {
             },
         };
         let material_ids = vec![material_id; triangles.len()];
-        Ok(Geometry {
+        let mut part = Geometry {
             positions,
             normals,
             uvs,
@@ -185,7 +166,12 @@ impl Loader<'_> {
             tangents,
             triangles,
             material_ids,
-        })
+        };
+        part.transform(world);
+        if part.positions.iter().any(|p| !p.is_finite()) {
+            return Err(self.invalid(format!("non-finite vertex position in mesh '{mesh}'")));
+        }
+        Ok(part)
     }
 
     /// Checks what the `gltf` crate's readers assume but do not check, so reading can
@@ -261,7 +247,7 @@ impl Loader<'_> {
 }
 
 /// Per-vertex tangents of an indexed triangle mesh by MikkTSpace (the algorithm glTF names
-/// for meshes without TANGENT), with the normal map's image up as the bitangent: texture
+/// for meshes without TANGENT, run in the mesh's space), with the normal map's image up as the bitangent: texture
 /// coordinates are given to it with v flipped (glTF's v points down the image). Each vertex
 /// takes the tangent of its last corner; a vertex MikkTSpace gives none (degenerate texture
 /// coordinates, no triangle) gets zero, which shading reads as "no normal map here".

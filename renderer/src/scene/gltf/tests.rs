@@ -1028,3 +1028,44 @@ fn bad_textures_are_errors_naming_the_file_and_the_image() {
     doc["materials"][0]["emissiveTexture"] = json!({"index": 1});
     expect_error(&doc, "");
 }
+
+/// A mesh that three nodes use, big enough to be worth instancing, is stored once in its
+/// own space with one instance per node (transforms from the root, a mirroring one
+/// included); flattening the instances gives the triangles the nodes place. The Cornell
+/// box's walls (a few triangles on three nodes) are copied instead.
+#[test]
+fn meshes_used_by_many_nodes_are_instanced() {
+    let nodes = json!([
+        {"children": [1, 2, 3], "translation": [0.0, 0.0, -5.0]},
+        {"mesh": 0},
+        {"mesh": 0, "translation": [2.0, 0.0, 0.0]},
+        {"mesh": 0, "scale": [-1.0, 1.0, 1.0]}
+    ]);
+    let mut doc = triangle_doc(nodes, json!([0]), json!({}));
+    let mut bin = Bin::default();
+    let p = bin.vec3(&TRIANGLE);
+    let n = bin.vec3(&[[0.0, 0.0, 1.0]; 3]);
+    let repeated: Vec<u16> = (0..600).flat_map(|_| [0u16, 1, 2]).collect();
+    let i = bin.indices(&repeated);
+    doc["meshes"][0]["primitives"] = json!([{"attributes": {"POSITION": p, "NORMAL": n}, "indices": i}]);
+    let doc = bin.embed(doc);
+    let scene = load_doc(&doc).expect("load");
+    assert_eq!(scene.meshes, vec![Mesh { first_triangle: 0, triangle_count: 600, first_vertex: 0, vertex_count: 3 }]);
+    assert_eq!(scene.geometry.triangle_count(), 600, "stored once");
+    assert_eq!(scene.world_triangle_count(), 0);
+    assert_eq!(scene.triangle_instance_count(), 1800);
+    let origins: Vec<Vec3> = scene.instances.iter().map(|i| i.object_to_world.transform_point3(Vec3::X)).collect();
+    assert_eq!(origins, vec![Vec3::new(1.0, 0.0, -5.0), Vec3::new(3.0, 0.0, -5.0), Vec3::new(-1.0, 0.0, -5.0)]);
+    assert_eq!(scene.world_bounds(), Some((Vec3::new(-1.0, 0.0, -5.0), Vec3::new(3.0, 1.0, -5.0))));
+
+    let flat = scene.clone().flatten_instances().expect("flatten");
+    assert!(flat.meshes.is_empty() && flat.instances.is_empty());
+    assert_eq!(flat.geometry.triangle_count(), 1800);
+    flat.validate().expect("valid");
+    let mirrored = flat.geometry.triangle_positions(1200);
+    assert!(close(mirrored[0], Vec3::new(0.0, 0.0, -5.0)) && close(mirrored[1], Vec3::new(0.0, 1.0, -5.0)), "winding flipped: {mirrored:?}");
+    assert!(flat.geometry.normals.iter().all(|&n| close(n, Vec3::Z)));
+
+    let cornell = shipped("scenes/cornell-box/scene.gltf").map(|p| load(&p).expect("load"));
+    assert!(cornell.is_none_or(|c| c.instances.is_empty()), "small repeats are copied");
+}
