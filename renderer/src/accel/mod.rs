@@ -370,13 +370,14 @@ impl Bvh {
     #[inline(always)]
     fn closest_filtered_with(
         &self,
+        root: u32,
         ray: &BvhRay,
         intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
         mut pack_closest: impl FnMut(&TrianglePack, u32, f32) -> Option<PackHit>,
         accept: &impl Fn(u32, f32, Vec2) -> bool,
     ) -> Option<SlotHit> {
         let mut best: Option<SlotHit> = None;
-        self.traverse(0, node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, t_max| {
+        self.traverse(root, node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, t_max| {
             let mut pack = self.node_packs[index] as usize;
             let mut slot_base = self.bvh.nodes[index].primitive_base_idx;
             while lanes != 0 {
@@ -411,6 +412,7 @@ impl Bvh {
     fn closest_filtered_portable(&self, ray: &BvhRay, accept: &impl Fn(u32, f32, Vec2) -> bool) -> Option<SlotHit> {
         let oct = node::octant_inv4(ray.direction);
         self.closest_filtered_with(
+            0,
             ray,
             |n, t_max| node::intersect_portable(n, ray, oct, t_max),
             |p, lanes, t_max| p.closest_portable(ray.origin, ray.direction, lanes, t_max),
@@ -423,6 +425,7 @@ impl Bvh {
     unsafe fn closest_filtered_avx2(&self, ray: &BvhRay, accept: &impl Fn(u32, f32, Vec2) -> bool) -> Option<SlotHit> {
         let oct = node::octant_inv4(ray.direction);
         self.closest_filtered_with(
+            0,
             ray,
             // SAFETY (both kernels): this function runs only where AVX2 and FMA exist.
             |n, t_max| unsafe { node::intersect_avx2(n, ray, oct, t_max) },
@@ -451,26 +454,9 @@ impl Bvh {
         root: u32,
         ray: &BvhRay,
         intersect_node: impl FnMut(&CwBvhNode, f32) -> u32,
-        mut pack_closest: impl FnMut(&TrianglePack, u32, f32) -> Option<PackHit>,
+        pack_closest: impl FnMut(&TrianglePack, u32, f32) -> Option<PackHit>,
     ) -> Option<SlotHit> {
-        let mut best: Option<SlotHit> = None;
-        self.traverse(root, node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, mut lanes, t_max| {
-            let mut pack = self.node_packs[index] as usize;
-            let mut slot_base = self.bvh.nodes[index].primitive_base_idx;
-            while lanes != 0 {
-                if lanes & 0xff != 0 {
-                    if let Some((t, lane, b)) = pack_closest(&self.packs[pack], lanes & 0xff, *t_max) {
-                        *t_max = t;
-                        best = Some((t, slot_base + lane, b));
-                    }
-                }
-                lanes >>= LANES;
-                pack += 1;
-                slot_base += LANES as u32;
-            }
-            false
-        });
-        best
+        self.closest_filtered_with(root, ray, intersect_node, pack_closest, &|_, _, _| true)
     }
 
     /// Whether anything is hit, with the given node and pack kernels.
