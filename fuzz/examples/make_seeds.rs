@@ -57,6 +57,13 @@ fn main() {
     assert!(tangents.len() == 20 && tangents[..16].iter().all(|t| t.w.abs() == 1.0), "file and MikkTSpace tangents: {tangents:?}");
     render_probe(loaded);
     write("gltf", "features.glb", &features);
+    let (instanced, instanced_bin) = instanced_scene();
+    let instanced = glb(&instanced, &instanced_bin);
+    let loaded = renderer::scene::gltf::load_from_bytes_with(&instanced, &fuzz_path("scene.gltf"), |p| scene_file(p, &[]))
+        .expect("the instancing seed loads");
+    assert_eq!((loaded.meshes.len(), loaded.instances.len()), (1, 3), "instanced");
+    render_probe(loaded);
+    write("gltf", "instanced.glb", &instanced);
 
     // OBJ (+ MTL after the separator line).
     write(
@@ -310,6 +317,56 @@ fn features_scene() -> (Value, Vec<u8>) {
             {"bufferView": 5, "componentType": 5123, "count": 6, "type": "SCALAR"}
         ],
         "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}]
+    });
+    (doc, bin)
+}
+/// One mesh of 600 triangles (a fan around a quad's centre, cut out by an alpha texture,
+/// normal-mapped) on three nodes, one mirrored, under a rotated parent: enough copies saved
+/// that the loader instances it (two-level tracing).
+fn instanced_scene() -> (Value, Vec<u8>) {
+    let n = 600u32;
+    let mut positions = vec![[0.0f32, 0.0, 0.0]];
+    let mut uvs = vec![[0.5f32, 0.5]];
+    for k in 0..n {
+        let a = std::f32::consts::TAU * k as f32 / n as f32;
+        positions.push([a.cos(), a.sin(), 0.0]);
+        uvs.push([0.5 + 0.5 * a.cos(), 0.5 - 0.5 * a.sin()]);
+    }
+    let indices: Vec<u32> = (0..n).flat_map(|k| [0, 1 + k, 1 + (k + 1) % n]).collect();
+    let mut bin: Vec<u8> = positions.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    let uv_offset = bin.len();
+    bin.extend(uvs.iter().flatten().flat_map(|v| v.to_le_bytes()));
+    let index_offset = bin.len();
+    bin.extend(indices.iter().flat_map(|v| v.to_le_bytes()));
+    let count = positions.len();
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 4]}],
+        "nodes": [
+            {"children": [1, 2, 3], "rotation": [0.0, 0.3826834, 0.0, 0.9238795]},
+            {"mesh": 0},
+            {"mesh": 0, "translation": [2.5, 0.0, -1.0]},
+            {"mesh": 0, "translation": [-2.5, 0.0, -1.0], "scale": [-1.0, 1.0, 1.0]},
+            {"camera": 0, "translation": [0.0, 0.0, 6.0]}
+        ],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.9, "znear": 0.01}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
+        "materials": [{"name": "lace", "alphaMode": "MASK", "doubleSided": true,
+            "normalTexture": {"index": 0}, "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+        "textures": [{"source": 0}],
+        "images": [{"uri": "lace.png"}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": count, "type": "VEC3", "min": [-1.0, -1.0, 0.0], "max": [1.0, 1.0, 0.0]},
+            {"bufferView": 1, "componentType": 5126, "count": count, "type": "VEC2"},
+            {"bufferView": 2, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": uv_offset},
+            {"buffer": 0, "byteOffset": uv_offset, "byteLength": index_offset - uv_offset},
+            {"buffer": 0, "byteOffset": index_offset, "byteLength": bin.len() - index_offset}
+        ],
         "buffers": [{"byteLength": bin.len()}]
     });
     (doc, bin)
