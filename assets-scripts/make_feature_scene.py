@@ -99,6 +99,9 @@ import zlib
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from gltf_buffer import ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, BufferWriter  # noqa: E402
+
 try:
     from PIL import Image
 except ImportError:  # pragma: no cover - a clear message instead of a traceback
@@ -173,8 +176,6 @@ DEFAULT_SCENE_DIR = os.path.normpath(
     os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scenes", "feature-showcase")
 )
 
-FLOAT, UNSIGNED_SHORT, UNSIGNED_INT = 5126, 5123, 5125
-ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 NEAREST, LINEAR, LINEAR_MIPMAP_LINEAR = 9728, 9729, 9987
 REPEAT, CLAMP_TO_EDGE, MIRRORED_REPEAT = 10497, 33071, 33648
 
@@ -827,55 +828,12 @@ def rock_nodes(first_index):
 # ------------------------------------------------------------------------------------- glTF
 
 
-class BufferWriter:
-    """One binary buffer with its buffer views and accessors, 4-byte aligned."""
-
-    def __init__(self):
-        self.data = bytearray()
-        self.views = []
-        self.accessors = []
-
-    def add(self, array, component_type, accessor_type, target, bounds=False):
-        while len(self.data) % 4:
-            self.data.append(0)
-        raw = np.ascontiguousarray(array).tobytes()
-        self.views.append(
-            {"buffer": 0, "byteOffset": len(self.data), "byteLength": len(raw), "target": target}
-        )
-        self.data.extend(raw)
-        accessor = {
-            "bufferView": len(self.views) - 1,
-            "componentType": component_type,
-            "count": int(array.shape[0]),
-            "type": accessor_type,
-        }
-        if bounds:
-            accessor["min"] = [float(x) for x in array.min(axis=0)]
-            accessor["max"] = [float(x) for x in array.max(axis=0)]
-        self.accessors.append(accessor)
-        return len(self.accessors) - 1
-
-    def primitive(self, attributes, triangles, material, what):
-        normals = attributes["NORMAL"]
-        assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-6), f"{what}: normals"
-        check_outward(attributes["POSITION"], normals, triangles, what)
-        flat = triangles.reshape(-1)
-        if attributes["POSITION"].shape[0] <= 0xFFFF:
-            indices = self.add(flat.astype("<u2"), UNSIGNED_SHORT, "SCALAR", ELEMENT_ARRAY_BUFFER)
-        else:
-            indices = self.add(flat.astype("<u4"), UNSIGNED_INT, "SCALAR", ELEMENT_ARRAY_BUFFER)
-        kinds = {"POSITION": "VEC3", "NORMAL": "VEC3", "TANGENT": "VEC4"}
-        accessors = {
-            name: self.add(
-                array.astype("<f4"),
-                FLOAT,
-                kinds.get(name, "VEC2"),
-                ARRAY_BUFFER,
-                name == "POSITION",
-            )
-            for name, array in attributes.items()
-        }
-        return {"attributes": accessors, "indices": indices, "material": material, "mode": 4}
+def checked_primitive(buffer, attributes, triangles, material, what):
+    """`buffer.primitive` after checking unit normals and outward winding."""
+    normals = attributes["NORMAL"]
+    assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-6), f"{what}: normals"
+    check_outward(attributes["POSITION"], normals, triangles, what)
+    return buffer.primitive(attributes, triangles, material)
 
 
 def texture_set():
@@ -1057,7 +1015,7 @@ def build():
         ("plastic-cylinder", cylinder(CYLINDER_RADIUS, CYLINDER_HEIGHT, CYLINDER_SEGMENTS), 7),
     ]
     meshes = [
-        {"name": name, "primitives": [buffer.primitive(*geometry, material, name)]}
+        {"name": name, "primitives": [checked_primitive(buffer, *geometry, material, name)]}
         for name, geometry, material in parts
     ]
     mesh = {name: i for i, (name, _, _) in enumerate(parts)}

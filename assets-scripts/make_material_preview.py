@@ -39,6 +39,9 @@ import sys
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from gltf_buffer import BufferWriter  # noqa: E402
+
 SPHERE_RADIUS = 0.37
 LONGITUDE_SEGMENTS = 128
 LATITUDE_SEGMENTS = 64
@@ -63,8 +66,6 @@ DEFAULT_SCENE_DIR = os.path.normpath(
     os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scenes", "material-preview")
 )
 
-FLOAT, UNSIGNED_SHORT, UNSIGNED_INT = 5126, 5123, 5125
-ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 
 def uv_sphere(radius, n_lon, n_lat):
@@ -120,52 +121,6 @@ def ground_quad(half, y):
     return positions, normals, uvs, triangles
 
 
-class BufferWriter:
-    """One binary buffer with its buffer views and accessors, 4-byte aligned."""
-
-    def __init__(self):
-        self.data = bytearray()
-        self.views = []
-        self.accessors = []
-
-    def add(self, array, component_type, accessor_type, target, bounds=False):
-        while len(self.data) % 4:
-            self.data.append(0)
-        raw = np.ascontiguousarray(array).tobytes()
-        self.views.append(
-            {"buffer": 0, "byteOffset": len(self.data), "byteLength": len(raw), "target": target}
-        )
-        self.data.extend(raw)
-        accessor = {
-            "bufferView": len(self.views) - 1,
-            "componentType": component_type,
-            "count": int(array.shape[0]),
-            "type": accessor_type,
-        }
-        if bounds:
-            accessor["min"] = [float(x) for x in array.min(axis=0)]
-            accessor["max"] = [float(x) for x in array.max(axis=0)]
-        self.accessors.append(accessor)
-        return len(self.accessors) - 1
-
-    def mesh_primitive(self, positions, normals, uvs, triangles, material):
-        flat = triangles.reshape(-1)
-        if positions.shape[0] <= 0xFFFF:
-            indices = self.add(flat.astype("<u2"), UNSIGNED_SHORT, "SCALAR", ELEMENT_ARRAY_BUFFER)
-        else:
-            indices = self.add(flat.astype("<u4"), UNSIGNED_INT, "SCALAR", ELEMENT_ARRAY_BUFFER)
-        return {
-            "attributes": {
-                "POSITION": self.add(positions.astype("<f4"), FLOAT, "VEC3", ARRAY_BUFFER, True),
-                "NORMAL": self.add(normals.astype("<f4"), FLOAT, "VEC3", ARRAY_BUFFER),
-                "TEXCOORD_0": self.add(uvs.astype("<f4"), FLOAT, "VEC2", ARRAY_BUFFER),
-            },
-            "indices": indices,
-            "material": material,
-            "mode": 4,
-        }
-
-
 def camera_position():
     """World position of the camera: CAMERA_DISTANCE from the origin, raised by the elevation."""
     elevation = math.radians(CAMERA_ELEVATION_DEGREES)
@@ -190,8 +145,11 @@ def build():
     sphere = uv_sphere(SPHERE_RADIUS, LONGITUDE_SEGMENTS, LATITUDE_SEGMENTS)
     check_outward(sphere[0], sphere[3])
     ground = ground_quad(GROUND_HALF_SIZE, -SPHERE_RADIUS)
-    sphere_primitive = buffer.mesh_primitive(*sphere, material=0)
-    ground_primitive = buffer.mesh_primitive(*ground, material=1)
+    def mesh_primitive(positions, normals, uvs, triangles, material):
+        return buffer.primitive({"POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs}, triangles, material)
+
+    sphere_primitive = mesh_primitive(*sphere, material=0)
+    ground_primitive = mesh_primitive(*ground, material=1)
     gltf = {
         "asset": {"version": "2.0", "generator": "assets-scripts/make_material_preview.py"},
         "extensionsUsed": ["KHR_lights_punctual"],
