@@ -64,15 +64,8 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from make_material_preview import (  # noqa: E402
-    ARRAY_BUFFER,
-    ELEMENT_ARRAY_BUFFER,
-    FLOAT,
-    LUMENS_PER_WATT,
-    UNSIGNED_INT,
-    BufferWriter,
-    _mitsuba,
-)
+from gltf_buffer import ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, UNSIGNED_INT, BufferWriter  # noqa: E402
+from make_material_preview import LUMENS_PER_WATT, _mitsuba  # noqa: E402
 
 SEED = 20240611
 ROCK_MESHES = 50
@@ -259,6 +252,7 @@ def diffuse_material(name, albedo):
 
 
 def primitive(buffer, positions, normals, triangles, material):
+    """POSITION, NORMAL and uint32 indices (BufferWriter.primitive would write u16 ones)."""
     return {
         "attributes": {
             "POSITION": buffer.add(positions.astype("<f4"), FLOAT, "VEC3", ARRAY_BUFFER, True),

@@ -288,8 +288,8 @@ impl Renderer<'_> {
             max_depth: self.integrator.max_depth,
             seed: self.seed,
             interrupted: cancel.load(Ordering::Relaxed),
-            closest_traversal: traversal_name(self.scene.bvh.trace_modes().0),
-            occlusion_traversal: traversal_name(self.scene.bvh.trace_modes().1),
+            closest_traversal: traversal_name(self.scene.trace_modes().0),
+            occlusion_traversal: traversal_name(self.scene.trace_modes().1),
         };
         (film, stats)
     }

@@ -219,6 +219,17 @@ impl RenderScene {
             })
     }
 
+    /// How batches of closest-hit and occlusion rays are traced (true: packets, false: one
+    /// ray at a time, `None` before the first measurement): one at a time for scenes with
+    /// alpha-tested surfaces or instances, else as the BVH's policies chose.
+    pub fn trace_modes(&self) -> (Option<bool>, Option<bool>) {
+        if self.has_alpha || self.instances.is_some() {
+            (Some(false), Some(false))
+        } else {
+            self.bvh.trace_modes()
+        }
+    }
+
     /// [`RenderScene::intersect`] of many rays: `out[i]` for `rays[i]`.
     pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>) {
         if self.has_alpha || self.instances.is_some() {
