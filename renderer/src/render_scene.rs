@@ -412,6 +412,7 @@ impl Instances {
                 (Bvh::build(triangles.map(|i| g.triangle_positions(i))), m.first_triangle)
             })
             .collect();
+        let mesh_bounds = description.mesh_bounds();
         let placements: Vec<Placement> = description
             .instances
             .iter()
@@ -421,7 +422,7 @@ impl Instances {
             })
             .collect();
         let bvh = InstanceBvh::build(
-            description.instances.iter().zip(&placements).map(|(i, p)| (description.instance_bounds(i), p.object_to_world.inverse())),
+            description.instances.iter().zip(&placements).map(|(i, p)| (SceneDescription::instance_bounds(&mesh_bounds, i), p.object_to_world.inverse())),
         );
         Instances { bvh, meshes, placements }
     }

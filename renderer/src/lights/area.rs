@@ -29,6 +29,28 @@ pub struct EmissionTexture {
     pub uvs: [Vec2; 3],
 }
 
+impl EmissionTexture {
+    /// The texture coordinates at barycentric coordinates `b` (b1, b2).
+    #[inline]
+    fn uv(&self, b: Vec2) -> Vec2 {
+        self.uvs[0] * (1.0 - b.x - b.y) + self.uvs[1] * b.x + self.uvs[2] * b.y
+    }
+
+    /// The texture's mean over the triangle, estimated from 36 points stratified by area
+    /// (the light's power for choosing lights; only the choice's efficiency depends on it).
+    pub fn mean_over_triangle(&self, textures: &[Texture]) -> Rgb {
+        const N: u32 = 6;
+        let mut sum = Rgb::ZERO;
+        for i in 0..N {
+            for j in 0..N {
+                let u = Vec2::new((i as f32 + 0.5) / N as f32, (j as f32 + 0.5) / N as f32);
+                sum += self.texture.lookup(textures, self.uv(sample_uniform_triangle(u)));
+            }
+        }
+        sum / (N * N) as f32
+    }
+}
+
 /// An emissive triangle of a scene, as the light set is built from it.
 #[derive(Clone, Debug)]
 pub struct Emitter {
@@ -104,10 +126,7 @@ impl TriangleLight {
         }
         let pdf = d2 / (cos_light * self.area);
         let radiance = match &self.texture {
-            Some(t) => {
-                let uv = t.uvs[0] * (1.0 - b.x - b.y) + t.uvs[1] * b.x + t.uvs[2] * b.y;
-                self.radiance * t.texture.lookup(textures, uv)
-            }
+            Some(t) => self.radiance * t.texture.lookup(textures, t.uv(b)),
             None => self.radiance,
         };
         pdf.is_finite().then_some(AreaSample {

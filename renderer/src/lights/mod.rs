@@ -61,7 +61,8 @@ impl LightSet {
     /// Builds the set. `emissive` lists the emitting triangles; `triangle_count` is the
     /// number of scene triangles; `scene_radius` bounds the scene (for the power of distant
     /// lights); `textures` are the scene's, which emissive textures index. A textured
-    /// triangle's power is estimated with the texture's mean.
+    /// triangle's power is estimated with the texture's mean over the triangle
+    /// ([`area::EmissionTexture::mean_over_triangle`]).
     pub fn new(
         emissive: impl IntoIterator<Item = Emitter>,
         triangle_count: usize,
@@ -81,7 +82,7 @@ impl LightSet {
                     triangle_to_light = vec![u32::MAX; triangle_count];
                 }
                 triangle_to_light[triangle as usize] = lights.len() as u32;
-                let mean = texture.as_ref().map_or(Rgb::ONE, |t| textures[t.texture.texture].mean());
+                let mean = texture.as_ref().map_or(Rgb::ONE, |t| t.mean_over_triangle(&textures));
                 light.texture = texture;
                 weights.push(light.area * std::f32::consts::PI * luminance(radiance * mean));
                 groups.push(0usize);

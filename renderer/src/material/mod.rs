@@ -243,16 +243,6 @@ impl SceneMaterials {
         }
     }
 
-    /// The mean radiance `material` emits from its front side over its emissive texture
-    /// (the factor alone without one), W/(m² sr): the light's power for choosing lights.
-    pub fn mean_emission(&self, material: u32) -> Rgb {
-        let m = &self.materials[material as usize];
-        match &m.emissive_texture {
-            Some(t) => m.emission * self.textures[t.texture].mean(),
-            None => m.emission,
-        }
-    }
-
     /// `material`'s normal map, if it has one.
     #[inline]
     pub fn normal_map(&self, material: u32) -> Option<&NormalMap> {

@@ -469,12 +469,22 @@ impl SceneDescription {
         self.world_triangle_count() as u64 + instanced
     }
 
-    /// World-space bounds of a mesh's vertices under a transform (the transformed box of its
-    /// object-space bounds).
-    pub fn instance_bounds(&self, instance: &Instance) -> (Vec3, Vec3) {
-        let m = &self.meshes[instance.mesh as usize];
-        let vertices = &self.geometry.positions[m.first_vertex as usize..(m.first_vertex + m.vertex_count) as usize];
-        let (lo, hi) = vertices.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    /// Object-space bounds `(min, max)` of each mesh's vertices (empty meshes: an empty box,
+    /// min = +∞, max = −∞), computed once for all instances of a mesh.
+    pub fn mesh_bounds(&self) -> Vec<(Vec3, Vec3)> {
+        self.meshes
+            .iter()
+            .map(|m| {
+                let vertices = &self.geometry.positions[m.first_vertex as usize..(m.first_vertex + m.vertex_count) as usize];
+                vertices.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
+            })
+            .collect()
+    }
+
+    /// World-space bounds of instance `instance` given [`SceneDescription::mesh_bounds`]: the
+    /// transformed box of its mesh's object-space bounds.
+    pub fn instance_bounds(mesh_bounds: &[(Vec3, Vec3)], instance: &Instance) -> (Vec3, Vec3) {
+        let (lo, hi) = mesh_bounds[instance.mesh as usize];
         (0..8u32)
             .map(|c| Vec3::new([lo.x, hi.x][(c & 1) as usize], [lo.y, hi.y][(c >> 1 & 1) as usize], [lo.z, hi.z][(c >> 2) as usize]))
             .map(|corner| instance.object_to_world.transform_point3(corner))
@@ -488,9 +498,12 @@ impl SceneDescription {
         let mut bounds = self.geometry.positions[..world_vertices]
             .iter()
             .fold(None, |b: Option<(Vec3, Vec3)>, &p| Some(b.map_or((p, p), |(lo, hi)| (lo.min(p), hi.max(p)))));
+        let mesh_bounds = self.mesh_bounds();
         for instance in &self.instances {
-            let (lo, hi) = self.instance_bounds(instance);
-            bounds = Some(bounds.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+            let (lo, hi) = Self::instance_bounds(&mesh_bounds, instance);
+            if lo.cmple(hi).all() {
+                bounds = Some(bounds.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+            }
         }
         bounds
     }
@@ -675,6 +688,7 @@ impl SceneDescription {
         if g.triangles[..world_triangles].iter().flatten().any(|&v| v as usize >= world_vertices) {
             return fail("a world-space triangle uses a vertex of an instanced mesh".into());
         }
+        let mesh_bounds = self.mesh_bounds();
         for (k, instance) in self.instances.iter().enumerate() {
             let m = instance.object_to_world;
             if instance.mesh as usize >= self.meshes.len() {
@@ -683,8 +697,8 @@ impl SceneDescription {
             if !m.is_finite() || m.determinant().abs().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || !m.inverse().is_finite() || m.row(3) != glam::Vec4::W {
                 return fail(format!("instance {k} has a transform that is not affine and invertible"));
             }
-            let (lo, hi) = self.instance_bounds(instance);
-            if lo.abs().max(hi.abs()).max_element() > MAX_COORDINATE {
+            let (lo, hi) = Self::instance_bounds(&mesh_bounds, instance);
+            if lo.abs().max(hi.abs()).max_element() > MAX_COORDINATE && lo.cmple(hi).all() {
                 return fail(format!("instance {k} reaches {:e} scene units from the origin (at most {MAX_COORDINATE:e} are supported)", lo.abs().max(hi.abs()).max_element()));
             }
         }

@@ -173,11 +173,6 @@ impl Texture {
         }
     }
 
-    /// The mean texel value (e.g. the mean radiance of an emissive texture).
-    pub fn mean(&self) -> Rgb {
-        let sum = self.texels.iter().fold(glam::DVec3::ZERO, |s, t| s + t.as_dvec3());
-        (sum / self.texels.len().max(1) as f64).as_vec3()
-    }
 
     /// Decodes an encoded image (PNG, JPEG, or the HDR/EXR formats the `image` crate is built
     /// with here) into linear texels.
