@@ -4,8 +4,7 @@
     from gltf_buffer import BufferWriter
     buffer = BufferWriter()
     primitive = buffer.primitive({"POSITION": p, "NORMAL": n, "TEXCOORD_0": uv}, triangles, 0)
-    gltf["buffers"] = [{"uri": "scene.bin", "byteLength": len(buffer.data)}]
-    gltf["bufferViews"], gltf["accessors"] = buffer.views, buffer.accessors
+    gltf.update(buffer.gltf_fields("scene.bin"))  # buffers, bufferViews, accessors
 
 Views are 4-byte aligned and tagged with their target; POSITION accessors carry min/max (glTF
 requires them); indices are unsigned shorts when every vertex index fits, else unsigned ints.
@@ -72,3 +71,12 @@ class BufferWriter:
             for name, array in attributes.items()
         }
         return {"attributes": accessors, "indices": indices, "material": material, "mode": 4}
+
+    def gltf_fields(self, uri):
+        """The document's `buffers` (this one, stored at `uri`), `bufferViews` and
+        `accessors`."""
+        return {
+            "buffers": [{"uri": uri, "byteLength": len(self.data)}],
+            "bufferViews": self.views,
+            "accessors": self.accessors,
+        }

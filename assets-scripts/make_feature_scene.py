@@ -101,6 +101,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from gltf_buffer import ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, BufferWriter  # noqa: E402
+import make_material_preview  # noqa: E402
 
 try:
     from PIL import Image
@@ -637,35 +638,9 @@ def brick_box():
 
 
 def uv_sphere(radius, n_lon, n_lat):
-    """A UV sphere centred on the origin (make_material_preview.py's construction)."""
-    u = np.linspace(0.0, 1.0, n_lon + 1)
-    v = np.linspace(0.0, 1.0, n_lat + 1)
-    uu, vv = np.meshgrid(u, v)
-    theta, phi = np.pi * vv, 2.0 * np.pi * uu
-    normals = np.stack(
-        [-np.sin(theta) * np.sin(phi), np.cos(theta), -np.sin(theta) * np.cos(phi)], axis=-1
-    ).reshape(-1, 3)
-    positions = radius * normals
-    uvs = np.stack([uu, vv], axis=-1).reshape(-1, 2)
-
-    def vertex(i, j):
-        return j * (n_lon + 1) + i
-
-    triangles = []
-    for j in range(n_lat):
-        for i in range(n_lon):
-            a, b = vertex(i, j), vertex(i + 1, j)
-            c, d = vertex(i + 1, j + 1), vertex(i, j + 1)
-            if j != 0:
-                triangles.append((a, d, b))
-            if j != n_lat - 1:
-                triangles.append((b, d, c))
-    attributes = {
-        "POSITION": positions.astype(np.float32),
-        "NORMAL": normals.astype(np.float32),
-        "TEXCOORD_0": uvs.astype(np.float32),
-    }
-    return attributes, np.asarray(triangles, np.uint32)
+    """A UV sphere centred on the origin (make_material_preview.py's)."""
+    positions, normals, uvs, triangles = make_material_preview.uv_sphere(radius, n_lon, n_lat)
+    return {"POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs}, triangles
 
 
 def cylinder(radius, height, segments):
@@ -1108,9 +1083,7 @@ def build():
                 ]
             }
         },
-        "buffers": [{"uri": "scene.bin", "byteLength": len(buffer.data)}],
-        "bufferViews": buffer.views,
-        "accessors": buffer.accessors,
+        **buffer.gltf_fields("scene.bin"),
     }
     return gltf, bytes(buffer.data), files
 

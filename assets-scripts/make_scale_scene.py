@@ -337,9 +337,7 @@ def build():
                 ]
             }
         },
-        "buffers": [{"uri": "scene.bin", "byteLength": len(buffer.data)}],
-        "bufferViews": buffer.views,
-        "accessors": buffer.accessors,
+        **buffer.gltf_fields("scene.bin"),
     }
     return gltf, bytes(buffer.data), plys
 
