@@ -89,6 +89,7 @@ Usage: python3 assets-scripts/make_feature_scene.py [output-directory]
 Needs numpy and Pillow (`python3 -m pip install pillow`).
 """
 
+import argparse
 import io
 import json
 import math
@@ -1414,10 +1415,12 @@ def check_scene(directory):
 
 
 def main():
-    args = sys.argv[1:]
-    check_only = "--check" in args
-    args = [a for a in args if a != "--check"]
-    out_dir = os.path.normpath(args[0] if args else DEFAULT_SCENE_DIR)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("output", nargs="?", default=DEFAULT_SCENE_DIR, help="output directory")
+    parser.add_argument("--check", action="store_true", help="only check that the files there are what the script writes")
+    args = parser.parse_args()
+    check_only = args.check
+    out_dir = os.path.normpath(args.output)
     gltf, data, files = build()
     outputs = {"scene.gltf": gltf_text(gltf).encode(), "scene.bin": data, **files}
     if check_only:

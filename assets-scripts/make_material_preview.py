@@ -32,6 +32,7 @@ Usage: python3 assets-scripts/make_material_preview.py [output-directory]
 Needs numpy only (mitsuba_scene also needs Mitsuba 3, imported only when it is called).
 """
 
+import argparse
 import json
 import math
 import os
@@ -380,7 +381,9 @@ def mitsuba_scene(
 
 
 def main():
-    out_dir = os.path.normpath(sys.argv[1] if len(sys.argv) > 1 else DEFAULT_SCENE_DIR)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("output", nargs="?", default=DEFAULT_SCENE_DIR, help="output directory")
+    out_dir = os.path.normpath(parser.parse_args().output)
     os.makedirs(out_dir, exist_ok=True)
     gltf, data = build()
     with open(os.path.join(out_dir, "scene.bin"), "wb") as f:

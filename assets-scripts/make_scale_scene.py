@@ -56,6 +56,7 @@ Usage: python3 assets-scripts/make_scale_scene.py [OUTPUT_DIR]     # default dat
 Needs numpy only (mitsuba_scene also needs Mitsuba 3, imported only when it is called).
 """
 
+import argparse
 import json
 import math
 import os
@@ -453,7 +454,9 @@ def mitsuba_scene(scene_dir=DEFAULT_SCENE_DIR, width=640, height=360, spp=16, ma
 
 
 def main():
-    out_dir = os.path.normpath(sys.argv[1] if len(sys.argv) > 1 else DEFAULT_SCENE_DIR)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("output", nargs="?", default=DEFAULT_SCENE_DIR, help="output directory")
+    out_dir = os.path.normpath(parser.parse_args().output)
     os.makedirs(out_dir, exist_ok=True)
     gltf, data, plys = build()
     unique, instances = triangle_counts(gltf)
