@@ -463,6 +463,12 @@ impl SceneDescription {
         self.meshes.first().map_or(self.geometry.triangle_count(), |m| m.first_triangle as usize)
     }
 
+    /// Number of vertices stored in world space (the first ones; the rest belong to
+    /// instanced meshes).
+    pub fn world_vertex_count(&self) -> usize {
+        self.meshes.first().map_or(self.geometry.positions.len(), |m| m.first_vertex as usize)
+    }
+
     /// Number of triangles in the world: world-space ones plus each instance's mesh.
     pub fn triangle_instance_count(&self) -> u64 {
         let instanced: u64 = self.instances.iter().map(|i| u64::from(self.meshes[i.mesh as usize].triangle_count)).sum();
@@ -494,7 +500,7 @@ impl SceneDescription {
     /// Bounds of everything in the world: world-space vertices and instances; `None` when
     /// there is nothing.
     pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
-        let world_vertices = self.meshes.first().map_or(self.geometry.positions.len(), |m| m.first_vertex as usize);
+        let world_vertices = self.world_vertex_count();
         let mut bounds = self.geometry.positions[..world_vertices]
             .iter()
             .fold(None, |b: Option<(Vec3, Vec3)>, &p| Some(b.map_or((p, p), |(lo, hi)| (lo.min(p), hi.max(p)))));
@@ -512,7 +518,7 @@ impl SceneDescription {
     /// the instances): for comparing instancing against its absence.
     pub fn flatten_instances(mut self) -> Result<SceneDescription> {
         let world_triangles = self.world_triangle_count();
-        let world_vertices = self.meshes.first().map_or(self.geometry.positions.len(), |m| m.first_vertex as usize);
+        let world_vertices = self.world_vertex_count();
         let g = &self.geometry;
         let part = |m: &Mesh| {
             let vertices = m.first_vertex as usize..(m.first_vertex + m.vertex_count) as usize;
@@ -664,10 +670,7 @@ impl SceneDescription {
                 return fail(format!("material '{}' uses a missing texture", m.name));
             }
         }
-        let (world_triangles, world_vertices) = match self.meshes.first() {
-            Some(m) => (m.first_triangle as usize, m.first_vertex as usize),
-            None => (g.triangles.len(), n),
-        };
+        let (world_triangles, world_vertices) = (self.world_triangle_count(), self.world_vertex_count());
         let (mut next_triangle, mut next_vertex) = (world_triangles, world_vertices);
         for (k, m) in self.meshes.iter().enumerate() {
             let contiguous = m.first_triangle as usize == next_triangle && m.first_vertex as usize == next_vertex;
