@@ -4,6 +4,7 @@
 //! is written when the render cannot start, and files are replaced atomically.
 
 mod contact_sheet;
+mod parts;
 mod report;
 mod sweep;
 
@@ -14,12 +15,13 @@ use renderer::camera::PinholeCamera;
 use renderer::formats::image_io::{write_image, ImageFormat, ToneMap};
 use renderer::integrator::PathTracer;
 use renderer::metrics::{display_values, ImageError};
+use renderer::film::Region;
 use renderer::render::{Budget, RenderStats, Renderer};
 use renderer::neural::latent_library::LatentLibrary;
 use renderer::material::Binding;
 use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
-use sweep::SweepSpec;
+use sweep::{FrameRange, SweepSpec};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -77,6 +79,19 @@ struct Args {
     /// the linear blend of the tables and their error is written to sweep.csv.
     #[arg(long, requires = "sweep")]
     tables: Option<PathBuf>,
+    /// With --sweep: render only frames A to B (or A alone), counted from 0 as the file names
+    /// are, so that a farm can render a sweep in chunks into one directory; the contact sheet
+    /// (and sweep.csv) is written by whichever chunk finds all frames there.
+    #[arg(long, requires = "sweep")]
+    frames: Option<FrameRange>,
+    /// Render only this rectangle of the image, X0,Y0,X1,Y1 in pixels from the top-left
+    /// corner, ends exclusive, into an EXR part (`render merge` assembles parts). With the
+    /// same settings the parts equal the whole render bit for bit.
+    #[arg(long, conflicts_with_all = ["tile", "sweep", "time", "reference", "error_log"])]
+    region: Option<Region>,
+    /// Render band K of N (K from 1) of horizontal bands of whole 16-pixel rows, as --region.
+    #[arg(long, value_parser = parse_tile, conflicts_with_all = ["sweep", "time", "reference", "error_log"])]
+    tile: Option<(u32, u32)>,
     /// Tone mapping for PNG output.
     #[arg(long, value_enum, default_value_t = ToneMapArg::Clamp)]
     tonemap: ToneMapArg,
@@ -102,6 +117,15 @@ enum ToneMapArg {
     Aces,
 }
 
+impl From<ToneMapArg> for ToneMap {
+    fn from(t: ToneMapArg) -> ToneMap {
+        match t {
+            ToneMapArg::Clamp => ToneMap::Clamp,
+            ToneMapArg::Aces => ToneMap::Aces,
+        }
+    }
+}
+
 fn parse_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(t) if t.is_finite() && t > 0.0 => Ok(t),
@@ -113,6 +137,15 @@ fn parse_finite(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() => Ok(v),
         _ => Err(format!("'{s}' is not a finite number")),
+    }
+}
+
+fn parse_tile(s: &str) -> Result<(u32, u32), String> {
+    let err = || format!("'{s}' is not K/N (band K of N, 1 <= K <= N)");
+    let (k, n) = s.split_once('/').ok_or_else(err)?;
+    match (k.trim().parse::<u32>(), n.trim().parse::<u32>()) {
+        (Ok(k), Ok(n)) if 1 <= k && k <= n => Ok((k, n)),
+        _ => Err(err()),
     }
 }
 
@@ -176,6 +209,8 @@ struct Job<'a> {
     camera: renderer::scene::Camera,
     width: u32,
     height: u32,
+    /// The pixels to render (the whole image unless --region or --tile).
+    region: Region,
     budget: Budget,
     tone_map: ToneMap,
     reference: Option<Vec<renderer::Rgb>>,
@@ -187,7 +222,8 @@ impl Job<'_> {
     /// Renders the scene once with a progress bar; returns the film, the statistics and the
     /// error-log CSV (empty without a reference).
     fn render(&self, scene: &RenderScene) -> (renderer::film::Film, RenderStats, String) {
-        let (width, height) = (self.width, self.height);
+        let (width, height, region) = (self.width, self.height, self.region);
+        let pixels = region.pixel_count() as u64;
         let renderer = Renderer {
             scene,
             camera: PinholeCamera::new(&self.camera, width, height),
@@ -198,7 +234,7 @@ impl Job<'_> {
             seed: self.args.seed,
         };
         let bar = match self.budget {
-            Budget::Spp(spp) => ProgressBar::new(width as u64 * height as u64 * spp as u64).with_style(
+            Budget::Spp(spp) => ProgressBar::new(pixels * spp as u64).with_style(
                 ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {percent}% {per_sec} samples, eta {eta}")
                     .expect("valid template")
                     .progress_chars("=> "),
@@ -225,19 +261,19 @@ impl Job<'_> {
                 let e = ImageError::between(&film.mean(), reference, width as usize, height as usize, |img| {
                     display_values(img, self.tone_map, self.args.exposure)
                 });
-                let spp = film.total_samples() as f64 / (width as f64 * height as f64);
+                let spp = film.total_samples() as f64 / pixels as f64;
                 let seconds = (elapsed - measuring).as_secs_f64();
                 error_rows += &format!("{seconds:.6},{spp},{:.8e},{:.4},{:.6}\n", e.rmse, e.psnr, e.ssim);
                 measuring += start.elapsed();
             }
             if matches!(self.budget, Budget::Time(_)) {
                 bar.set_position(elapsed.as_millis() as u64);
-                bar.set_message(format!("{:.1} spp", film.total_samples() as f64 / (width as f64 * height as f64)));
+                bar.set_message(format!("{:.1} spp", film.total_samples() as f64 / pixels as f64));
             }
         };
         let (film, stats) = self
             .pool
-            .install(|| renderer.render(width, height, self.budget, &self.cancel, &progress, &mut after_pass));
+            .install(|| renderer.render_region(width, height, region, self.budget, &self.cancel, &progress, &mut after_pass));
         bar.finish_and_clear();
         (film, stats, error_rows)
     }
@@ -245,10 +281,14 @@ impl Job<'_> {
 
 /// One line summing up a render.
 fn summary(stats: &RenderStats) -> String {
+    let r = stats.region;
+    let size = if r == Region::whole(stats.width, stats.height) {
+        format!("{}x{}", stats.width, stats.height)
+    } else {
+        format!("region {r} ({}x{}) of {}x{}", r.width(), r.height(), stats.width, stats.height)
+    };
     format!(
-        "{}x{} {:.1} spp in {:.2} s: {:.3} M samples/s, {:.2} M rays/s{}",
-        stats.width,
-        stats.height,
+        "{size} {:.1} spp in {:.2} s: {:.3} M samples/s, {:.2} M rays/s{}",
         stats.spp,
         stats.wall_seconds,
         stats.samples_per_second * 1e-6,
@@ -265,6 +305,12 @@ fn run(args: Args) -> Result<()> {
     if args.sweep.is_none() && ImageFormat::from_path(&args.output).is_none() {
         bail!(
             "invalid value for --output: {}: unsupported image extension (use .exr or .png)",
+            args.output.display()
+        );
+    }
+    if (args.region.is_some() || args.tile.is_some()) && ImageFormat::from_path(&args.output) != Some(ImageFormat::Exr) {
+        bail!(
+            "invalid value for --output: {}: a part of an image (--region, --tile) is written as .exr, which records where it lies",
             args.output.display()
         );
     }
@@ -289,6 +335,18 @@ fn run(args: Args) -> Result<()> {
         let aspect = camera.aspect_ratio.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
         (512, ((512.0 / aspect).round() as u32).clamp(1, 16384))
     });
+    let region = match (args.region, args.tile) {
+        (Some(r), _) if !r.is_within(width, height) => bail!("invalid value for --region: {r} lies outside the {width}x{height} image"),
+        (Some(r), _) => r,
+        (None, Some((k, n))) => Region::band(width, height, k, n).with_context(|| {
+            format!(
+                "invalid value for --tile: {k}/{n}: the {width}x{height} image has {} rows of {} pixels to share out",
+                height.div_ceil(renderer::render::TILE_SIZE),
+                renderer::render::TILE_SIZE
+            )
+        })?,
+        (None, None) => Region::whole(width, height),
+    };
     let reference = match &args.reference {
         Some(path) => {
             let (w, h, pixels) = renderer::formats::image_io::read_image(path)?;
@@ -316,15 +374,13 @@ fn run(args: Args) -> Result<()> {
         camera,
         width,
         height,
+        region,
         budget: match (args.spp, args.time) {
             (_, Some(t)) => Budget::Time(Duration::from_secs_f64(t)),
             (Some(spp), None) => Budget::Spp(spp),
             (None, None) => Budget::Spp(64),
         },
-        tone_map: match args.tonemap {
-            ToneMapArg::Clamp => ToneMap::Clamp,
-            ToneMapArg::Aces => ToneMap::Aces,
-        },
+        tone_map: args.tonemap.into(),
         reference,
         cancel,
         pool: rayon::ThreadPoolBuilder::new()
@@ -340,7 +396,14 @@ fn run(args: Args) -> Result<()> {
     if let Some(path) = &args.error_log {
         renderer::formats::image_io::write_text(path, &error_rows)?;
     }
-    write_image(&args.output, width, height, &film.mean(), job.tone_map, args.exposure)?;
+    if region == Region::whole(width, height) {
+        write_image(&args.output, width, height, &film.mean(), job.tone_map, args.exposure)?;
+    } else if stats.interrupted {
+        eprintln!("interrupted: {} not written (a part with fewer samples would not merge)", args.output.display());
+        return Ok(());
+    } else {
+        parts::write_part(&args, &job, &film)?;
+    }
     if let Some(path) = &args.stats {
         let json = serde_json::to_string_pretty(&StatsFile {
             scene: &args.scene,
@@ -432,10 +495,15 @@ fn run_report(args: ReportArgs) -> Result<()> {
 }
 
 fn main() -> ExitCode {
-    let outcome = if std::env::args_os().nth(1).is_some_and(|a| a == "report") {
-        let parsed = ReportArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit);
-        match parsed {
+    let subcommand = std::env::args_os().nth(1);
+    let outcome = if subcommand.as_ref().is_some_and(|a| a == "report") {
+        match ReportArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit) {
             Ok(args) => run_report(args),
+            Err(code) => return code,
+        }
+    } else if subcommand.as_ref().is_some_and(|a| a == "merge") {
+        match parts::MergeArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit) {
+            Ok(args) => parts::run_merge(args),
             Err(code) => return code,
         }
     } else {

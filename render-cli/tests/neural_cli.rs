@@ -142,4 +142,33 @@ fn sweep_writes_frames_contact_sheet_and_errors() {
     }
     // The end frames differ (the sweep moves from one material to the other).
     assert_ne!(mean_of(&sweep.join("frame-000.exr")), mean_of(&sweep.join("frame-002.exr")));
+
+    // The same sweep in two chunks, as farm tasks run it: the last chunk to finish makes the
+    // same contact sheet and CSV.
+    let chunk = |frames: &str| {
+        let out = render(
+            &[
+                &scene, "--material", &latents, "--bind", "preview=alum-bronze", "--sweep", "alum-bronze:chrome:3",
+                "--tables", tables.to_str().unwrap(), "--spp", "2", "--resolution", "24x24", "--output", "chunks",
+                "--frames", frames,
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    let chunks = dir.path().join("chunks");
+    chunk("2");
+    assert!(chunks.join("frame-002.exr").is_file() && !chunks.join("frame-000.exr").exists());
+    assert!(!chunks.join("contact-sheet.png").exists(), "no sheet before every frame is there");
+    chunk("0-1");
+    let same = |name: &str| std::fs::read(sweep.join(name)).unwrap() == std::fs::read(chunks.join(name)).unwrap();
+    assert!(same("contact-sheet.png") && same("sweep.csv") && same("frame-001.png"));
+    let out = render(
+        &[
+            &scene, "--material", &latents, "--bind", "preview=alum-bronze", "--sweep", "alum-bronze:chrome:3",
+            "--frames", "1-3", "--output", "out",
+        ],
+        dir.path(),
+    );
+    assert_clean_failure(&out, &["--frames", "1-3", "3 frames"], dir.path());
 }

@@ -1,10 +1,12 @@
 //! The render loop: progressive passes over the image, each pass split into tiles rendered
 //! in parallel with rayon. Every sample draws from its own random stream
 //! ([`crate::sampler::Sampler`]) and tiles are merged in a fixed order, so the image is
-//! bit-identical for any number of threads.
+//! bit-identical for any number of threads, and a [`Region`] of it rendered alone is
+//! bit-identical to the same pixels of the whole image (tiles lie on one grid over the
+//! whole image; a pixel's streams depend on its position in the whole image).
 
 use crate::camera::PinholeCamera;
-use crate::film::{Film, PixelAccumulator};
+use crate::film::{Film, PixelAccumulator, Region};
 use crate::accel::{Hit, Ray};
 use crate::integrator::{BatchBuffers, PathState, PathTracer, StepResults};
 use crate::render_scene::RenderScene;
@@ -54,9 +56,12 @@ impl PassCounters {
 /// Statistics of a finished render (written by `render --stats`).
 #[derive(Clone, Debug, Serialize)]
 pub struct RenderStats {
+    /// Size of the whole image.
     pub width: u32,
     pub height: u32,
-    /// Mean samples per pixel actually taken.
+    /// The pixels rendered (the whole image unless `render --region`).
+    pub region: Region,
+    /// Mean samples per rendered pixel actually taken.
     pub spp: f64,
     pub samples: u64,
     pub wall_seconds: f64,
@@ -114,8 +119,8 @@ impl Renderer<'_> {
         cancel: &AtomicBool,
         progress: &(dyn Fn(u64) + Sync),
     ) -> PassCounters {
-        let w = film.width;
-        let tiles = Tiles::new(film.width, film.height);
+        let (region, w) = (film.region, film.width);
+        let tiles = Tiles::new(film.full_width, region);
         let samples = first_sample..first_sample + count;
         let results: Vec<(u32, Vec<PixelAccumulator>, PassCounters)> = (0..tiles.count())
             .into_par_iter()
@@ -138,7 +143,7 @@ impl Renderer<'_> {
             let mut i = 0;
             for y in y0..y1 {
                 for x in x0..x1 {
-                    film.merge((x + y * w) as usize, &pixels[i]);
+                    film.merge((x - region.x0 + (y - region.y0) * w) as usize, &pixels[i]);
                     i += 1;
                 }
             }
@@ -154,7 +159,7 @@ impl Renderer<'_> {
     /// as [`PathTracer::radiance`] does, so the image is the same.
     fn render_tile(&self, scratch: &mut TileScratch, tiles: Tiles, tile: u32, samples: Range<u32>) -> (Vec<PixelAccumulator>, PassCounters) {
         let (first_sample, count) = (samples.start, samples.len() as u32);
-        let w = tiles.width;
+        let w = tiles.full_width;
         let (x0, y0, x1, y1) = tiles.bounds(tile);
         let tile_w = x1 - x0;
         let n = (tile_w * (y1 - y0)) as usize;
@@ -226,9 +231,9 @@ impl Renderer<'_> {
         (pixels, counters)
     }
 
-    /// Renders until `budget` is spent or `cancel` is set, calling `progress` with sample
-    /// counts as tiles finish and `after_pass` with the film and elapsed time after each
-    /// pass. Returns the film and the statistics.
+    /// Renders the whole `width` × `height` image until `budget` is spent or `cancel` is
+    /// set, calling `progress` with sample counts as tiles finish and `after_pass` with the
+    /// film and elapsed time after each pass. Returns the film and the statistics.
     pub fn render(
         &self,
         width: u32,
@@ -238,8 +243,26 @@ impl Renderer<'_> {
         progress: &(dyn Fn(u64) + Sync),
         after_pass: &mut dyn FnMut(&Film, Duration),
     ) -> (Film, RenderStats) {
+        self.render_region(width, height, Region::whole(width, height), budget, cancel, progress, after_pass)
+    }
+
+    /// [`Renderer::render`] of `region` of the image only: with a sample budget, its pixels
+    /// equal the whole render's bit for bit (a time budget gives each region its own sample
+    /// count). `region` must lie inside the image.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_region(
+        &self,
+        width: u32,
+        height: u32,
+        region: Region,
+        budget: Budget,
+        cancel: &AtomicBool,
+        progress: &(dyn Fn(u64) + Sync),
+        after_pass: &mut dyn FnMut(&Film, Duration),
+    ) -> (Film, RenderStats) {
+        assert!(region.is_within(width, height), "region {region} outside the {width}x{height} image");
         let start = Instant::now();
-        let mut film = Film::new(width, height);
+        let mut film = Film::of_region(width, height, region);
         let mut totals = PassCounters::default();
         let mut done = 0u32;
         loop {
@@ -272,11 +295,12 @@ impl Renderer<'_> {
             }
         }
         let wall = start.elapsed().as_secs_f64();
-        let pixels = width as u64 * height as u64;
+        let pixels = region.pixel_count() as u64;
         let rays = totals.rays + totals.shadow_rays;
         let stats = RenderStats {
             width,
             height,
+            region,
             spp: totals.samples as f64 / pixels as f64,
             samples: totals.samples,
             wall_seconds: wall,
@@ -295,7 +319,7 @@ impl Renderer<'_> {
     }
 }
 
-/// Pixel bounds [x0, x1) × [y0, y1) of a tile.
+/// How `--stats` names a trace mode ([`RenderScene::trace_modes`]).
 fn traversal_name(mode: Option<bool>) -> &'static str {
     match mode {
         Some(true) => "packets",
@@ -304,33 +328,42 @@ fn traversal_name(mode: Option<bool>) -> &'static str {
     }
 }
 
-/// An image of `width` × `height` pixels split into square tiles of [`TILE_SIZE`] pixels,
-/// numbered row-major.
+/// The tiles of a region of an image: the squares of [`TILE_SIZE`] pixels of one grid over
+/// the whole image that the region touches, cut to the region, numbered row-major.
 #[derive(Clone, Copy, Debug)]
 struct Tiles {
+    region: Region,
+    /// Width of the whole image (a pixel's index in it seeds its random streams).
+    full_width: u32,
+    first_column: u32,
+    first_row: u32,
     columns: u32,
-    width: u32,
-    height: u32,
+    rows: u32,
 }
 
 impl Tiles {
-    fn new(width: u32, height: u32) -> Self {
+    fn new(full_width: u32, region: Region) -> Self {
+        let (first_column, first_row) = (region.x0 / TILE_SIZE, region.y0 / TILE_SIZE);
         Tiles {
-            columns: width.div_ceil(TILE_SIZE),
-            width,
-            height,
+            region,
+            full_width,
+            first_column,
+            first_row,
+            columns: region.x1.div_ceil(TILE_SIZE) - first_column,
+            rows: region.y1.div_ceil(TILE_SIZE) - first_row,
         }
     }
 
     fn count(&self) -> u32 {
-        self.columns * self.height.div_ceil(TILE_SIZE)
+        self.columns * self.rows
     }
 
-    /// Pixel bounds (x0, y0, x1, y1) of tile `tile`, ends exclusive.
+    /// Pixel bounds (x0, y0, x1, y1) of tile `tile` in the whole image, ends exclusive.
     fn bounds(&self, tile: u32) -> (u32, u32, u32, u32) {
-        let (tx, ty) = (tile % self.columns, tile / self.columns);
+        let (tx, ty) = (self.first_column + tile % self.columns, self.first_row + tile / self.columns);
         let (x0, y0) = (tx * TILE_SIZE, ty * TILE_SIZE);
-        (x0, y0, (x0 + TILE_SIZE).min(self.width), (y0 + TILE_SIZE).min(self.height))
+        let r = &self.region;
+        (x0.max(r.x0), y0.max(r.y0), (x0 + TILE_SIZE).min(r.x1), (y0 + TILE_SIZE).min(r.y1))
     }
 }
 
@@ -388,6 +421,40 @@ mod tests {
             assert_eq!(film.mean(), expected, "{name}, depth {max_depth}, {strategy:?}");
             assert_eq!(stats.rays, counters.rays + counters.shadow_rays, "{name}");
             assert!(expected.iter().any(|l| l.max_element() > 0.0), "{name}: the image is not black");
+        }
+    }
+
+    /// A region rendered alone holds exactly the whole render's pixels: regions cut across
+    /// tiles, single pixels and rows, and the bands `render --tile` makes.
+    #[test]
+    fn regions_equal_the_whole_render() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/");
+        let description = SceneDescription::load(format!("{root}material-preview/scene.gltf").as_ref()).expect("shipped scene");
+        let camera = description.camera(None).expect("camera").clone();
+        let scene = RenderScene::new(description).expect("scene");
+        let (w, h, spp) = (37, 35, 3);
+        let renderer = Renderer {
+            scene: &scene,
+            camera: PinholeCamera::new(&camera, w, h),
+            integrator: PathTracer::default(),
+            seed: 5,
+        };
+        let never = AtomicBool::new(false);
+        let (whole, _) = renderer.render(w, h, Budget::Spp(spp), &never, &|_| {}, &mut |_, _| {});
+        let whole = whole.mean();
+        let mut regions: Vec<Region> = ["3,5,29,33", "17,17,18,18", "0,34,37,35", "36,0,37,35"].iter().map(|r| r.parse().unwrap()).collect();
+        regions.extend((1..=3).map(|k| Region::band(w, h, k, 3).unwrap()));
+        for region in regions {
+            let (film, stats) = renderer.render_region(w, h, region, Budget::Spp(spp), &never, &|_| {}, &mut |_, _| {});
+            let part = film.mean();
+            assert_eq!(part.len(), region.pixel_count());
+            assert_eq!((stats.width, stats.height, stats.region, stats.spp), (w, h, region, spp as f64));
+            for y in region.y0..region.y1 {
+                for x in region.x0..region.x1 {
+                    let i = (x - region.x0 + (y - region.y0) * region.width()) as usize;
+                    assert_eq!(part[i], whole[(x + y * w) as usize], "pixel ({x}, {y}) of region {region}");
+                }
+            }
         }
     }
 }

@@ -120,6 +120,16 @@ pub fn write_image(path: &Path, width: u32, height: u32, pixels: &[Rgb], tone_ma
     }
 }
 
+/// Reads an 8-bit image (a PNG this program wrote): (width, height, RGB8 row-major).
+pub fn read_png_rgb8(path: &Path) -> Result<(u32, u32, Vec<u8>)> {
+    let img = image::ImageReader::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .decode()
+        .map_err(|e| Error::invalid_file(path, format!("cannot decode image: {e}")))?
+        .into_rgb8();
+    Ok((img.width(), img.height(), img.into_raw()))
+}
+
 /// Reads a linear RGB image (.exr or .hdr): (width, height, pixels row-major).
 pub fn read_image(path: &Path) -> Result<(u32, u32, Vec<Rgb>)> {
     let (w, h, px) = crate::lights::environment::read_radiance_image(path)?;
