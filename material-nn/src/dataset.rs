@@ -2,12 +2,14 @@
 //! the reference BRDF f_ref, and uniform samples with log-relative mapped values.
 //!
 //! - A data directory holds `NAME.binary` tables (MERL layout, read by [`renderer::formats::merl`]);
-//!   the material's name is the file stem. Tables are kept in memory as f32 f_r (1/sr),
-//!   bin-major RGB (17.5 MB each); negative entries are unmeasured.
+//!   the material's name is the file stem. Tables are used in memory as f32 f_r (1/sr),
+//!   bin-major RGB (17.5 MB each, [`TABLE_BYTES`]); negative entries are unmeasured. A
+//!   [`MaterialDataset`] keeps as many as its cache holds and reads the others when they are
+//!   needed (streaming), so the number of materials is not bounded by memory.
 //! - Split: the names, sorted, are shuffled with the run's seed and cut by the configured
 //!   fractions (at least one training material); recorded in the run as `split.json`.
 //! - f_ref: the per-bin, per-channel median of the training split's tables, unmeasured
-//!   entries left out (Nielsen et al. 2015).
+//!   entries left out (Nielsen et al. 2015), streamed from the files.
 //! - Samples: θd uniform in [0, π/2], φd uniform in [0, 2π), θh uniform in [0, π/2] or, for
 //!   a share `peak_share` of the points, with MERL's own spacing θh = u²·π/2 (u uniform),
 //!   which puts ten times more points within 1° of the specular peak
@@ -25,12 +27,16 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use renderer::brdf_coords::{rendered_point, RenderedPoint};
 use renderer::neural::mapping::MappingForm;
-use renderer::formats::merl::{lookup_trilinear_measured, MerlTable, BIN_COUNT, SCALE};
+use renderer::formats::merl::{lookup_trilinear_measured, measured_value, MerlReader, MerlTable, BIN_COUNT, SCALE};
 use serde::{Deserialize, Serialize};
 use std::f32::consts::{FRAC_PI_2, TAU};
-use crate::tables::material_name;
-use std::path::Path;
-use std::sync::Arc;
+use crate::tables::{material_name, median_values, table_path};
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+/// Bytes of one table in memory: f32 RGB per bin.
+pub const TABLE_BYTES: u64 = BIN_COUNT as u64 * 12;
 
 /// One material's table in memory.
 #[derive(Clone, Debug)]
@@ -64,25 +70,14 @@ impl MaterialTable {
         lookup_trilinear_measured(&self.values, theta_h, theta_d, phi_d)
     }
 
-    /// The per-bin, per-channel median of `tables` (unmeasured entries left out; −1 where
-    /// no table is measured). Errors on an empty list.
-    pub fn median(name: &str, tables: &[Arc<MaterialTable>]) -> Result<MaterialTable> {
-        if tables.is_empty() {
-            return Err(Error::Invalid("the median of no tables".to_string()));
-        }
+    /// The per-bin, per-channel median of the tables of `dataset` (of their f32 values as
+    /// [`MaterialTable::read`] makes them; unmeasured entries left out, −1 where no table is
+    /// measured), streamed from the files: memory stays at about 0.5 MiB per table. Errors
+    /// on an empty dataset.
+    pub fn median(name: &str, dataset: &MaterialDataset) -> Result<MaterialTable> {
+        let medians = median_values(dataset.paths(), |c, raw| measured_value(raw, c) as f64, |_, _| {})?;
         let values = (0..BIN_COUNT)
-            .into_par_iter()
-            .with_min_len(1024)
-            .map_init(
-                || Vec::with_capacity(tables.len()),
-                |buf, i| {
-                    [0, 1, 2].map(|c| {
-                        buf.clear();
-                        buf.extend(tables.iter().map(|t| t.values[i][c] as f64));
-                        crate::tables::median_of_measured(buf) as f32
-                    })
-                },
-            )
+            .map(|i| [0, 1, 2].map(|c| medians[c * BIN_COUNT + i] as f32))
             .collect();
         Ok(MaterialTable {
             name: name.to_string(),
@@ -142,47 +137,145 @@ impl Split {
     }
 }
 
-/// A burn [`Dataset`] of materials (cheap to clone items).
-#[derive(Clone, Debug, Default)]
+/// A burn [`Dataset`] of materials: tables read from their files when first needed and kept in
+/// a cache of a bounded number of tables (least recently used out first). When all of them
+/// fit they are read once, in parallel, when the dataset is opened; otherwise the training
+/// loop [`prefetch`](MaterialDataset::prefetch)es the next step's tables on a thread while
+/// the current step computes. A table's values do not depend on the cache, so training is the
+/// same with any cache size. Cloning shares the cache.
+#[derive(Clone, Debug)]
 pub struct MaterialDataset {
-    items: Vec<Arc<MaterialTable>>,
+    store: Arc<TableStore>,
+}
+
+#[derive(Debug)]
+struct TableStore {
+    names: Vec<String>,
+    paths: Vec<PathBuf>,
+    /// The cached table of each material; a reader holds the slot's lock while it reads, so
+    /// a second request for the same table waits for it instead of reading it again.
+    slots: Vec<Mutex<Option<Arc<MaterialTable>>>>,
+    /// Indices of the cached tables, least recently used first.
+    recent: Mutex<VecDeque<usize>>,
+    capacity: usize,
+}
+
+/// Locks a mutex whose data stays consistent even if a holder panicked.
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl MaterialDataset {
-    /// Reads the named materials' tables from `dir` (`NAME.binary`) in parallel.
-    pub fn load(dir: &Path, names: &[String]) -> Result<Self> {
-        let items = names
-            .par_iter()
-            .map(|n| {
-                MaterialTable::read(&crate::tables::table_path(dir, n))
-                    .map(Arc::new)
-            })
-            .collect::<Result<Vec<_>>>()?;
-        Ok(MaterialDataset { items })
+    /// The named materials' tables in `dir` (`NAME.binary`), each checked now (header and
+    /// length), with a cache of `cache_bytes` (at least one table). When every table fits
+    /// they are all read now, in parallel.
+    pub fn open(dir: &Path, names: &[String], cache_bytes: u64) -> Result<Self> {
+        let paths: Vec<PathBuf> = names.iter().map(|n| table_path(dir, n)).collect();
+        paths.par_iter().try_for_each(|p| MerlReader::open(p).map(|_| ()))?;
+        let capacity = (cache_bytes / TABLE_BYTES).max(1) as usize;
+        let dataset = MaterialDataset {
+            store: Arc::new(TableStore {
+                names: names.to_vec(),
+                slots: paths.iter().map(|_| Mutex::new(None)).collect(),
+                paths,
+                recent: Mutex::new(VecDeque::new()),
+                capacity,
+            }),
+        };
+        if dataset.is_resident() {
+            (0..names.len()).into_par_iter().try_for_each(|i| dataset.table(i).map(|_| ()))?;
+        }
+        Ok(dataset)
     }
 
-    /// From tables in memory.
-    pub fn from_tables(items: Vec<Arc<MaterialTable>>) -> Self {
-        MaterialDataset { items }
+    /// Materials in the dataset.
+    pub fn len(&self) -> usize {
+        self.store.names.len()
     }
 
-    /// The tables.
-    pub fn tables(&self) -> &[Arc<MaterialTable>] {
-        &self.items
+    pub fn is_empty(&self) -> bool {
+        self.store.names.is_empty()
+    }
+
+    /// The material names, in dataset order.
+    pub fn names(&self) -> &[String] {
+        &self.store.names
+    }
+
+    /// The table files, in dataset order.
+    pub fn paths(&self) -> &[PathBuf] {
+        &self.store.paths
+    }
+
+    /// True when the cache holds every table (nothing is streamed).
+    pub fn is_resident(&self) -> bool {
+        self.store.capacity >= self.len()
+    }
+
+    /// Tables in the cache now.
+    pub fn cached(&self) -> usize {
+        lock(&self.store.recent).len()
+    }
+
+    /// The table of material `index`, from the cache or read from its file (then cached,
+    /// evicting the least recently used beyond the capacity).
+    ///
+    /// # Panics
+    /// If `index >= len()`.
+    pub fn table(&self, index: usize) -> Result<Arc<MaterialTable>> {
+        let store = &self.store;
+        let mut slot = lock(&store.slots[index]);
+        let table = match &*slot {
+            Some(t) => t.clone(),
+            None => {
+                let t = Arc::new(MaterialTable::read(&store.paths[index])?);
+                *slot = Some(t.clone());
+                t
+            }
+        };
+        // The slot is released before the list of recent tables is locked (never the other
+        // way round), and the evicted slots after it.
+        drop(slot);
+        let evicted: Vec<usize> = {
+            let mut recent = lock(&store.recent);
+            recent.retain(|&i| i != index);
+            recent.push_back(index);
+            let excess = recent.len().saturating_sub(store.capacity);
+            recent.drain(..excess).collect()
+        };
+        for i in evicted {
+            *lock(&store.slots[i]) = None;
+        }
+        Ok(table)
+    }
+
+    /// Starts reading the tables `indices` into the cache on a background thread (when the
+    /// dataset streams; a no-op when every table is resident). Errors are left for
+    /// [`MaterialDataset::table`] to report.
+    pub fn prefetch(&self, indices: Vec<usize>) {
+        if self.is_resident() || indices.is_empty() {
+            return;
+        }
+        let dataset = self.clone();
+        std::thread::spawn(move || {
+            for i in indices {
+                let _ = dataset.table(i);
+            }
+        });
     }
 }
 
 impl Dataset<Arc<MaterialTable>, Error> for MaterialDataset {
-    /// The table at `index` (tables are loaded up front, so this never fails).
+    /// The table at `index` (see [`MaterialDataset::table`]).
     ///
     /// # Panics
     /// If `index >= len()`, as burn's `Dataset` contract specifies.
     fn get(&self, index: usize) -> Result<Arc<MaterialTable>> {
-        Ok(self.items[index].clone())
+        self.table(index)
     }
 
     fn len(&self) -> usize {
-        self.items.len()
+        self.store.names.len()
     }
 }
 
@@ -408,14 +501,50 @@ mod tests {
         assert!(e.contains("'hole'"), "{e}");
     }
 
+    /// Tables `t0.binary` ... in a temporary directory, table k constant `values[k]` except
+    /// bin 5 of table 1, unmeasured.
+    fn table_files(values: &[f32]) -> (tempfile::TempDir, Vec<String>) {
+        let dir = tempfile::tempdir().unwrap();
+        let mut names = Vec::new();
+        for (k, &v) in values.iter().enumerate() {
+            let mut t = constant(&format!("t{k}"), v);
+            if k == 1 {
+                t.values[5] = [-1.0; 3];
+            }
+            t.to_merl().unwrap().write(dir.path().join(format!("t{k}.binary"))).unwrap();
+            names.push(format!("t{k}"));
+        }
+        (dir, names)
+    }
+
     #[test]
     fn median_leaves_out_unmeasured() {
-        let mut b = constant("b", 0.3);
-        b.values[5] = [-1.0; 3];
-        let tables = [constant("a", 0.1), b, constant("c", 0.2)].map(Arc::new);
-        let m = MaterialTable::median("m", &tables).unwrap();
+        let (dir, names) = table_files(&[0.1, 0.3, 0.2]);
+        let dataset = MaterialDataset::open(dir.path(), &names, 0).unwrap();
+        assert!(!dataset.is_resident() && dataset.cached() == 0, "the median reads no table whole");
+        let m = MaterialTable::median("m", &dataset).unwrap();
         assert!((m.values[0][0] - 0.2).abs() < 1e-7);
         assert!((m.values[5][0] - 0.15).abs() < 1e-7);
+    }
+
+    #[test]
+    fn a_small_cache_streams_the_same_tables() {
+        let (dir, names) = table_files(&[0.1, 0.3, 0.2, 0.4]);
+        let resident = MaterialDataset::open(dir.path(), &names, u64::MAX).unwrap();
+        assert!(resident.is_resident() && resident.cached() == 4);
+        // Room for two tables.
+        let streamed = MaterialDataset::open(dir.path(), &names, 2 * TABLE_BYTES).unwrap();
+        assert!(!streamed.is_resident() && streamed.cached() == 0);
+        streamed.prefetch(vec![3, 2]);
+        for i in [0, 1, 2, 3, 1, 0, 3] {
+            let (a, b) = (streamed.table(i).unwrap(), resident.table(i).unwrap());
+            assert_eq!((&a.name, &a.values), (&b.name, &b.values));
+            assert!(streamed.cached() <= 2);
+        }
+        // A missing file is found when the dataset is opened.
+        std::fs::remove_file(dir.path().join("t2.binary")).unwrap();
+        let e = MaterialDataset::open(dir.path(), &names, 0).unwrap_err().to_string();
+        assert!(e.contains("t2.binary"), "{e}");
     }
 
     #[test]

@@ -135,7 +135,7 @@ impl Codec {
                  it); re-export the model with `material-nn export`, or encode with --run",
             ));
         };
-        let device = training_device();
+        let device = training_device()?;
         let model = HyperBrdf {
             encoder: Mlp::from_dense(&encoder.layers, &device),
             heads: file
@@ -227,7 +227,7 @@ impl Codec {
         if set.is_empty() {
             return Err(Error::Invalid("cannot refine on an empty sample set".to_string()));
         }
-        let device = training_device();
+        let device = training_device()?;
         let n = set.len().min(settings.samples.max(1));
         let tensor3 = |v: Vec<f32>, w: usize| Tensor::<3>::from_data(TensorData::new(v, [1, n, w]), &device);
         let x = tensor3(set.inputs[..6 * n].to_vec(), 6);
@@ -304,7 +304,7 @@ impl TrainedRun {
             ));
         }
         let ckpt = Checkpoint::read(&path)?;
-        let model = load_model(&ckpt.config, &ckpt.model, &training_device(), &path)?;
+        let model = load_model(&ckpt.config, &ckpt.model, &training_device()?, &path)?;
         let reference = MaterialTable::read(&run.reference())?;
         let info: RunInfo = read_json(&run.info())?;
         let split: crate::dataset::Split = read_json(&run.split())?;
@@ -379,7 +379,7 @@ mod tests {
             hyper_last_init_scale: 1.0,
         };
         let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
-        let model = HyperBrdf::init(&config, &mut rng, &training_device());
+        let model = HyperBrdf::init(&config, &mut rng, &training_device().unwrap());
         let sampler = Sampler {
             reference: Arc::new(MaterialTable {
                 name: "reference".to_string(),

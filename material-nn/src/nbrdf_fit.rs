@@ -295,7 +295,7 @@ pub fn fit_material(
     config.check()?;
     let start = Instant::now();
     let seed = material_seed(config.seed, &table.name);
-    let device: Device = training_device();
+    let device: Device = training_device()?;
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     let mut model = Nbrdf::init(&mut rng, &device);
     let mut validation_rng = rand_pcg::Pcg64::seed_from_u64(seed ^ 0x7a11_da7e);

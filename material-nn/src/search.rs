@@ -49,6 +49,7 @@ fn run_trial(
         config: Some(config),
         resume: false,
         stop_after_steps: None,
+        table_cache_bytes: crate::training::DEFAULT_TABLE_CACHE_BYTES,
     };
     let outcome = train(&request, stop, &mut |_| {});
     let (score, failure) = match outcome {

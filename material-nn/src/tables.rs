@@ -69,6 +69,18 @@ const MEDIAN_CHUNK: usize = 1 << 16;
 /// first and then streamed in chunks, so memory stays at about 0.5 MiB per table.
 /// `progress(done, total)` reports chunks.
 pub fn median_table(paths: &[PathBuf], progress: impl Fn(usize, usize)) -> Result<MerlTable> {
+    let raw = median_values(paths, |_, v| v, progress)?;
+    Ok(MerlTable::from_raw(raw, "median table")?)
+}
+
+/// The per-entry median of `value(channel, raw)` over the tables at `paths`, in the files'
+/// channel-major order, negative values (unmeasured) left out and −1 where every table's is
+/// negative; streamed as [`median_table`] describes.
+pub fn median_values(
+    paths: &[PathBuf],
+    value: impl Fn(usize, f64) -> f64 + Sync,
+    progress: impl Fn(usize, usize),
+) -> Result<Vec<f64>> {
     if paths.is_empty() {
         return Err(Error::Invalid(
             "median of no tables: give at least one input table".to_string(),
@@ -80,9 +92,9 @@ pub fn median_table(paths: &[PathBuf], progress: impl Fn(usize, usize)) -> Resul
         .collect::<renderer::Result<Vec<_>>>()?;
     let total = 3 * BIN_COUNT;
     let chunks = total.div_ceil(MEDIAN_CHUNK);
-    let mut raw = vec![0f64; total];
+    let mut out = vec![0f64; total];
     let mut buffers = vec![vec![0f64; MEDIAN_CHUNK]; readers.len()];
-    for (chunk, out) in raw.chunks_mut(MEDIAN_CHUNK).enumerate() {
+    for (chunk, out) in out.chunks_mut(MEDIAN_CHUNK).enumerate() {
         let first = chunk * MEDIAN_CHUNK;
         for (reader, buffer) in readers.iter_mut().zip(buffers.iter_mut()) {
             reader.read_raw(first, &mut buffer[..out.len()])?;
@@ -90,14 +102,15 @@ pub fn median_table(paths: &[PathBuf], progress: impl Fn(usize, usize)) -> Resul
         out.par_iter_mut().enumerate().for_each_init(
             || Vec::with_capacity(buffers.len()),
             |values, (k, o)| {
+                let channel = (first + k) / BIN_COUNT;
                 values.clear();
-                values.extend(buffers.iter().map(|b| b[k]));
+                values.extend(buffers.iter().map(|b| value(channel, b[k])));
                 *o = median_of_measured(values);
             },
         );
         progress(chunk + 1, chunks);
     }
-    Ok(MerlTable::from_raw(raw, "median table")?)
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -53,7 +53,13 @@ pub struct TrainRequest {
     /// Stop (with a checkpoint) once this many optimiser steps have been taken in all, as a
     /// stop request would.
     pub stop_after_steps: Option<u64>,
+    /// Memory for tables (training and validation together): when they need more, they are
+    /// streamed from their files (see [`MaterialDataset`]); the result is the same.
+    pub table_cache_bytes: u64,
 }
+
+/// Default of [`TrainRequest::table_cache_bytes`]: 4 GiB, 245 tables.
+pub const DEFAULT_TABLE_CACHE_BYTES: u64 = 4 << 30;
 
 /// What happened during training, for progress display.
 #[derive(Clone, Debug)]
@@ -162,28 +168,28 @@ pub enum FreLoss {
 }
 
 impl FreLoss {
-    /// L_fre of `config` for the materials `tables` (whose slice targets it precomputes).
-    pub fn new(config: &TrainConfig, tables: &[Arc<MaterialTable>], sampler: &Sampler, device: &Device) -> Self {
-        match config.fre.form {
+    /// L_fre of `config` for the materials of `dataset` (whose slice targets it precomputes,
+    /// reading each table once).
+    pub fn new(config: &TrainConfig, dataset: &MaterialDataset, sampler: &Sampler, device: &Device) -> Result<Self> {
+        Ok(match config.fre.form {
             FreForm::Splat => FreLoss::Splat(Box::new(FreOperator::new(&config.fre, device))),
             FreForm::Slices => {
                 let op = Box::new(SlicedFre::new(&config.fre, device));
-                let targets = tables
-                    .iter()
-                    .map(|t| {
-                        let target = op.target(
-                            |p| {
-                                let [h, d, f] = p.angles;
-                                sampler.sample_of(p, t.lookup(h, d, f)?).map(|(_, y, _)| y)
-                            },
-                            device,
-                        );
-                        (t.name.clone(), target)
-                    })
-                    .collect();
+                let mut targets = HashMap::new();
+                for i in 0..dataset.len() {
+                    let t = dataset.table(i)?;
+                    let target = op.target(
+                        |p| {
+                            let [h, d, f] = p.angles;
+                            sampler.sample_of(p, t.lookup(h, d, f)?).map(|(_, y, _)| y)
+                        },
+                        device,
+                    );
+                    targets.insert(t.name.clone(), target);
+                }
                 FreLoss::Slices { op, targets }
             }
-        }
+        })
     }
 }
 
@@ -239,11 +245,11 @@ fn batch_loss(
     Ok((total, data, fre_total))
 }
 
-/// Mean (data term, L_fre) over `tables`, each on a fixed sample set drawn from the run's
-/// seed and the material's position.
+/// Mean (data term, L_fre) over the materials of `tables`, each on a fixed sample set drawn
+/// from the run's seed and the material's position.
 fn mean_losses(
     model: &HyperBrdf,
-    tables: &[Arc<MaterialTable>],
+    tables: &MaterialDataset,
     sampler: &Sampler,
     config: &TrainConfig,
     fre: Option<&FreLoss>,
@@ -251,11 +257,14 @@ fn mean_losses(
 ) -> Result<(f64, f64)> {
     let model = model.valid();
     let (mut data_sum, mut fre_sum) = (0.0, 0.0);
-    for (i, table) in tables.iter().enumerate() {
+    for i in 0..tables.len() {
+        let table = tables.table(i)?;
+        // With a cache smaller than the set, the next table is read while this one is used.
+        tables.prefetch((i + 1..tables.len()).take(1).collect());
         let mut rng = rand_pcg::Pcg64::seed_from_u64(
             config.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ (i as u64 + 1),
         );
-        let set = sampler.draw(table, config.validation_samples, &mut rng)?;
+        let set = sampler.draw(&table, config.validation_samples, &mut rng)?;
         let (_, data, l_fre) = batch_loss(
             &model,
             &[table.as_ref()],
@@ -271,11 +280,11 @@ fn mean_losses(
     Ok((data_sum / n, fre_sum / n))
 }
 
-/// Mean validation loss (data term + η L_fre) over `tables`, each on a fixed sample set drawn
-/// from the run's seed and the material's position.
+/// Mean validation loss (data term + η L_fre) over the materials of `tables`, each on a fixed
+/// sample set drawn from the run's seed and the material's position.
 pub fn validation_loss(
     model: &HyperBrdf,
-    tables: &[Arc<MaterialTable>],
+    tables: &MaterialDataset,
     sampler: &Sampler,
     config: &TrainConfig,
     fre: Option<&FreLoss>,
@@ -305,9 +314,8 @@ fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
         .map(|p| material_name(p))
         .collect::<Result<Vec<_>>>()?;
     let split = Split::new(&names, config.split, config.seed);
-    let train = MaterialDataset::load(&req.data_dir, &split.train)?;
-    let validation = MaterialDataset::load(&req.data_dir, &split.validation)?;
-    let reference = MaterialTable::median("reference", train.tables())?;
+    let (train, validation) = open_split(&req.data_dir, &split, req.table_cache_bytes)?;
+    let reference = MaterialTable::median("reference", &train)?;
     std::fs::create_dir_all(&run.0).map_err(|e| Error::io(&run.0, e))?;
     reference.to_merl()?.write(run.reference())?;
     write_json(&run.config(), &config)?;
@@ -327,11 +335,21 @@ fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
     })
 }
 
+/// The training and validation datasets of `split`, sharing `cache_bytes` in proportion to
+/// their sizes.
+fn open_split(data_dir: &Path, split: &Split, cache_bytes: u64) -> Result<(MaterialDataset, MaterialDataset)> {
+    let (n_train, n_valid) = (split.train.len() as u64, split.validation.len() as u64);
+    let train_bytes = (cache_bytes as u128 * n_train as u128 / (n_train + n_valid).max(1) as u128) as u64;
+    Ok((
+        MaterialDataset::open(data_dir, &split.train, train_bytes)?,
+        MaterialDataset::open(data_dir, &split.validation, cache_bytes - train_bytes)?,
+    ))
+}
+
 /// Loads what a finished or interrupted run needs to go on (or to be evaluated).
-fn existing_run(data_dir: &Path, run: &RunDir, config: TrainConfig) -> Result<Setup> {
+fn existing_run(data_dir: &Path, run: &RunDir, config: TrainConfig, table_cache_bytes: u64) -> Result<Setup> {
     let split: Split = read_json(&run.split())?;
-    let train = MaterialDataset::load(data_dir, &split.train)?;
-    let validation = MaterialDataset::load(data_dir, &split.validation)?;
+    let (train, validation) = open_split(data_dir, &split, table_cache_bytes)?;
     let reference = MaterialTable::read(&run.reference())?;
     Ok(Setup {
         sampler: Sampler::of(&config, reference),
@@ -349,7 +367,7 @@ pub fn train(
     on_event: &mut dyn FnMut(Event),
 ) -> Result<Outcome> {
     let run = RunDir(req.run_dir.clone());
-    let device = training_device();
+    let device = training_device()?;
     let ckpt_path = run.checkpoint();
     let (setup, mut model, mut optim, mut state) = if req.resume {
         let ckpt = Checkpoint::read(&ckpt_path)?;
@@ -366,7 +384,7 @@ pub fn train(
                 ));
             }
         }
-        let setup = existing_run(&req.data_dir, &run, ckpt.config.clone())?;
+        let setup = existing_run(&req.data_dir, &run, ckpt.config.clone(), req.table_cache_bytes)?;
         let model = load_model(&setup.config, &ckpt.model, &device, &ckpt_path)?;
         let optim = optimizer()
             .from_bytes(Bytes::from_bytes_vec(ckpt.optimizer))
@@ -399,24 +417,26 @@ pub fn train(
         (setup, model, optimizer(), state)
     };
     let mut config = setup.config.clone();
-    let n_train = setup.train.tables().len();
+    let n_train = setup.train.len();
     let steps_per_epoch = n_train.div_ceil(config.materials_per_step) as u64;
     let inner = device.clone().without_autodiff();
     let fre = config
         .uses_fre()
-        .then(|| FreLoss::new(&config, setup.train.tables(), &setup.sampler, &device));
+        .then(|| FreLoss::new(&config, &setup.train, &setup.sampler, &device))
+        .transpose()?;
     let fre_valid = config
         .uses_fre()
-        .then(|| FreLoss::new(&config, setup.validation.tables(), &setup.sampler, &inner));
+        .then(|| FreLoss::new(&config, &setup.validation, &setup.sampler, &inner))
+        .transpose()?;
     if let (false, Some(valid), Some(share)) = (req.resume, &fre_valid, config.fre.eta_share) {
         // A new run: η such that η·L_fre is `share` of the data term with the initial model,
         // on the validation materials (the training ones when there are none).
-        let (data, l_fre) = if setup.validation.tables().is_empty() {
-            let tables = setup.train.tables();
-            let fre = FreLoss::new(&config, tables, &setup.sampler, &inner);
+        let (data, l_fre) = if setup.validation.is_empty() {
+            let tables = &setup.train;
+            let fre = FreLoss::new(&config, tables, &setup.sampler, &inner)?;
             mean_losses(&model, tables, &setup.sampler, &config, Some(&fre), &inner)?
         } else {
-            let tables = setup.validation.tables();
+            let tables = &setup.validation;
             mean_losses(&model, tables, &setup.sampler, &config, Some(valid), &inner)?
         };
         if l_fre > 0.0 && data > 0.0 {
@@ -457,13 +477,16 @@ pub fn train(
             state.epoch_steps = 0;
         }
         let end = (state.position + config.materials_per_step).min(state.order.len());
+        let next_end = (end + config.materials_per_step).min(state.order.len());
+        setup.train.prefetch(state.order[end..next_end].to_vec());
         let mut sets = Vec::with_capacity(end - state.position);
         let mut tables = Vec::with_capacity(end - state.position);
         for &i in &state.order[state.position..end] {
-            let table = setup.train.tables()[i].as_ref();
-            sets.push(setup.sampler.draw(table, config.samples_per_step, &mut state.rng)?);
+            let table = setup.train.table(i)?;
+            sets.push(setup.sampler.draw(&table, config.samples_per_step, &mut state.rng)?);
             tables.push(table);
         }
+        let tables: Vec<&MaterialTable> = tables.iter().map(Arc::as_ref).collect();
         let (total, data, l_fre) =
             batch_loss(&model, &tables, &sets, &config, fre.as_ref(), &device)?;
         let grads = total.backward();
@@ -497,7 +520,7 @@ pub fn train(
         if state.position >= state.order.len() {
             let validation = validation_loss(
                 &model,
-                setup.validation.tables(),
+                &setup.validation,
                 &setup.sampler,
                 &config,
                 fre_valid.as_ref(),

@@ -4,75 +4,16 @@
 
 mod common;
 
-use common::{error_line, make_tables, material_nn, model_weights, path_str};
+use common::{error_line, make_data, material_nn, model_weights, path_str, small_config};
 use material_nn::checkpoint::Checkpoint;
-use material_nn::config::{FreConfig, ModelConfig, TrainConfig};
+use material_nn::config::TrainConfig;
 use material_nn::run::RunDir;
 use material_nn::training::{train, Outcome, TrainRequest};
-use renderer::analytic::AnalyticBrdf;
 use renderer::formats::latent_file::LatentFile;
 use renderer::formats::merl::{FILE_BYTES, HEADER_BYTES};
-use renderer::Rgb;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
-
-/// Three analytic materials as MERL tables in `dir/data`.
-pub(crate) fn make_data(dir: &Path) -> PathBuf {
-    make_tables(
-        dir,
-        &[
-            (
-                "red-plastic",
-                AnalyticBrdf::LambertGgx {
-                    albedo: Rgb::new(0.6, 0.1, 0.1),
-                    specular: Rgb::splat(0.04),
-                    alpha: 0.15,
-                },
-            ),
-            (
-                "rough-gold",
-                AnalyticBrdf::LambertGgx {
-                    albedo: Rgb::new(0.05, 0.04, 0.02),
-                    specular: Rgb::new(0.9, 0.7, 0.3),
-                    alpha: 0.3,
-                },
-            ),
-            (
-                "grey-clay",
-                AnalyticBrdf::OrenNayar {
-                    albedo: Rgb::splat(0.4),
-                    sigma: 0.5,
-                },
-            ),
-        ],
-    )
-}
-
-/// A small, fast configuration: 2 training materials, 1 validation material.
-fn small_config(epochs: usize) -> TrainConfig {
-    TrainConfig {
-        split: [0.6, 0.4, 0.0],
-        samples_per_step: 1024,
-        encoder_samples: 256,
-        validation_samples: 512,
-        epochs,
-        patience: 100,
-        learning_rate: 5e-3,
-        fre: FreConfig {
-            lmax: 8,
-            ..FreConfig::default()
-        },
-        net: ModelConfig {
-            latent_dim: 8,
-            encoder_hidden: vec![32, 32],
-            hyper_hidden: vec![32],
-            target_widths: vec![6, 16, 16, 3],
-            hyper_last_init_scale: 1e-2,
-        },
-        ..TrainConfig::default()
-    }
-}
 
 fn request(
     data: &Path,
@@ -87,6 +28,7 @@ fn request(
         config,
         resume,
         stop_after_steps: stop,
+        table_cache_bytes: material_nn::training::DEFAULT_TABLE_CACHE_BYTES,
     }
 }
 
@@ -432,6 +374,18 @@ fn a_resumed_run_ends_with_the_same_weights() {
             .collect::<Vec<_>>()
     };
     assert_eq!(losses(&a), losses(&b));
+
+    // The same run with room for one table at a time: every table streamed from its file
+    // (each step's, the validation one, f_ref's median), the same weights.
+    let streamed = dir.path().join("streamed");
+    let mut req = request(&data, &streamed, Some(small_config(3)), false, None);
+    req.table_cache_bytes = material_nn::dataset::TABLE_BYTES;
+    train(&req, &stop, &mut |_| {}).unwrap();
+    let c = Checkpoint::read(&RunDir(streamed.clone()).checkpoint()).unwrap();
+    assert!(model_weights(&c) == wa, "a streamed run ends with other weights");
+    assert_eq!(losses(&c), losses(&a));
+    let reference = |run: &Path| std::fs::read(RunDir(run.to_path_buf()).reference()).unwrap();
+    assert!(reference(&streamed) == reference(&dir.path().join("whole")), "f_ref differs");
 }
 
 #[test]

@@ -27,6 +27,10 @@ pub struct TrainArgs {
     /// Stop with a checkpoint after this many optimiser steps in all (as Ctrl-C would).
     #[arg(long, value_name = "N")]
     pub stop_after_steps: Option<u64>,
+    /// Memory for tables in MiB (17.5 MB each); a larger training set is streamed from its
+    /// files with the same result.
+    #[arg(long, value_name = "MIB", default_value_t = training::DEFAULT_TABLE_CACHE_BYTES >> 20)]
+    pub table_cache_mb: u64,
 }
 
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
@@ -39,6 +43,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         config,
         resume: args.resume,
         stop_after_steps: args.stop_after_steps,
+        table_cache_bytes: args.table_cache_mb << 20,
     };
     let bar = progress_bar(0, "train");
     let mut last_epoch = String::new();
@@ -51,7 +56,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         } => {
             bar.set_length(total_steps);
             bar.set_position(done);
-            bar.suspend(|| println!("{parameters} parameters, {total_steps} steps, {done} done"));
+            bar.suspend(|| println!("{parameters} parameters, {total_steps} steps, {done} done, on {}", material_nn::backend::backend_name()));
         }
         Event::Step { step, losses } => {
             bar.set_position(step);

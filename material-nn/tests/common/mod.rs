@@ -3,8 +3,10 @@
 #![allow(dead_code)]
 
 use material_nn::checkpoint::Checkpoint;
+use material_nn::config::{FreConfig, ModelConfig, TrainConfig};
 use material_nn::run::load_model;
 use renderer::analytic::AnalyticBrdf;
+use renderer::Rgb;
 use renderer::formats::merl::MerlTable;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -57,4 +59,61 @@ pub fn model_weights(c: &Checkpoint) -> Vec<f32> {
         all.extend(h.to_dense().iter().flat_map(|l| l.weight.iter().chain(&l.bias).copied()));
     }
     all
+}
+
+/// Three analytic materials as MERL tables in `dir/data`.
+pub fn make_data(dir: &Path) -> PathBuf {
+    make_tables(
+        dir,
+        &[
+            (
+                "red-plastic",
+                AnalyticBrdf::LambertGgx {
+                    albedo: Rgb::new(0.6, 0.1, 0.1),
+                    specular: Rgb::splat(0.04),
+                    alpha: 0.15,
+                },
+            ),
+            (
+                "rough-gold",
+                AnalyticBrdf::LambertGgx {
+                    albedo: Rgb::new(0.05, 0.04, 0.02),
+                    specular: Rgb::new(0.9, 0.7, 0.3),
+                    alpha: 0.3,
+                },
+            ),
+            (
+                "grey-clay",
+                AnalyticBrdf::OrenNayar {
+                    albedo: Rgb::splat(0.4),
+                    sigma: 0.5,
+                },
+            ),
+        ],
+    )
+}
+
+/// A small, fast configuration: 2 training materials, 1 validation material.
+pub fn small_config(epochs: usize) -> TrainConfig {
+    TrainConfig {
+        split: [0.6, 0.4, 0.0],
+        samples_per_step: 1024,
+        encoder_samples: 256,
+        validation_samples: 512,
+        epochs,
+        patience: 100,
+        learning_rate: 5e-3,
+        fre: FreConfig {
+            lmax: 8,
+            ..FreConfig::default()
+        },
+        net: ModelConfig {
+            latent_dim: 8,
+            encoder_hidden: vec![32, 32],
+            hyper_hidden: vec![32],
+            target_widths: vec![6, 16, 16, 3],
+            hyper_last_init_scale: 1e-2,
+        },
+        ..TrainConfig::default()
+    }
 }

@@ -297,14 +297,7 @@ impl MerlTable {
             .into_par_iter()
             .with_min_len(4096)
             .map(|i| {
-                [0, 1, 2].map(|c| {
-                    let v = self.raw[c * BIN_COUNT + i];
-                    if v < 0.0 {
-                        -1.0
-                    } else {
-                        (v * SCALE[c]).min(f32::MAX as f64) as f32
-                    }
-                })
+                [0, 1, 2].map(|c| measured_value(self.raw[c * BIN_COUNT + i], c))
             })
             .collect()
     }
@@ -415,6 +408,17 @@ fn decode_raw(src: &[u8], first: usize, out: &mut [f64], path: &Path) -> Result<
         *v = x;
     }
     Ok(())
+}
+
+/// The f_r (1/sr, f32) of a raw file value of `channel`: raw × [`SCALE`], clamped to the f32
+/// range; −1 for an unmeasured (negative) entry.
+#[inline]
+pub fn measured_value(raw: f64, channel: usize) -> f32 {
+    if raw < 0.0 {
+        -1.0
+    } else {
+        (raw * SCALE[channel]).min(f32::MAX as f64) as f32
+    }
 }
 
 /// A validated `.binary` file open for reading ranges of raw values, so that many tables can
