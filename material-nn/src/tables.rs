@@ -66,7 +66,8 @@ const MEDIAN_CHUNK: usize = 1 << 16;
 
 /// The per-bin, per-channel median of the tables at `paths`, unmeasured (negative) entries
 /// left out (a bin unmeasured in every table stays unmeasured). The files are validated
-/// first and then streamed in chunks, so memory stays at about 0.5 MiB per table.
+/// first and then streamed in chunks, so memory stays at about 0.5 MiB per table and no
+/// file stays open.
 /// `progress(done, total)` reports chunks.
 pub fn median_table(paths: &[PathBuf], progress: impl Fn(usize, usize)) -> Result<MerlTable> {
     let raw = median_values(paths, |_, v| v, progress)?;
@@ -86,18 +87,17 @@ pub fn median_values(
             "median of no tables: give at least one input table".to_string(),
         ));
     }
-    let mut readers = paths
-        .iter()
-        .map(MerlReader::open)
-        .collect::<renderer::Result<Vec<_>>>()?;
+    // Every file is checked before any work; each chunk then opens them again, so a median
+    // of more tables than the process may hold open works.
+    paths.iter().try_for_each(|p| MerlReader::open(p).map(|_| ()))?;
     let total = 3 * BIN_COUNT;
     let chunks = total.div_ceil(MEDIAN_CHUNK);
     let mut out = vec![0f64; total];
-    let mut buffers = vec![vec![0f64; MEDIAN_CHUNK]; readers.len()];
+    let mut buffers = vec![vec![0f64; MEDIAN_CHUNK]; paths.len()];
     for (chunk, out) in out.chunks_mut(MEDIAN_CHUNK).enumerate() {
         let first = chunk * MEDIAN_CHUNK;
-        for (reader, buffer) in readers.iter_mut().zip(buffers.iter_mut()) {
-            reader.read_raw(first, &mut buffer[..out.len()])?;
+        for (path, buffer) in paths.iter().zip(buffers.iter_mut()) {
+            MerlReader::open(path)?.read_raw(first, &mut buffer[..out.len()])?;
         }
         out.par_iter_mut().enumerate().for_each_init(
             || Vec::with_capacity(buffers.len()),
