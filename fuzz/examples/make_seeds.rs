@@ -8,6 +8,7 @@
 //! `NBRDF_DIR` (optional) is a directory of NBRDF `.npy` networks; its `alum-bronze_*.npy`
 //! tensors are added to the `npy` corpus.
 
+use renderer::formats::image_part::ImagePart;
 use renderer::formats::latent_file::{LatentFile, WeightType};
 use renderer::neural::mapping::MappingForm;
 use renderer::neural::nbrdf::TENSOR_NAMES;
@@ -147,6 +148,26 @@ fn main() {
         input.extend_from_slice(&shipped[..shipped.len().min(256)]);
         write("latent", "shipped-head", &input);
     }
+    // Image parts: a band of a 6×4 image with settings, the whole image as one part, and a
+    // plain EXR (no settings, data window = display window).
+    let dir = std::env::temp_dir().join(format!("make-seeds-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temporary directory");
+    let part = |region: &str, settings: bool| {
+        let region: renderer::film::Region = region.parse().expect("region");
+        ImagePart {
+            full_width: 6,
+            full_height: 4,
+            region,
+            pixels: (0..region.pixel_count()).map(|i| renderer::Rgb::new(i as f32, 0.5, 1e-3)).collect(),
+            settings: if settings { [("seed".to_string(), "1".to_string())].into() } else { Default::default() },
+        }
+    };
+    for (name, p) in [("band.exr", part("0,2,6,4", true)), ("whole.exr", part("0,0,6,4", true)), ("plain.exr", part("0,0,6,4", false))] {
+        let path = dir.join(name);
+        p.write_exr(&path).expect("write part");
+        write("image_part", name, &std::fs::read(&path).expect("read part"));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
     println!("wrote {count} seeds under {}", corpus.display());
 }
 

@@ -333,7 +333,7 @@ fn run(args: Args) -> Result<()> {
     let camera = description.camera_or_default(args.camera.as_deref(), aspect)?;
     let (width, height) = args.resolution.unwrap_or_else(|| {
         let aspect = camera.aspect_ratio.filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
-        (512, ((512.0 / aspect).round() as u32).clamp(1, 16384))
+        (512, ((512.0 / aspect).round() as u32).clamp(1, renderer::support::MAX_RESOLUTION))
     });
     let region = match (args.region, args.tile) {
         (Some(r), _) if !r.is_within(width, height) => bail!("invalid value for --region: {r} lies outside the {width}x{height} image"),
@@ -399,8 +399,8 @@ fn run(args: Args) -> Result<()> {
     if region == Region::whole(width, height) {
         write_image(&args.output, width, height, &film.mean(), job.tone_map, args.exposure)?;
     } else if stats.interrupted {
-        eprintln!("interrupted: {} not written (a part with fewer samples would not merge)", args.output.display());
-        return Ok(());
+        // A farm task must not look done: a part with fewer samples would not merge.
+        bail!("interrupted: {} not written (a part must have all its samples)", args.output.display());
     } else {
         parts::write_part(&args, &job, &film)?;
     }

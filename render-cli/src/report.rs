@@ -111,7 +111,7 @@ impl ReportConfig {
         if config.materials.is_empty() || config.representations.is_empty() {
             return bad("needs at least one material and one representation");
         }
-        if config.resolution.contains(&0) || config.resolution.iter().any(|&r| r > 16384) {
+        if config.resolution.contains(&0) || config.resolution.iter().any(|&r| r > renderer::support::MAX_RESOLUTION) {
             return bad("resolution must be in 1..=16384");
         }
         if config.reference_spp == 0 || !(config.time_budget > 0.0 && config.time_budget.is_finite()) {

@@ -86,3 +86,24 @@ fn bad_regions_and_tiles_fail_cleanly() {
     let png = render(&[&scene, "--tile", "1/2", "--output", "out.png"], dir.path());
     assert_clean_failure(&png, &["out.png", ".exr"], dir.path());
 }
+
+/// Ctrl-C during a part's render writes no part and exits with an error, so that a farm
+/// task does not look done.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_part_is_not_written() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_render"))
+        .args([scene().as_str(), "--spp", "100000", "--resolution", "64x64", "--tile", "1/2", "--output", "part.exr"])
+        .current_dir(dir.path())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start render");
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let status = std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill");
+    assert!(status.success());
+    let out = child.wait_with_output().expect("wait");
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("interrupted: part.exr not written"));
+    assert!(!dir.path().join("part.exr").exists());
+}

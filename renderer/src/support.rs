@@ -91,15 +91,18 @@ pub mod cpu {
     }
 }
 
-/// Parses an image size `WIDTHxHEIGHT` (or `WIDTHXHEIGHT`), both in 1..=16384 pixels: the
+/// The largest image width or height the renderer makes or reads as a render's part.
+pub const MAX_RESOLUTION: u32 = 16384;
+
+/// Parses an image size `WIDTHxHEIGHT` (or `WIDTHXHEIGHT`), both in 1..=[`MAX_RESOLUTION`] pixels: the
 /// `--resolution` argument of both command lines.
 pub fn parse_resolution(s: &str) -> std::result::Result<(u32, u32), String> {
     let parsed = s
         .split_once(['x', 'X'])
         .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)));
     match parsed {
-        Some((w, h)) if (1..=16384).contains(&w) && (1..=16384).contains(&h) => Ok((w, h)),
-        _ => Err(format!("'{s}' is not WIDTHxHEIGHT with both in 1..=16384 (e.g. 128x128)")),
+        Some((w, h)) if (1..=MAX_RESOLUTION).contains(&w) && (1..=MAX_RESOLUTION).contains(&h) => Ok((w, h)),
+        _ => Err(format!("'{s}' is not WIDTHxHEIGHT with both in 1..={MAX_RESOLUTION} (e.g. 128x128)")),
     }
 }
 

@@ -9,9 +9,10 @@
 
 use crate::error::{Error, Result};
 use crate::film::Region;
-use crate::support::write_via_temporary;
+use crate::support::{write_via_temporary, MAX_RESOLUTION};
 use crate::Rgb;
 use exr::meta::attribute::{AttributeValue, IntegerBounds, Text};
+use exr::meta::MetaData;
 use exr::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -65,9 +66,28 @@ impl ImagePart {
     /// Reads a part written by [`ImagePart::write_exr`]: an RGB EXR whose data window lies
     /// inside a display window with its origin at (0, 0).
     pub fn read_exr(path: &Path) -> Result<ImagePart> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        ImagePart::from_exr_bytes(&bytes, path)
+    }
+
+    /// [`ImagePart::read_exr`] of a file's bytes; errors name `path`. The windows are
+    /// checked from the header before any pixel is read (a damaged header could otherwise
+    /// ask for any amount of memory).
+    pub fn from_exr_bytes(bytes: &[u8], path: &Path) -> Result<ImagePart> {
         let invalid = |reason: String| Error::invalid_file(path, reason);
-        if !path.is_file() {
-            return Err(Error::io(path, std::io::Error::new(std::io::ErrorKind::NotFound, "no such file")));
+        let meta = MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+            .map_err(|e| invalid(format!("not a readable RGB OpenEXR image ({e})")))?;
+        let header = meta.headers.first().ok_or_else(|| invalid("an OpenEXR file without a header".into()))?;
+        let (full_width, full_height, region) = part_windows(header.shared_attributes.display_window, header.data_window())
+            .map_err(invalid)?;
+        // The reader sizes its block buffers from the header's block (tile) size: a block may
+        // outsize a small image, but not ask for more than the whole part or 1 MiB.
+        let part_bytes = region.pixel_count().saturating_mul(header.channels.bytes_per_pixel);
+        if header.deep || header.max_block_byte_size() > part_bytes.max(1 << 20) {
+            return Err(invalid(format!(
+                "blocks of {} bytes for a part of {part_bytes} bytes: not a part of a render",
+                header.max_block_byte_size()
+            )));
         }
         let image = read()
             .no_deep_data()
@@ -84,31 +104,12 @@ impl ImagePart {
             )
             .first_valid_layer()
             .all_attributes()
-            .from_file(path)
+            .from_buffered(std::io::Cursor::new(bytes))
             .map_err(|e| invalid(format!("not a readable RGB OpenEXR image ({e})")))?;
-        let display = image.attributes.display_window;
         let layer = &image.layer_data;
         let data = IntegerBounds::new(layer.attributes.layer_position, layer.size);
-        let (full_width, full_height) = (display.size.width() as u32, display.size.height() as u32);
-        if display.position != Vec2(0, 0) {
-            return Err(invalid(format!(
-                "display window starts at ({}, {}), not (0, 0): not a part of a render",
-                display.position.x(),
-                display.position.y()
-            )));
-        }
-        let (x0, y0) = (data.position.x(), data.position.y());
-        if x0 < 0 || y0 < 0 {
-            return Err(invalid(format!("data window starts at ({x0}, {y0}), outside the image")));
-        }
-        let region = Region {
-            x0: x0 as u32,
-            y0: y0 as u32,
-            x1: x0 as u32 + data.size.width() as u32,
-            y1: y0 as u32 + data.size.height() as u32,
-        };
-        if !region.is_within(full_width, full_height) {
-            return Err(invalid(format!("data window {region} lies outside the {full_width}x{full_height} image")));
+        if part_windows(image.attributes.display_window, data) != Ok((full_width, full_height, region)) {
+            return Err(invalid("the first layer's windows differ from the header's".into()));
         }
         let settings = layer
             .attributes
@@ -131,6 +132,30 @@ impl ImagePart {
             settings,
         })
     }
+}
+
+/// The whole image's size and the part's region from an EXR's display and data windows: the
+/// display window must start at (0, 0) and be at most [`MAX_RESOLUTION`] on a side, the data
+/// window non-empty and inside it.
+fn part_windows(display: IntegerBounds, data: IntegerBounds) -> std::result::Result<(u32, u32, Region), String> {
+    let (dw, dh) = (display.size.width(), display.size.height());
+    if display.position != Vec2(0, 0) {
+        return Err(format!(
+            "display window starts at ({}, {}), not (0, 0): not a part of a render",
+            display.position.x(),
+            display.position.y()
+        ));
+    }
+    if dw == 0 || dh == 0 || dw > MAX_RESOLUTION as usize || dh > MAX_RESOLUTION as usize {
+        return Err(format!("display window of {dw}x{dh} pixels: a render is 1 to {MAX_RESOLUTION} pixels on a side"));
+    }
+    let (x0, y0) = (data.position.x() as i64, data.position.y() as i64);
+    let (x1, y1) = (x0 + data.size.width() as i64, y0 + data.size.height() as i64);
+    if x0 < 0 || y0 < 0 || x1 > dw as i64 || y1 > dh as i64 || x0 >= x1 || y0 >= y1 {
+        return Err(format!("data window ({x0}, {y0})-({x1}, {y1}) is not a part of the {dw}x{dh} image"));
+    }
+    let region = Region { x0: x0 as u32, y0: y0 as u32, x1: x1 as u32, y1: y1 as u32 };
+    Ok((dw as u32, dh as u32, region))
 }
 
 /// The whole image assembled from parts that each cover a different region of it and
@@ -266,6 +291,45 @@ mod tests {
         other_size.full_height = 5;
         assert!(err(vec![part("0,0,6,2", "7"), other_size]).contains("part of a 6x5 image"));
         assert!(merge_parts(&[]).is_err());
+    }
+
+    /// Windows are checked from the header before pixels are read: a data window far beyond
+    /// the display window (found by the `image_part` fuzz target; the reader asked for 8 GB)
+    /// and an oversized display window are refused.
+    #[test]
+    fn windows_are_checked_before_pixels_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.exr");
+        part("0,0,6,4", "7").write_exr(&path).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        let key = b"dataWindow\0box2i\0\x10\0\0\0";
+        let at = bytes.windows(key.len()).position(|w| w == key).expect("data window attribute") + key.len();
+        // box2i: xMin, yMin, xMax, yMax (i32, little-endian, inclusive).
+        bytes[at + 8..at + 12].copy_from_slice(&0x0a00_0005i32.to_le_bytes());
+        let e = ImagePart::from_exr_bytes(&bytes, &path).unwrap_err().to_string();
+        assert!(e.contains("data window (0, 0)-(167772166, 4) is not a part of the 6x4 image"), "{e}");
+
+        let mut wide = part("0,0,6,4", "7");
+        wide.full_width = MAX_RESOLUTION + 1;
+        wide.write_exr(&path).unwrap();
+        let e = ImagePart::read_exr(&path).unwrap_err().to_string();
+        assert!(e.contains("display window of 16385x4 pixels"), "{e}");
+    }
+
+    /// A tile size far beyond the image (the reader would size its buffers by it: a 500-byte
+    /// file found by the fuzz target asked for 2 GB) is refused before pixels are read.
+    #[test]
+    fn oversized_blocks_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tiled.exr");
+        let channels = SpecificChannels::rgb(|_: Vec2<usize>| (0.5f32, 0.5f32, 0.5f32));
+        let encoding = Encoding { blocks: Blocks::Tiles(Vec2(512, 512)), ..Encoding::FAST_LOSSLESS };
+        Image::from_layer(Layer::new((6, 4), LayerAttributes::default(), encoding, channels))
+            .write()
+            .to_file(&path)
+            .unwrap();
+        let e = ImagePart::read_exr(&path).unwrap_err().to_string();
+        assert!(e.contains("blocks of 3145728 bytes for a part of 288 bytes"), "{e}");
     }
 
     #[test]

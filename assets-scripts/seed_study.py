@@ -1,0 +1,105 @@
+#!/usr/bin/env python3
+"""FreNBRDF against HyperBRDF over several seeds: the analogues of the talk's Table 1
+(reconstruction of the test materials) and Table 2 (editing: random pairs of test materials
+interpolated in latent space), as mean ± standard deviation over the seeds of every column.
+
+For each model (scenes/materials/frenbrdf.json, scenes/materials/hyperbrdf.json: the same
+configuration without L_fre) and seed, trains runs/seed-study/MODEL-sSEED with the seed and
+epoch count overridden, then `material-nn eval` on its test split (the seed also draws the
+split, so the two models of one seed see the same materials). Runs and evaluations already
+made are kept, so the script resumes where it stopped.
+
+    python3 assets-scripts/seed_study.py [--seeds 1 2 3] [--epochs 100] [--spp 1024] [--pairs 2000]
+"""
+
+import argparse
+import csv
+import json
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+BIN = ROOT / "target" / "release" / "material-nn"
+COLUMNS = [("rmse", "RMSE×10²", 100.0), ("rec", "L_rec data ×10²", 100.0), ("fre", "L_fre×10³", 1000.0),
+           ("psnr", "PSNR (dB)", 1.0), ("ssim", "SSIM×10", 10.0)]
+
+
+def run(cmd: list[str], log: Path) -> None:
+    with log.open("w") as f:
+        if subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT).returncode != 0:
+            sys.exit(f"error: {' '.join(cmd)} failed; see {log}")
+
+
+def means(path: Path) -> dict[str, float]:
+    """Mean of each column over the rows of an eval CSV (empty cells left out)."""
+    rows = list(csv.DictReader(path.open()))
+    out = {}
+    for key, _, _ in COLUMNS:
+        values = [float(r[key]) for r in rows if r.get(key)]
+        if values:
+            out[key] = statistics.fmean(values)
+    out["n"] = len(rows)
+    if rows and rows[0].get("psnr"):
+        out["worst_psnr"] = min(float(r["psnr"]) for r in rows)
+    return out
+
+
+def cell(values: list[float], scale: float) -> str:
+    if not values:
+        return "–"
+    m = statistics.fmean(values) * scale
+    s = statistics.stdev(values) * scale if len(values) > 1 else 0.0
+    return f"{m:.3f} ± {s:.3f}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    ap.add_argument("--epochs", type=int, default=100)
+    ap.add_argument("--spp", type=int, default=1024)
+    ap.add_argument("--pairs", type=int, default=2000)
+    ap.add_argument("--data", type=Path, default=ROOT / "data" / "merl-fitted")
+    ap.add_argument("--out", type=Path, default=ROOT / "runs" / "seed-study")
+    args = ap.parse_args()
+    subprocess.run(["cargo", "build", "--release", "-p", "material-nn"], cwd=ROOT, check=True)
+    args.out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, list[tuple[dict, dict]]] = {}
+    for model in ["frenbrdf", "hyperbrdf"]:
+        for seed in args.seeds:
+            name = f"{model}-e{args.epochs}-s{seed}"
+            run_dir = args.out / name
+            config = json.loads((ROOT / "scenes" / "materials" / f"{model}.json").read_text())
+            config.update(seed=seed, epochs=args.epochs)
+            config_path = args.out / f"{name}.json"
+            config_path.write_text(json.dumps(config, indent=2))
+            # A finished run resumes to its end at once; an interrupted one goes on.
+            resume = ["--resume"] if (run_dir / "checkpoint.bin").exists() else ["--config", str(config_path)]
+            print(f"training {name}", file=sys.stderr)
+            run([str(BIN), "train", "--data", str(args.data), "--out", str(run_dir), *resume],
+                args.out / f"{name}.train.log")
+            eval_dir = run_dir / f"eval-spp{args.spp}-pairs{args.pairs}"
+            if not (eval_dir / "summary.md").exists():
+                print(f"evaluating {name}", file=sys.stderr)
+                run([str(BIN), "eval", "--run", str(run_dir), "--spp", str(args.spp), "--pairs", str(args.pairs),
+                     "--out", str(eval_dir)], args.out / f"{name}.eval.log")
+            results.setdefault(model, []).append(
+                (means(eval_dir / "reconstruction.csv"), means(eval_dir / "editing.csv")))
+    header = "| model | seeds | " + " | ".join(label for _, label, _ in COLUMNS) + " | worst PSNR (dB) |"
+    rule = "|" + " --- |" * (len(COLUMNS) + 3)
+    for title, index in [("Table 1 analogue: reconstruction of the test materials", 0),
+                         ("Table 2 analogue: editing, random pairs of test materials", 1)]:
+        print(f"\n{title} ({args.epochs} epochs, previews at {args.spp} spp, {args.pairs} pairs; "
+              f"mean ± std over seeds {', '.join(map(str, args.seeds))})\n")
+        print(header)
+        print(rule)
+        for model, rows in results.items():
+            tables = [r[index] for r in rows]
+            cells = [cell([t[k] for t in tables if k in t], scale) for k, _, scale in COLUMNS]
+            worst = cell([t["worst_psnr"] for t in tables if "worst_psnr" in t], 1.0)
+            print(f"| {model} | {len(tables)} | " + " | ".join(cells) + f" | {worst} |")
+
+
+if __name__ == "__main__":
+    main()
