@@ -178,6 +178,7 @@ impl FreLoss {
                 let mut targets = HashMap::new();
                 for i in 0..dataset.len() {
                     let t = dataset.table(i)?;
+                    dataset.prefetch((i + 1..dataset.len()).take(1).collect());
                     let target = op.target(
                         |p| {
                             let [h, d, f] = p.angles;

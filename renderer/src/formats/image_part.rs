@@ -77,18 +77,22 @@ impl ImagePart {
         let invalid = |reason: String| Error::invalid_file(path, reason);
         let meta = MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
             .map_err(|e| invalid(format!("not a readable RGB OpenEXR image ({e})")))?;
-        let header = meta.headers.first().ok_or_else(|| invalid("an OpenEXR file without a header".into()))?;
-        let (full_width, full_height, region) = part_windows(header.shared_attributes.display_window, header.data_window())
-            .map_err(invalid)?;
-        // The reader sizes its block buffers from the header's block (tile) size: a block may
-        // outsize a small image, but not ask for more than the whole part or 1 MiB.
-        let part_bytes = region.pixel_count().saturating_mul(header.channels.bytes_per_pixel);
-        if header.deep || header.max_block_byte_size() > part_bytes.max(1 << 20) {
-            return Err(invalid(format!(
-                "blocks of {} bytes for a part of {part_bytes} bytes: not a part of a render",
-                header.max_block_byte_size()
-            )));
+        // Every header (the reader takes the first with R, G and B): its windows, and its
+        // block (tile) size, by which the reader sizes its buffers: a block may outsize a
+        // small image, but not ask for more than the whole part or 1 MiB.
+        let mut windows = None;
+        for header in &meta.headers {
+            let (w, h, region) = part_windows(header.shared_attributes.display_window, header.data_window()).map_err(invalid)?;
+            let part_bytes = region.pixel_count().saturating_mul(header.channels.bytes_per_pixel);
+            if header.deep || header.max_block_byte_size() > part_bytes.max(1 << 20) {
+                return Err(invalid(format!(
+                    "blocks of {} bytes for a part of {part_bytes} bytes: not a part of a render",
+                    header.max_block_byte_size()
+                )));
+            }
+            windows.get_or_insert((w, h, region));
         }
+        let (full_width, full_height, region) = windows.ok_or_else(|| invalid("an OpenEXR file without a header".into()))?;
         let image = read()
             .no_deep_data()
             .largest_resolution_level()
@@ -106,10 +110,10 @@ impl ImagePart {
             .all_attributes()
             .from_buffered(std::io::Cursor::new(bytes))
             .map_err(|e| invalid(format!("not a readable RGB OpenEXR image ({e})")))?;
-        let layer = &image.layer_data;
+        let layer = image.layer_data;
         let data = IntegerBounds::new(layer.attributes.layer_position, layer.size);
         if part_windows(image.attributes.display_window, data) != Ok((full_width, full_height, region)) {
-            return Err(invalid("the first layer's windows differ from the header's".into()));
+            return Err(invalid("its RGB layer is not its first header's (a file of several parts)".into()));
         }
         let settings = layer
             .attributes
@@ -128,7 +132,7 @@ impl ImagePart {
             full_width,
             full_height,
             region,
-            pixels: layer.channel_data.pixels.1.clone(),
+            pixels: layer.channel_data.pixels.1,
             settings,
         })
     }
