@@ -61,9 +61,9 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
         }
         let (film, stats, _) = job.render(scene);
         if stats.interrupted {
+            // An error, so that a farm task (a chunk of frames) does not look done.
             let written = if k == frames.first { "no frame".to_string() } else { format!("frames {} to {}", frames.first, k - 1) };
-            eprintln!("interrupted: {written} written to {}", dir.display());
-            return Ok(());
+            bail!("interrupted: {written} written to {}", dir.display());
         }
         let pixels = film.mean();
         write_image(&dir.join(format!("frame-{k:03}.exr")), w, h, &pixels, job.tone_map, job.args.exposure)?;
@@ -77,8 +77,7 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
             }
             let (film, stats, _) = job.render(scene);
             if stats.interrupted {
-                eprintln!("interrupted: neural frames {} to {k} written to {}", frames.first, dir.display());
-                return Ok(());
+                bail!("interrupted: neural frames {} to {k} written to {}", frames.first, dir.display());
             }
             let table_pixels = film.mean();
             write_image(&dir.join(format!("table-{k:03}.exr")), w, h, &table_pixels, job.tone_map, job.args.exposure)?;
