@@ -93,7 +93,7 @@ fn bad_regions_and_tiles_fail_cleanly() {
 #[test]
 fn an_interrupted_part_is_not_written() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_render"))
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_render"))
         .args([scene().as_str(), "--spp", "100000", "--resolution", "64x64", "--tile", "1/2", "--output", "part.exr"])
         .current_dir(dir.path())
         .stderr(std::process::Stdio::piped())

@@ -45,13 +45,14 @@ impl ImagePart {
             let p = self.pixels[x + y * width];
             (p.x, p.y, p.z)
         });
-        let mut attributes = LayerAttributes::default();
-        attributes.layer_position = Vec2(r.x0 as i32, r.y0 as i32);
-        for (key, value) in &self.settings {
-            attributes
-                .other
-                .insert(Text::from(format!("{SETTING_PREFIX}{key}").as_str()), AttributeValue::Text(Text::from(value.as_str())));
-        }
+        let other = self.settings.iter().map(|(key, value)| {
+            (Text::from(format!("{SETTING_PREFIX}{key}").as_str()), AttributeValue::Text(Text::from(value.as_str())))
+        });
+        let attributes = LayerAttributes {
+            layer_position: Vec2(r.x0 as i32, r.y0 as i32),
+            other: other.collect(),
+            ..LayerAttributes::default()
+        };
         let layer = Layer::new((width, r.height() as usize), attributes, Encoding::FAST_LOSSLESS, channels);
         let display = IntegerBounds::new(Vec2(0, 0), Vec2(self.full_width as usize, self.full_height as usize));
         let image = Image::new(ImageAttributes::new(display), layer);
