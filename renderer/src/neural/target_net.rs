@@ -8,11 +8,13 @@
 //! stored `[d_in][stride]` row-major. The output layer (3 channels) is stored transposed,
 //! `[3][stride]`, and evaluated as dot products.
 //!
-//! Kernels, chosen once per net from the CPU's features: AVX-512F (a chunk of 64 outputs is
-//! four 512-bit accumulators), AVX2 + FMA (two halves of four 256-bit accumulators), and a
-//! portable loop. A single point is latency-bound on the FMA chains, so its kernel keeps two
-//! accumulator sets (even and odd inputs); a batch of [`BATCH`] points shares every weight
-//! load between the points' chains and runs close to the FMA throughput.
+//! Kernels, chosen once per net from the CPU's features: AVX-512F (16 lanes per register),
+//! AVX2 + FMA (8 lanes), and a portable loop. Every output sums its even and its odd inputs
+//! in two chains (a single point is latency-bound on one chain), in the same order whatever
+//! the number of points, so a point's output is the same bits alone and in a batch (what
+//! keeps batched rendering equal to one path at a time). One point takes four registers of
+//! outputs per pass; a batch of [`BATCH`] points two, so that 16 accumulators share every
+//! weight load and the kernel runs close to the FMA throughput.
 
 use crate::neural::mlp::Mlp;
 use crate::{Error, Result};
@@ -85,6 +87,10 @@ pub struct TargetNet {
 #[derive(Clone, Copy)]
 #[repr(C, align(64))]
 struct Activations([f32; MAX_WIDTH]);
+
+impl Activations {
+    const ZERO: Self = Activations([0.0; MAX_WIDTH]);
+}
 
 impl TargetNet {
     /// Packs a decoded MLP (see [`crate::formats::latent_file::LatentFile::decode`]) for the fastest
@@ -179,29 +185,40 @@ impl TargetNet {
     #[inline]
     pub fn forward(&self, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
         let mut out = [[0.0; OUTPUTS]];
-        self.forward_points::<1>(&[x], &mut out);
+        let mut scratch = [[Activations::ZERO; 1]; 2];
+        self.forward_points::<1, { REGISTERS_ONE }>(&[x], &mut out, &mut scratch);
         out[0]
     }
 
     /// The outputs for many inputs (`outputs.len()` must equal `inputs.len()`), [`BATCH`] at
-    /// a time.
+    /// a time. Each output is bit for bit what [`TargetNet::forward`] gives for its input.
     pub fn forward_batch(&self, inputs: &[[f32; INPUTS]], outputs: &mut [[f32; OUTPUTS]]) {
         assert_eq!(inputs.len(), outputs.len(), "one output per input");
         let mut ins = inputs.chunks_exact(BATCH);
         let mut outs = outputs.chunks_exact_mut(BATCH);
+        let mut scratch = [[Activations::ZERO; BATCH]; 2];
         for (x, y) in (&mut ins).zip(&mut outs) {
-            self.forward_points::<BATCH>(x.try_into().expect("a full batch"), y.try_into().expect("a full batch"));
+            self.forward_points::<BATCH, { REGISTERS_BATCH }>(
+                x.try_into().expect("a full batch"),
+                y.try_into().expect("a full batch"),
+                &mut scratch,
+            );
         }
         for (x, y) in ins.remainder().iter().zip(outs.into_remainder()) {
             *y = self.forward(*x);
         }
     }
 
-    /// The forward pass of `B` points through the selected kernel.
+    /// The forward pass of `B` points through the selected kernel, `R` vector registers of
+    /// outputs per point at a time; `scratch` holds the activations (any contents).
     #[inline]
-    fn forward_points<const B: usize>(&self, x: &[[f32; INPUTS]; B], y: &mut [[f32; OUTPUTS]; B]) {
-        let mut a = [Activations([0.0; MAX_WIDTH]); B];
-        let mut b = [Activations([0.0; MAX_WIDTH]); B];
+    fn forward_points<const B: usize, const R: usize>(
+        &self,
+        x: &[[f32; INPUTS]; B],
+        y: &mut [[f32; OUTPUTS]; B],
+        scratch: &mut [[Activations; B]; 2],
+    ) {
+        let [mut a, mut b] = scratch.each_mut();
         for (act, xi) in a.iter_mut().zip(x) {
             act.0[..INPUTS].copy_from_slice(xi);
         }
@@ -209,23 +226,40 @@ impl TargetNet {
             match self.kernel {
                 #[cfg(target_arch = "x86_64")]
                 // SAFETY: the kernel is Avx512 only when the CPU reported AVX-512F.
-                Kernel::Avx512 => unsafe { simd::hidden_avx512::<B>(layer, &a, &mut b) },
+                Kernel::Avx512 => unsafe { simd::hidden_avx512::<B, R>(layer, a, b) },
                 #[cfg(target_arch = "x86_64")]
                 // SAFETY: the kernel is Avx2Fma only when the CPU reported AVX2 and FMA.
-                Kernel::Avx2Fma => unsafe { simd::hidden_avx2::<B>(layer, &a, &mut b) },
-                _ => hidden_portable(layer, &a, &mut b),
+                Kernel::Avx2Fma => unsafe { simd::hidden_avx2::<B, R>(layer, a, b) },
+                _ => hidden_portable(layer, a, b),
             }
             std::mem::swap(&mut a, &mut b);
         }
         let stride = self.hidden.last().expect("a hidden layer").stride;
-        for (act, out) in a.iter().zip(y.iter_mut()) {
-            for (c, o) in out.iter_mut().enumerate() {
-                let w = &self.out_weight[c * stride..(c + 1) * stride];
-                *o = self.out_bias[c] + dot(&act.0[..stride], w);
+        match self.kernel {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above.
+            Kernel::Avx512 => unsafe { simd::output_avx512::<B>(&self.out_weight, &self.out_bias, stride, a, y) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above.
+            Kernel::Avx2Fma => unsafe { simd::output_avx2::<B>(&self.out_weight, &self.out_bias, stride, a, y) },
+            _ => {
+                for (act, out) in a.iter().zip(y.iter_mut()) {
+                    for (c, o) in out.iter_mut().enumerate() {
+                        let w = &self.out_weight[c * stride..(c + 1) * stride];
+                        *o = self.out_bias[c] + dot(&act.0[..stride], w);
+                    }
+                }
             }
         }
     }
 }
+
+/// Output registers per point and pass of the one-point kernel: four chains of even and four
+/// of odd inputs hide most of the FMA latency.
+const REGISTERS_ONE: usize = 4;
+/// Output registers per point and pass of the batched kernel: [`BATCH`] points × 2 registers
+/// × (even, odd) = 16 accumulators, every weight load shared by the points.
+const REGISTERS_BATCH: usize = 2;
 
 /// Dot product with eight partial sums (vectorises on every target).
 #[inline]
@@ -255,82 +289,126 @@ fn hidden_portable<const B: usize>(layer: &HiddenLayer, input: &[Activations; B]
 }
 
 /// The vector kernels: one macro body instantiated for 512- and 256-bit registers.
+///
+/// Every kernel computes each output in one order, whatever the number of points: a chain of
+/// FMAs over the even inputs starting from the bias, a chain over the odd inputs starting
+/// from zero, their sum, then the last input when the width is odd; the output layer is a
+/// chain of FMAs over the activation registers and a fixed horizontal sum. So a point gives
+/// the same bits alone as in a batch.
 #[cfg(target_arch = "x86_64")]
 mod simd {
-    use super::{Activations, HiddenLayer};
+    use super::{Activations, HiddenLayer, OUTPUTS};
     use std::arch::x86_64::*;
 
-    macro_rules! hidden_kernel {
-        ($name:ident, $feature:literal, $vec:ty, $lanes:expr, $load:ident, $store:ident, $set1:ident,
-         $fmadd:ident, $add:ident, $max:ident, $zero:ident) => {
-            /// One hidden layer of `B` points: relu(x · W + b) over the padded width, four
-            /// registers of outputs at a time.
+    macro_rules! kernels {
+        ($hidden:ident, $output:ident, $feature:literal, $vec:ty, $lanes:expr, $load:ident, $store:ident,
+         $set1:ident, $fmadd:ident, $mul:ident, $add:ident, $max:ident, $zero:ident, $hsum:path) => {
+            /// One hidden layer of `B` points: relu(x · W + b) over the padded width, `R`
+            /// registers of outputs at a time (`R` × lanes must divide the stride).
             #[target_feature(enable = $feature)]
-            pub(super) unsafe fn $name<const B: usize>(
+            pub(super) unsafe fn $hidden<const B: usize, const R: usize>(
                 layer: &HiddenLayer,
                 input: &[Activations; B],
                 output: &mut [Activations; B],
             ) {
-                const GROUP: usize = 4 * $lanes;
                 let s = layer.stride;
                 let w = layer.weight.as_ptr();
-                for c in (0..s).step_by(GROUP) {
-                    // SAFETY (all loads and stores below): c + GROUP ≤ stride ≤ MAX_WIDTH,
+                let pairs = layer.d_in / 2;
+                for c in (0..s).step_by(R * $lanes) {
+                    // SAFETY (all loads and stores below): c + R·lanes ≤ stride ≤ MAX_WIDTH,
                     // rows i < d_in of `stride` floats lie inside `weight`.
-                    let mut bias: [$vec; 4] = [$zero(); 4];
-                    for g in 0..4 {
+                    let mut bias: [$vec; R] = [$zero(); R];
+                    for g in 0..R {
                         bias[g] = unsafe { $load(layer.bias.as_ptr().add(c + g * $lanes)) };
                     }
-                    let mut acc = [bias; B];
-                    let mut i = 0;
-                    if B <= 2 {
-                        // Too few independent chains to hide the FMA latency: a second set
-                        // takes the odd inputs.
-                        let mut odd = [[$zero(); 4]; B];
-                        while i + 1 < layer.d_in {
-                            let r0 = unsafe { w.add(i * s + c) };
-                            let r1 = unsafe { r0.add(s) };
-                            for p in 0..B {
-                                let x0 = $set1(input[p].0[i]);
-                                let x1 = $set1(input[p].0[i + 1]);
-                                for g in 0..4 {
-                                    acc[p][g] = $fmadd(x0, unsafe { $load(r0.add(g * $lanes)) }, acc[p][g]);
-                                    odd[p][g] = $fmadd(x1, unsafe { $load(r1.add(g * $lanes)) }, odd[p][g]);
-                                }
-                            }
-                            i += 2;
+                    let mut even = [bias; B];
+                    let mut odd = [[$zero(); R]; B];
+                    for k in 0..pairs {
+                        let r0 = unsafe { w.add(2 * k * s + c) };
+                        let r1 = unsafe { r0.add(s) };
+                        let mut w0: [$vec; R] = [$zero(); R];
+                        let mut w1: [$vec; R] = [$zero(); R];
+                        for g in 0..R {
+                            w0[g] = unsafe { $load(r0.add(g * $lanes)) };
+                            w1[g] = unsafe { $load(r1.add(g * $lanes)) };
                         }
                         for p in 0..B {
-                            for g in 0..4 {
-                                acc[p][g] = $add(acc[p][g], odd[p][g]);
+                            let x0 = $set1(input[p].0[2 * k]);
+                            let x1 = $set1(input[p].0[2 * k + 1]);
+                            for g in 0..R {
+                                even[p][g] = $fmadd(x0, w0[g], even[p][g]);
+                                odd[p][g] = $fmadd(x1, w1[g], odd[p][g]);
                             }
                         }
                     }
-                    while i < layer.d_in {
+                    for p in 0..B {
+                        for g in 0..R {
+                            even[p][g] = $add(even[p][g], odd[p][g]);
+                        }
+                    }
+                    if layer.d_in % 2 == 1 {
+                        let i = layer.d_in - 1;
                         let r0 = unsafe { w.add(i * s + c) };
                         for p in 0..B {
                             let x0 = $set1(input[p].0[i]);
-                            for g in 0..4 {
-                                acc[p][g] = $fmadd(x0, unsafe { $load(r0.add(g * $lanes)) }, acc[p][g]);
+                            for g in 0..R {
+                                even[p][g] = $fmadd(x0, unsafe { $load(r0.add(g * $lanes)) }, even[p][g]);
                             }
                         }
-                        i += 1;
                     }
                     for p in 0..B {
-                        for g in 0..4 {
-                            let v = $max(acc[p][g], $zero());
+                        for g in 0..R {
+                            let v = $max(even[p][g], $zero());
                             unsafe { $store(output[p].0.as_mut_ptr().add(c + g * $lanes), v) };
                         }
+                    }
+                }
+            }
+
+            /// The linear output layer of `B` points: `weight` is `[OUTPUTS][stride]`.
+            #[target_feature(enable = $feature)]
+            pub(super) unsafe fn $output<const B: usize>(
+                weight: &[f32],
+                bias: &[f32; OUTPUTS],
+                stride: usize,
+                input: &[Activations; B],
+                output: &mut [[f32; OUTPUTS]; B],
+            ) {
+                assert!(weight.len() >= OUTPUTS * stride && stride % $lanes == 0 && stride > 0);
+                for p in 0..B {
+                    let x = input[p].0.as_ptr();
+                    for c in 0..OUTPUTS {
+                        // SAFETY: rows of `stride` floats, checked above; stride ≤ MAX_WIDTH.
+                        let row = unsafe { weight.as_ptr().add(c * stride) };
+                        let mut acc = $mul(unsafe { $load(x) }, unsafe { $load(row) });
+                        for g in (($lanes)..stride).step_by($lanes) {
+                            acc = $fmadd(unsafe { $load(x.add(g)) }, unsafe { $load(row.add(g)) }, acc);
+                        }
+                        output[p][c] = bias[c] + unsafe { $hsum(acc) };
                     }
                 }
             }
         };
     }
 
-    hidden_kernel!(hidden_avx512, "avx512f", __m512, 16, _mm512_loadu_ps, _mm512_storeu_ps, _mm512_set1_ps,
-        _mm512_fmadd_ps, _mm512_add_ps, _mm512_max_ps, _mm512_setzero_ps);
-    hidden_kernel!(hidden_avx2, "avx2,fma", __m256, 8, _mm256_loadu_ps, _mm256_storeu_ps, _mm256_set1_ps,
-        _mm256_fmadd_ps, _mm256_add_ps, _mm256_max_ps, _mm256_setzero_ps);
+    /// Sum of the lanes of a 512-bit register (a fixed tree of additions).
+    #[target_feature(enable = "avx512f")]
+    unsafe fn hsum512(v: __m512) -> f32 {
+        _mm512_reduce_add_ps(v)
+    }
+
+    /// Sum of the lanes of a 256-bit register (a fixed tree of additions).
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn hsum256(v: __m256) -> f32 {
+        let quad = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps::<1>(v));
+        let pair = _mm_add_ps(quad, _mm_movehl_ps(quad, quad));
+        _mm_cvtss_f32(_mm_add_ss(pair, _mm_shuffle_ps::<0b01>(pair, pair)))
+    }
+
+    kernels!(hidden_avx512, output_avx512, "avx512f", __m512, 16, _mm512_loadu_ps, _mm512_storeu_ps,
+        _mm512_set1_ps, _mm512_fmadd_ps, _mm512_mul_ps, _mm512_add_ps, _mm512_max_ps, _mm512_setzero_ps, hsum512);
+    kernels!(hidden_avx2, output_avx2, "avx2,fma", __m256, 8, _mm256_loadu_ps, _mm256_storeu_ps,
+        _mm256_set1_ps, _mm256_fmadd_ps, _mm256_mul_ps, _mm256_add_ps, _mm256_max_ps, _mm256_setzero_ps, hsum256);
 }
 
 #[cfg(test)]
@@ -380,6 +458,25 @@ pub(crate) mod tests {
                         assert!((y[c] - want[c]).abs() < tol, "{kernel:?} {widths:?}: {y:?} vs {want:?}");
                         assert!((yb[c] - want[c]).abs() < tol, "{kernel:?} batch: {yb:?} vs {want:?}");
                     }
+                }
+            }
+        }
+    }
+
+    /// Batched rendering must equal one path at a time: a point's output is the same bits
+    /// in a batch as alone, for every kernel, odd and even widths, full batches and the rest.
+    #[test]
+    fn batches_equal_single_points_bit_for_bit() {
+        for widths in [&[6, 60, 60, 60, 60, 3][..], &[6, 65, 33, 3], &[6, 7, 3]] {
+            let mlp = random_mlp(widths, 5);
+            for kernel in [Kernel::Avx512, Kernel::Avx2Fma, Kernel::Portable] {
+                let net = TargetNet::with_kernel(&mlp, kernel).unwrap();
+                let inputs = random_inputs(4 * BATCH + 3);
+                let mut batch = vec![[0.0; OUTPUTS]; inputs.len()];
+                net.forward_batch(&inputs, &mut batch);
+                for (x, yb) in inputs.iter().zip(&batch) {
+                    let y = net.forward(*x);
+                    assert_eq!(y.map(f32::to_bits), yb.map(f32::to_bits), "{kernel:?} {widths:?}");
                 }
             }
         }
