@@ -84,7 +84,7 @@ pub struct RenderStats {
 
 /// The buffers of a tile's batch of paths, reused from tile to tile by a worker thread.
 #[derive(Default)]
-struct TileScratch {
+struct TileScratch<'s> {
     paths: Vec<PathState>,
     /// Sample index (within the tile's pass) of each path.
     owners: Vec<u32>,
@@ -95,7 +95,7 @@ struct TileScratch {
     /// The shadow tests of the current vertex and the paths that go on after it.
     step: StepResults,
     blocked: Vec<bool>,
-    buffers: BatchBuffers,
+    buffers: BatchBuffers<'s>,
     radiance: Vec<Rgb>,
 }
 
@@ -107,7 +107,7 @@ pub struct Renderer<'a> {
     pub seed: u64,
 }
 
-impl Renderer<'_> {
+impl<'a> Renderer<'a> {
     /// Adds samples `first_sample .. first_sample + count` to every pixel of `film`.
     /// Tiles not yet started when `cancel` becomes true are skipped; `progress` is called
     /// with the number of samples of each finished tile.
@@ -157,7 +157,7 @@ impl Renderer<'_> {
     /// Neighbouring iterations are independent paths, which the CPU overlaps, where one path
     /// alone is a chain of dependent latencies. Each path consumes its random stream exactly
     /// as [`PathTracer::radiance`] does, so the image is the same.
-    fn render_tile(&self, scratch: &mut TileScratch, tiles: Tiles, tile: u32, samples: Range<u32>) -> (Vec<PixelAccumulator>, PassCounters) {
+    fn render_tile(&self, scratch: &mut TileScratch<'a>, tiles: Tiles, tile: u32, samples: Range<u32>) -> (Vec<PixelAccumulator>, PassCounters) {
         let (first_sample, count) = (samples.start, samples.len() as u32);
         let w = tiles.full_width;
         let (x0, y0, x1, y1) = tiles.bounds(tile);
@@ -378,18 +378,27 @@ mod tests {
     #[test]
     fn batched_tiles_equal_paths_traced_one_by_one() {
         let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/");
+        // The material-preview's sphere is metallic-roughness without a latent file and the
+        // decoded neural material (whose net evaluations are batched) with the shipped one.
+        let no_latents = crate::neural::latent_library::LatentLibrary::default();
+        let shipped = crate::testing::data::shipped_latents();
         let cases = [
-            ("cornell-box", 8, Strategy::Mis),
-            ("cornell-box", 1, Strategy::Mis),
-            ("cornell-box", 6, Strategy::LightOnly),
-            ("cornell-box", 6, Strategy::BsdfOnly),
-            ("material-preview", 6, Strategy::Mis),
-            ("material-preview", 4, Strategy::LightOnly),
+            ("cornell-box", 8, Strategy::Mis, &no_latents),
+            ("cornell-box", 1, Strategy::Mis, &no_latents),
+            ("cornell-box", 6, Strategy::LightOnly, &no_latents),
+            ("cornell-box", 6, Strategy::BsdfOnly, &no_latents),
+            ("material-preview", 6, Strategy::Mis, &no_latents),
+            ("material-preview", 4, Strategy::LightOnly, &no_latents),
+            ("material-preview", 6, Strategy::Mis, shipped),
+            ("material-preview", 5, Strategy::LightOnly, shipped),
+            ("material-preview", 5, Strategy::BsdfOnly, shipped),
         ];
-        for (name, max_depth, strategy) in cases {
+        for (name, max_depth, strategy, latents) in cases {
             let description = SceneDescription::load(format!("{root}{name}/scene.gltf").as_ref()).expect("shipped scene");
             let camera = description.camera(None).expect("camera").clone();
-            let scene = RenderScene::new(description).expect("scene");
+            let scene = RenderScene::with_latents(description, latents).expect("scene");
+            let neural = !std::ptr::eq(latents, &no_latents);
+            assert_eq!(scene.materials.neural_slots().len(), neural as usize, "{name}: the sphere's neural binding");
             // 20 × 18: partial tiles at the right and bottom edges.
             let (w, h, spp) = (20, 18, 3);
             let renderer = Renderer {
@@ -418,7 +427,7 @@ mod tests {
                     expected.push(Rgb::new((acc.sum[0] * k) as f32, (acc.sum[1] * k) as f32, (acc.sum[2] * k) as f32));
                 }
             }
-            assert_eq!(film.mean(), expected, "{name}, depth {max_depth}, {strategy:?}");
+            assert_eq!(film.mean(), expected, "{name}, depth {max_depth}, {strategy:?}, neural {neural}");
             assert_eq!(stats.rays, counters.rays + counters.shadow_rays, "{name}");
             assert!(expected.iter().any(|l| l.max_element() > 0.0), "{name}: the image is not black");
         }

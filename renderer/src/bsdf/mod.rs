@@ -64,6 +64,22 @@ pub trait Bxdf {
     }
 }
 
+/// BSDFs whose values are cheaper computed many at a time (a network's forward pass shares
+/// every weight load between points). [`BatchEval::prepare`] does a point's work that needs
+/// no batch; [`BatchEval::eval_prepared`] evaluates many prepared points at once. Together they
+/// give exactly [`Bxdf::eval`], bit for bit.
+pub trait BatchEval: Bxdf {
+    /// A point ready for evaluation.
+    type Prepared: Copy;
+
+    /// Prepares f_r(wo, wi); `None` where it is zero without evaluation (below either
+    /// horizon).
+    fn prepare(&self, wo: Vec3, wi: Vec3) -> Option<Self::Prepared>;
+
+    /// f_r (1/sr) of each prepared point into `values` (of the same length).
+    fn eval_prepared(&self, points: &[Self::Prepared], values: &mut [Rgb]);
+}
+
 /// A BSDF at one shading point: the enum the integrator dispatches on. The BSDFs made from
 /// data are shared by the scene (they live as long as it does) and taken by reference.
 #[derive(Clone, Copy, Debug)]

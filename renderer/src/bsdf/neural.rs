@@ -9,10 +9,11 @@
 //! to the decoded BSDF at construction, with an exact pdf.
 
 use super::tabulated_sampling::{TabulatedBrdf, TabulatedSampler, TabulatedSamplerConfig};
+use super::BatchEval;
 
 use crate::neural::mapping::MappingForm;
 use crate::neural::mlp::Mlp;
-use crate::neural::target_net::TargetNet;
+use crate::neural::target_net::{TargetNet, INPUTS, OUTPUTS};
 use crate::Result;
 use crate::Rgb;
 use glam::Vec3;
@@ -121,8 +122,23 @@ fn eval_decoded(
         return (Rgb::ZERO, false);
     }
     let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles(wi, wo);
-    let y = net.forward(x);
-    let f_ref = crate::formats::merl::lookup_trilinear_measured(reference, theta_h, theta_d, phi_d).unwrap_or([0.0; 3]);
+    let (idx, w) = crate::formats::merl::trilinear_corners(theta_h, theta_d, phi_d);
+    map_back(reference, mapping, epsilon, &idx, &w, net.forward(x))
+}
+
+/// f_r in 1/sr from the net's output `y` and whether a channel was clamped: f_ref looked up
+/// at the trilinear corners `idx` with weights `w` of the point's (θh, θd, φd) (φd folded),
+/// the mapping inverted, the value capped.
+#[inline]
+fn map_back(
+    reference: &[[f32; 3]],
+    mapping: MappingForm,
+    epsilon: f32,
+    idx: &[usize; 8],
+    w: &[f32; 8],
+    y: [f32; 3],
+) -> (Rgb, bool) {
+    let f_ref = crate::formats::merl::weigh_measured_corners(reference, idx, w).unwrap_or([0.0; 3]);
     let mut clamped = false;
     let f = [0, 1, 2].map(|c| {
         let v = mapping.inverse(y[c].min(MAX_LOG_VALUE), f_ref[c], epsilon);
@@ -136,13 +152,60 @@ fn eval_decoded(
     (Rgb::from_array(f), clamped)
 }
 
+/// One evaluation of a decoded net prepared without the net ([`BatchEval`]): its input and
+/// the corners and weights at which f_ref is looked up (whose entries are already being
+/// fetched).
+#[derive(Clone, Copy, Debug)]
+pub struct NetPoint {
+    x: [f32; INPUTS],
+    corners: [usize; 8],
+    weights: [f32; 8],
+}
+
+impl NeuralBsdf {
+    /// Counts an evaluation that clamped a channel.
+    #[inline]
+    fn count_clamped(&self) {
+        let slot = rayon::current_thread_index().unwrap_or(0) % COUNTER_SLOTS;
+        self.clamped[slot].0.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+impl BatchEval for NeuralBsdf {
+    type Prepared = NetPoint;
+
+    #[inline]
+    fn prepare(&self, wo: Vec3, wi: Vec3) -> Option<NetPoint> {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return None;
+        }
+        let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles(wi, wo);
+        let (corners, weights) = crate::formats::merl::trilinear_corners(theta_h, theta_d, phi_d);
+        crate::formats::merl::prefetch_corners(&self.reference, &corners);
+        Some(NetPoint { x, corners, weights })
+    }
+
+    fn eval_prepared(&self, points: &[NetPoint], values: &mut [Rgb]) {
+        assert_eq!(points.len(), values.len(), "one value per point");
+        let inputs: Vec<[f32; INPUTS]> = points.iter().map(|p| p.x).collect();
+        let mut outputs = vec![[0.0; OUTPUTS]; points.len()];
+        self.net.forward_batch(&inputs, &mut outputs);
+        for ((point, y), value) in points.iter().zip(&outputs).zip(values) {
+            let (f, clamped) = map_back(&self.reference, self.mapping, self.epsilon, &point.corners, &point.weights, *y);
+            if clamped {
+                self.count_clamped();
+            }
+            *value = f;
+        }
+    }
+}
+
 impl TabulatedBrdf for NeuralBsdf {
     #[inline]
     fn value(&self, wo: Vec3, wi: Vec3) -> Rgb {
         let (f, clamped) = eval_decoded(&self.net, &self.reference, self.mapping, self.epsilon, wo, wi);
         if clamped {
-            let slot = rayon::current_thread_index().unwrap_or(0) % COUNTER_SLOTS;
-            self.clamped[slot].0.fetch_add(1, Ordering::Relaxed);
+            self.count_clamped();
         }
         f
     }

@@ -63,10 +63,8 @@ impl<T: TabulatedBrdf> Bxdf for T {
     }
 
     fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
-        let sampler = self.sampler();
-        let wi = sampler.sample(wo, u, uc)?;
-        let pdf = sampler.pdf(wo, wi);
-        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample { wi, f: self.value(wo, wi), pdf })
+        let (wi, pdf) = self.sampler().sample_with_pdf(wo, u, uc)?;
+        Some(BsdfSample { wi, f: self.value(wo, wi), pdf })
     }
 }
 
@@ -363,6 +361,15 @@ impl TabulatedSampler {
         }
         let (lobe, _) = self.choose(wo, uc);
         self.sample_lobe(wo, lobe, u)
+    }
+
+    /// [`Self::sample`] with its density [`Self::pdf`]; `None` also where the density is not
+    /// positive and finite. What [`Bxdf::sample`] of a [`TabulatedBrdf`] draws.
+    #[inline]
+    pub fn sample_with_pdf(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<(Vec3, f32)> {
+        let wi = self.sample(wo, u, uc)?;
+        let pdf = self.pdf(wo, wi);
+        (pdf > 0.0 && pdf.is_finite()).then_some((wi, pdf))
     }
 
     /// As [`Self::sample`] from one 2D sample: `u.x` picks the lobe, and what is left of it

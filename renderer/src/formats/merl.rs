@@ -152,9 +152,15 @@ pub fn trilinear_corners(theta_h: f32, theta_d: f32, phi_d: f32) -> ([usize; 8],
 #[inline]
 pub fn lookup_trilinear_measured(values: &[[f32; 3]], theta_h: f32, theta_d: f32, phi_d: f32) -> Option<[f32; 3]> {
     let (idx, w) = trilinear_corners(theta_h, theta_d, phi_d);
+    weigh_measured_corners(values, &idx, &w)
+}
+
+/// [`lookup_trilinear_measured`] at the corners and weights [`trilinear_corners`] found.
+#[inline]
+pub fn weigh_measured_corners(values: &[[f32; 3]], idx: &[usize; 8], w: &[f32; 8]) -> Option<[f32; 3]> {
     let mut acc = [0f32; 3];
     let mut wsum = 0f32;
-    for (&i, &wk) in idx.iter().zip(&w) {
+    for (&i, &wk) in idx.iter().zip(w) {
         let v = values[i];
         if wk > 0.0 && v[0] >= 0.0 && v[1] >= 0.0 && v[2] >= 0.0 {
             for c in 0..3 {
@@ -164,6 +170,23 @@ pub fn lookup_trilinear_measured(values: &[[f32; 3]], theta_h: f32, theta_d: f32
         }
     }
     (wsum > 0.0).then(|| acc.map(|a| a / wsum))
+}
+
+/// Starts fetching into the cache the entries of `values` at the corners `idx` (of
+/// [`trilinear_corners`]), so that look-ups of many points issued after their prefetches
+/// overlap their memory latencies. No effect on values; a no-op where the CPU has no prefetch
+/// hint.
+#[inline]
+pub fn prefetch_corners(values: &[[f32; 3]], idx: &[usize; 8]) {
+    #[cfg(target_arch = "x86_64")]
+    for &i in idx {
+        if let Some(v) = values.get(i) {
+            // SAFETY: a prefetch of an address inside `values`; it never faults.
+            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(v.as_ptr().cast()) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (values, idx);
 }
 
 /// A MERL table in memory: the raw values exactly as in the file (so write → read is exact).

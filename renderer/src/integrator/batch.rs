@@ -1,10 +1,14 @@
 //! [`PathTracer::step`] for a batch of paths: the vertices are begun one by one, the common
 //! diffuse-surface-lit-by-a-triangle ones scattered [`LANES`] at a time
-//! ([`DiffuseLanes`]), the others one by one, and all advanced in the batch's order.
+//! ([`DiffuseLanes`]), those on decoded neural materials with every net evaluation of the
+//! chunk batched ([`DeferredScatter`]), the others one by one, and all advanced in the
+//! batch's order.
 
+use super::deferred::DeferredScatter;
 use super::diffuse_lanes::{DiffuseLanes, DiffuseScattered};
 use super::{PathState, PathTracer, Scattered, ShadowTest, Strategy};
 use crate::accel::Hit;
+use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::Bsdf;
 use crate::lanes::LANES;
 use crate::render_scene::RenderScene;
@@ -22,16 +26,20 @@ enum Outcome {
     Alone(u32),
     /// Scattered in lanes: group (index into [`BatchBuffers::groups`]) and lane.
     Lane(u32, u32),
+    /// Scattered with batched evaluations: index into [`BatchBuffers::deferred_scattered`].
+    Deferred(u32),
 }
 
-/// Reusable buffers of [`PathTracer::step_batch`].
+/// Reusable buffers of [`PathTracer::step_batch`] for the scene `'s`.
 #[derive(Default)]
-pub struct BatchBuffers {
+pub struct BatchBuffers<'s> {
     /// Per vertex of the chunk: its outcome and position.
     outcomes: Vec<(Outcome, Vec3)>,
     scattered: Vec<Scattered>,
     lanes: DiffuseLanes,
     groups: Vec<DiffuseScattered>,
+    neural: DeferredScatter<'s, NeuralBsdf>,
+    deferred_scattered: Vec<Scattered>,
 }
 
 /// What one batch step produces, both in the order of the active paths: the shadow tests
@@ -45,13 +53,13 @@ pub struct StepResults {
 impl PathTracer {
     /// Steps paths `active` (indices into `paths`) whose rays found `hits` (in the same
     /// order), as [`Self::step`] would one by one, replacing `results`.
-    pub fn step_batch(
+    pub fn step_batch<'s>(
         &self,
-        scene: &RenderScene,
+        scene: &'s RenderScene,
         paths: &mut [PathState],
         active: &[u32],
         hits: &[Option<Hit>],
-        buffers: &mut BatchBuffers,
+        buffers: &mut BatchBuffers<'s>,
         results: &mut StepResults,
     ) {
         let StepResults { shadows, next } = results;
@@ -64,12 +72,15 @@ impl PathTracer {
             scattered,
             lanes,
             groups,
+            neural,
+            deferred_scattered,
         } = buffers;
         groups.resize_with(CHUNK.div_ceil(LANES), DiffuseScattered::default);
         for (chunk, chunk_hits) in active.chunks(CHUNK).zip(hits.chunks(CHUNK)) {
             outcomes.clear();
             scattered.clear();
             lanes.clear();
+            neural.clear();
             let mut group = 0;
             for (&i, &hit) in chunk.iter().zip(chunk_hits) {
                 let path = &mut paths[i as usize];
@@ -91,6 +102,9 @@ impl PathTracer {
                         lanes.clear();
                         group += 1;
                     }
+                } else if let Bsdf::Neural(bsdf) = v.bsdf {
+                    outcomes.push((Outcome::Deferred(neural.len() as u32), v.sp.p));
+                    neural.push(self, scene, &v, bsdf, path.beta);
                 } else {
                     outcomes.push((Outcome::Alone(scattered.len() as u32), v.sp.p));
                     scattered.push(self.scatter(scene, &v, path.beta));
@@ -99,11 +113,13 @@ impl PathTracer {
             if lanes.len() > 0 {
                 lanes.scatter(light_only, &mut groups[group as usize]);
             }
+            neural.scatter(self, deferred_scattered);
             for (&i, &(outcome, p)) in chunk.iter().zip(outcomes.iter()) {
                 let s = match outcome {
                     Outcome::Ended => continue,
                     Outcome::Alone(k) => scattered[k as usize],
                     Outcome::Lane(g, lane) => groups[g as usize].get(lane as usize),
+                    Outcome::Deferred(k) => deferred_scattered[k as usize],
                 };
                 if let Some(test) = s.shadow {
                     shadows.push((i, test));

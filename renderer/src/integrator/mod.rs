@@ -6,6 +6,7 @@
 //! lighting, and −1 is unlimited (Russian roulette ends paths).
 
 mod batch;
+mod deferred;
 mod diffuse_lanes;
 
 pub use batch::{BatchBuffers, StepResults};
@@ -227,26 +228,39 @@ impl PathTracer {
     #[inline(always)]
     fn scatter(&self, scene: &RenderScene, vertex: &Vertex, beta: Rgb) -> Scattered {
         let Vertex { sp, bsdf, wo, u, uc, .. } = *vertex;
-        let light = vertex
-            .light
-            .and_then(|(index, select_pdf)| scene.lights.sample_chosen(index, select_pdf, sp.p, vertex.u_light));
-        let shadow = light
-            .filter(|l| l.is_delta || self.strategy != Strategy::BsdfOnly)
+        let shadow = self
+            .light_sample(scene, vertex)
             .and_then(|ls| self.light_term(&bsdf, &sp, wo, beta, &ls));
         let next = bsdf.sample(wo, u, uc).and_then(|bs| continuation(&sp, &bs, beta));
         Scattered { shadow, next }
     }
 
+    /// The sample of the vertex's chosen light that next-event estimation uses (none for
+    /// area lights and the environment when rendering by BSDF sampling only).
+    #[inline(always)]
+    fn light_sample(&self, scene: &RenderScene, vertex: &Vertex) -> Option<LightSample> {
+        vertex
+            .light
+            .and_then(|(index, select_pdf)| scene.lights.sample_chosen(index, select_pdf, vertex.sp.p, vertex.u_light))
+            .filter(|l| l.is_delta || self.strategy != Strategy::BsdfOnly)
+    }
+
     /// Next-event estimation: the shadow test of light sample `ls` at `sp`, `None` where it
-    /// cannot contribute (also where a NaN makes a test fail, hence the negated comparisons).
+    /// cannot contribute.
+    #[inline(always)]
+    fn light_term<B: Bxdf>(&self, bsdf: &B, sp: &SurfacePoint, wo: Vec3, beta: Rgb, ls: &LightSample) -> Option<ShadowTest> {
+        let wi = light_direction(sp, ls)?;
+        let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
+        self.light_contribution(sp, beta, ls, wi, f, bsdf_pdf)
+    }
+
+    /// The shadow test of light sample `ls` arriving from `wi` (local frame) at `sp`, where
+    /// the BSDF's value is `f` (1/sr) and its density of sampling `wi` `bsdf_pdf`; `None` where
+    /// it cannot contribute (also where a NaN makes a test fail, hence the negated
+    /// comparisons).
     #[inline(always)]
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    fn light_term<B: Bxdf>(&self, bsdf: &B, sp: &SurfacePoint, wo: Vec3, beta: Rgb, ls: &LightSample) -> Option<ShadowTest> {
-        if !(ls.direction.dot(sp.ng_facing) > 0.0) {
-            return None;
-        }
-        let wi = sp.frame.to_local(ls.direction);
-        let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
+    fn light_contribution(&self, sp: &SurfacePoint, beta: Rgb, ls: &LightSample, wi: Vec3, f: Rgb, bsdf_pdf: f32) -> Option<ShadowTest> {
         if !(wi.z > 0.0 && f.max_element() > 0.0) {
             return None;
         }
@@ -305,6 +319,14 @@ impl PathTracer {
         *sampler = path.sampler;
         path.l
     }
+}
+
+/// The direction of light sample `ls` in the local frame of `sp`, `None` where it leaves
+/// below the geometric surface (also where a NaN makes the test fail).
+#[inline(always)]
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+fn light_direction(sp: &SurfacePoint, ls: &LightSample) -> Option<Vec3> {
+    (ls.direction.dot(sp.ng_facing) > 0.0).then(|| sp.frame.to_local(ls.direction))
 }
 
 /// The continuation of BSDF sample `bs` at `sp` for a path of throughput `beta`; `None` where
