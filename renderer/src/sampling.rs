@@ -100,9 +100,18 @@ pub struct Distribution1D {
     func: Vec<f32>,
     /// Normalised CDF, `func.len() + 1` entries from 0 to 1.
     cdf: Vec<f32>,
+    /// Guide table of the search (the cutpoint method), for more than [`SCAN_CELLS`] cells:
+    /// `guide[k]` = number of CDF entries ≤ k / K for k = 0 … K, K = `guide.len() − 1` a power
+    /// of two near an eighth of the cells (a search then spans a cache line or two of the CDF
+    /// and the table stays small), so the entries ≤ u lie below `guide[k + 1]` and include
+    /// the first `guide[k]` for u in [k / K, (k + 1) / K) (exact in f32: K is a power of two).
+    guide: Vec<u32>,
     /// Integral of `func` over [0, 1).
     integral: f32,
 }
+
+/// Distributions of at most this many cells are searched by counting, without branches.
+const SCAN_CELLS: usize = 16;
 
 impl Distribution1D {
     /// Builds the distribution. Negative or non-finite weights count as zero; when all
@@ -132,9 +141,16 @@ impl Distribution1D {
             }
         }
         cdf[n] = 1.0;
+        let guide = if n > SCAN_CELLS {
+            let k = (n / 8).next_power_of_two();
+            (0..=k).map(|j| cdf.partition_point(|&c| c <= j as f32 / k as f32) as u32).collect()
+        } else {
+            Vec::new()
+        };
         Distribution1D {
             func,
             cdf,
+            guide,
             integral,
         }
     }
@@ -198,12 +214,20 @@ impl Distribution1D {
     #[inline]
     fn find_cell(&self, u: f32) -> usize {
         // Last index with cdf[i] <= u, skipping zero-mass cells. A few cells (a scene's
-        // lights) are counted without branches; many are searched.
+        // lights) are counted without branches; many are searched between the guide table's
+        // bounds (the same index as a search of the whole CDF).
         let n = self.func.len();
-        let at_most_u = if n <= 16 {
+        let at_most_u = if n <= SCAN_CELLS {
             self.cdf.iter().map(|&c| (c <= u) as usize).sum()
         } else {
-            self.cdf.partition_point(|&c| c <= u)
+            let k = self.guide.len() - 1;
+            let j = ((u * k as f32).max(0.0) as usize).min(k - 1);
+            let (lo, hi) = (self.guide[j] as usize, self.guide[j + 1] as usize);
+            if u < 1.0 && u >= 0.0 {
+                lo + self.cdf[lo..hi].partition_point(|&c| c <= u)
+            } else {
+                self.cdf.partition_point(|&c| c <= u)
+            }
         };
         let mut i = at_most_u.saturating_sub(1).min(n - 1);
         if self.pdf_cell(i) > 0.0 {
@@ -296,6 +320,43 @@ mod tests {
         assert_eq!(counts[3], 0);
         assert!((counts[2] as f32 / counts[1] as f32 - 3.0).abs() < 0.01);
         assert!((d.pdf_continuous(0.6) - 3.0).abs() < 1e-5);
+    }
+
+    /// The guide table only narrows the search: every u finds the cell a search of the whole
+    /// CDF finds, on spiky weights with runs of empty cells, at cell boundaries and at the
+    /// ends of [0, 1).
+    #[test]
+    fn guided_search_finds_the_cell_of_a_full_search() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(3);
+        for n in [17usize, 100, 1000, 4097] {
+            let weights: Vec<f32> = (0..n)
+                .map(|i| match i % 7 {
+                    0 | 1 => 0.0,
+                    2 => rng.random_range(0.0..1e-6),
+                    3 => rng.random_range(0.0..1e4),
+                    _ => rng.random_range(0.0..1.0),
+                })
+                .collect();
+            let d = Distribution1D::new(&weights);
+            let full = |u: f32| {
+                let mut i = d.cdf.partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
+                while i > 0 && d.pdf_cell(i) == 0.0 {
+                    i -= 1;
+                }
+                while i + 1 < n && d.pdf_cell(i) == 0.0 {
+                    i += 1;
+                }
+                i
+            };
+            let us = (0..20_000)
+                .map(|_| rng.random::<f32>())
+                .chain(d.cdf.iter().flat_map(|&c| [c, f32::from_bits(c.to_bits().saturating_sub(1)), c.next_up()]))
+                .chain([0.0, ONE_MINUS_EPSILON, 1.0, -0.0, f32::NAN]);
+            for u in us {
+                assert_eq!(d.find_cell(u), full(u), "n {n}, u {u:e}");
+            }
+        }
     }
 
     #[test]
