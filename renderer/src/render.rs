@@ -378,27 +378,43 @@ mod tests {
     #[test]
     fn batched_tiles_equal_paths_traced_one_by_one() {
         let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/");
-        // The material-preview's sphere is metallic-roughness without a latent file and the
-        // decoded neural material (whose net evaluations are batched) with the shipped one.
-        let no_latents = crate::neural::latent_library::LatentLibrary::default();
-        let shipped = crate::testing::data::shipped_latents();
+        // The material-preview's sphere: metallic-roughness without a latent file, the decoded
+        // neural material with the shipped one, or its slot given a MERL table (both of which
+        // are scattered with their values evaluated together).
+        #[derive(Clone, Copy, Debug, PartialEq)]
+        enum Sphere {
+            Gltf,
+            Neural,
+            Merl,
+        }
         let cases = [
-            ("cornell-box", 8, Strategy::Mis, &no_latents),
-            ("cornell-box", 1, Strategy::Mis, &no_latents),
-            ("cornell-box", 6, Strategy::LightOnly, &no_latents),
-            ("cornell-box", 6, Strategy::BsdfOnly, &no_latents),
-            ("material-preview", 6, Strategy::Mis, &no_latents),
-            ("material-preview", 4, Strategy::LightOnly, &no_latents),
-            ("material-preview", 6, Strategy::Mis, shipped),
-            ("material-preview", 5, Strategy::LightOnly, shipped),
-            ("material-preview", 5, Strategy::BsdfOnly, shipped),
+            ("cornell-box", 8, Strategy::Mis, Sphere::Gltf),
+            ("cornell-box", 1, Strategy::Mis, Sphere::Gltf),
+            ("cornell-box", 6, Strategy::LightOnly, Sphere::Gltf),
+            ("cornell-box", 6, Strategy::BsdfOnly, Sphere::Gltf),
+            ("material-preview", 6, Strategy::Mis, Sphere::Gltf),
+            ("material-preview", 4, Strategy::LightOnly, Sphere::Gltf),
+            ("material-preview", 6, Strategy::Mis, Sphere::Neural),
+            ("material-preview", 5, Strategy::LightOnly, Sphere::Neural),
+            ("material-preview", 5, Strategy::BsdfOnly, Sphere::Neural),
+            ("material-preview", 6, Strategy::Mis, Sphere::Merl),
+            ("material-preview", 5, Strategy::BsdfOnly, Sphere::Merl),
         ];
-        for (name, max_depth, strategy, latents) in cases {
+        for (name, max_depth, strategy, sphere) in cases {
             let description = SceneDescription::load(format!("{root}{name}/scene.gltf").as_ref()).expect("shipped scene");
             let camera = description.camera(None).expect("camera").clone();
-            let scene = RenderScene::with_latents(description, latents).expect("scene");
-            let neural = !std::ptr::eq(latents, &no_latents);
-            assert_eq!(scene.materials.neural_slots().len(), neural as usize, "{name}: the sphere's neural binding");
+            let latents = match sphere {
+                Sphere::Gltf => &crate::neural::latent_library::LatentLibrary::default(),
+                _ => crate::testing::data::shipped_latents(),
+            };
+            let mut scene = RenderScene::with_latents(description, latents).expect("scene");
+            let slots = scene.materials.neural_slots();
+            assert_eq!(slots.len(), (sphere != Sphere::Gltf) as usize, "{name}: the sphere's neural binding");
+            if sphere == Sphere::Merl {
+                let table = crate::testing::bsdfs::merl_fitted_table("alum-bronze");
+                let merl = crate::bsdf::merl::MerlBsdf::new(&table, Default::default(), &Default::default());
+                scene.materials.set_shared(slots[0], crate::material::SharedBsdf::Merl(merl));
+            }
             // 20 × 18: partial tiles at the right and bottom edges.
             let (w, h, spp) = (20, 18, 3);
             let renderer = Renderer {
@@ -427,7 +443,7 @@ mod tests {
                     expected.push(Rgb::new((acc.sum[0] * k) as f32, (acc.sum[1] * k) as f32, (acc.sum[2] * k) as f32));
                 }
             }
-            assert_eq!(film.mean(), expected, "{name}, depth {max_depth}, {strategy:?}, neural {neural}");
+            assert_eq!(film.mean(), expected, "{name}, depth {max_depth}, {strategy:?}, {sphere:?}");
             assert_eq!(stats.rays, counters.rays + counters.shadow_rays, "{name}");
             assert!(expected.iter().any(|l| l.max_element() > 0.0), "{name}: the image is not black");
         }

@@ -13,6 +13,7 @@
 //! ```
 
 use super::tabulated_sampling::{TabulatedBrdf, TabulatedSampler, TabulatedSamplerConfig};
+use super::BatchEval;
 
 use crate::formats::merl::{self, MerlTable};
 use crate::{Result, Rgb};
@@ -103,21 +104,71 @@ fn lookup_values(
     theta_d: f32,
     phi_d: f32,
 ) -> Rgb {
+    weigh(values, interpolation, &corners(interpolation, theta_h, theta_d, phi_d))
+}
+
+/// The bins a look-up at the isotropic angles reads and their weights: the nearest bin
+/// (first entry, weight 1) or the eight trilinear corners.
+#[inline]
+fn corners(interpolation: Interpolation, theta_h: f32, theta_d: f32, phi_d: f32) -> TablePoint {
     match interpolation {
-        Interpolation::Nearest => Rgb::from_array(
-            values[merl::bin_index(
-                merl::theta_h_index(theta_h),
-                merl::theta_d_index(theta_d),
-                merl::phi_d_index(phi_d),
-            )],
-        ),
+        Interpolation::Nearest => {
+            let bin = merl::bin_index(merl::theta_h_index(theta_h), merl::theta_d_index(theta_d), merl::phi_d_index(phi_d));
+            let mut weights = [0.0; 8];
+            weights[0] = 1.0;
+            TablePoint {
+                corners: [bin; 8],
+                weights,
+            }
+        }
         Interpolation::Trilinear => {
-            let (idx, w) = merl::trilinear_corners(theta_h, theta_d, phi_d);
+            let (corners, weights) = merl::trilinear_corners(theta_h, theta_d, phi_d);
+            TablePoint { corners, weights }
+        }
+    }
+}
+
+/// The value a look-up reads at `point`'s bins.
+#[inline]
+fn weigh(values: &[[f32; 3]], interpolation: Interpolation, point: &TablePoint) -> Rgb {
+    match interpolation {
+        Interpolation::Nearest => Rgb::from_array(values[point.corners[0]]),
+        Interpolation::Trilinear => {
             let mut acc = Rgb::ZERO;
-            for (&i, &wk) in idx.iter().zip(&w) {
+            for (&i, &wk) in point.corners.iter().zip(&point.weights) {
                 acc += wk * Rgb::from_array(values[i]);
             }
             acc
+        }
+    }
+}
+
+/// A look-up prepared without reading the table ([`BatchEval`]): the bins it reads (already
+/// being fetched into the cache) and their weights.
+#[derive(Clone, Copy, Debug)]
+pub struct TablePoint {
+    corners: [usize; 8],
+    weights: [f32; 8],
+}
+
+impl BatchEval for MerlBsdf {
+    type Prepared = TablePoint;
+
+    #[inline]
+    fn prepare(&self, wo: Vec3, wi: Vec3) -> Option<TablePoint> {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return None;
+        }
+        let [th, td, pd] = crate::brdf_coords::isotropic_angles(wi, wo);
+        let point = corners(self.interpolation, th, td, pd);
+        merl::prefetch_corners(&self.values, &point.corners);
+        Some(point)
+    }
+
+    fn eval_prepared(&self, points: &[TablePoint], values: &mut [Rgb]) {
+        assert_eq!(points.len(), values.len(), "one value per point");
+        for (point, value) in points.iter().zip(values) {
+            *value = weigh(&self.values, self.interpolation, point);
         }
     }
 }

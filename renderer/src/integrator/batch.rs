@@ -1,13 +1,15 @@
 //! [`PathTracer::step`] for a batch of paths: the vertices are begun one by one, the common
 //! diffuse-surface-lit-by-a-triangle ones scattered [`LANES`] at a time
-//! ([`DiffuseLanes`]), those on decoded neural materials with every net evaluation of the
-//! chunk batched ([`DeferredScatter`]), the others one by one, and all advanced in the
+//! ([`DiffuseLanes`]), those on decoded neural materials and MERL tables with their values
+//! evaluated together after all were sampled ([`DeferredScatter`]: one batched forward pass
+//! per net, table entries prefetched), the others one by one, and all advanced in the
 //! batch's order.
 
 use super::deferred::DeferredScatter;
 use super::diffuse_lanes::{DiffuseLanes, DiffuseScattered};
 use super::{PathState, PathTracer, Scattered, ShadowTest, Strategy};
 use crate::accel::Hit;
+use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::Bsdf;
 use crate::lanes::LANES;
@@ -26,8 +28,10 @@ enum Outcome {
     Alone(u32),
     /// Scattered in lanes: group (index into [`BatchBuffers::groups`]) and lane.
     Lane(u32, u32),
-    /// Scattered with batched evaluations: index into [`BatchBuffers::deferred_scattered`].
-    Deferred(u32),
+    /// A neural vertex: index into [`BatchBuffers::neural_scattered`].
+    Neural(u32),
+    /// A MERL-table vertex: index into [`BatchBuffers::merl_scattered`].
+    Merl(u32),
 }
 
 /// Reusable buffers of [`PathTracer::step_batch`] for the scene `'s`.
@@ -39,7 +43,9 @@ pub struct BatchBuffers<'s> {
     lanes: DiffuseLanes,
     groups: Vec<DiffuseScattered>,
     neural: DeferredScatter<'s, NeuralBsdf>,
-    deferred_scattered: Vec<Scattered>,
+    neural_scattered: Vec<Scattered>,
+    merl: DeferredScatter<'s, MerlBsdf>,
+    merl_scattered: Vec<Scattered>,
 }
 
 /// What one batch step produces, both in the order of the active paths: the shadow tests
@@ -73,7 +79,9 @@ impl PathTracer {
             lanes,
             groups,
             neural,
-            deferred_scattered,
+            neural_scattered,
+            merl,
+            merl_scattered,
         } = buffers;
         groups.resize_with(CHUNK.div_ceil(LANES), DiffuseScattered::default);
         for (chunk, chunk_hits) in active.chunks(CHUNK).zip(hits.chunks(CHUNK)) {
@@ -81,6 +89,7 @@ impl PathTracer {
             scattered.clear();
             lanes.clear();
             neural.clear();
+            merl.clear();
             let mut group = 0;
             for (&i, &hit) in chunk.iter().zip(chunk_hits) {
                 let path = &mut paths[i as usize];
@@ -103,8 +112,11 @@ impl PathTracer {
                         group += 1;
                     }
                 } else if let Bsdf::Neural(bsdf) = v.bsdf {
-                    outcomes.push((Outcome::Deferred(neural.len() as u32), v.sp.p));
+                    outcomes.push((Outcome::Neural(neural.len() as u32), v.sp.p));
                     neural.push(self, scene, &v, bsdf, path.beta);
+                } else if let Bsdf::Merl(bsdf) = v.bsdf {
+                    outcomes.push((Outcome::Merl(merl.len() as u32), v.sp.p));
+                    merl.push(self, scene, &v, bsdf, path.beta);
                 } else {
                     outcomes.push((Outcome::Alone(scattered.len() as u32), v.sp.p));
                     scattered.push(self.scatter(scene, &v, path.beta));
@@ -113,13 +125,15 @@ impl PathTracer {
             if lanes.len() > 0 {
                 lanes.scatter(light_only, &mut groups[group as usize]);
             }
-            neural.scatter(self, deferred_scattered);
+            neural.scatter(self, neural_scattered);
+            merl.scatter(self, merl_scattered);
             for (&i, &(outcome, p)) in chunk.iter().zip(outcomes.iter()) {
                 let s = match outcome {
                     Outcome::Ended => continue,
                     Outcome::Alone(k) => scattered[k as usize],
                     Outcome::Lane(g, lane) => groups[g as usize].get(lane as usize),
-                    Outcome::Deferred(k) => deferred_scattered[k as usize],
+                    Outcome::Neural(k) => neural_scattered[k as usize],
+                    Outcome::Merl(k) => merl_scattered[k as usize],
                 };
                 if let Some(test) = s.shadow {
                     shadows.push((i, test));
