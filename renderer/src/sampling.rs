@@ -223,7 +223,7 @@ impl Distribution1D {
             let k = self.guide.len() - 1;
             let j = ((u * k as f32).max(0.0) as usize).min(k - 1);
             let (lo, hi) = (self.guide[j] as usize, self.guide[j + 1] as usize);
-            if u < 1.0 && u >= 0.0 {
+            if (0.0..1.0).contains(&u) {
                 lo + self.cdf[lo..hi].partition_point(|&c| c <= u)
             } else {
                 self.cdf.partition_point(|&c| c <= u)
