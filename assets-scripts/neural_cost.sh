@@ -3,8 +3,8 @@
 # in one run (figures are ratios of runs interleaved on the same machine):
 #  1. render speed: scenes/material-preview at the same resolution, spp and seed with the
 #     sphere bound to (a) the table data/merl-fitted/NAME.binary and (b) the latent code NAME
-#     of scenes/materials/latent.bin; best samples/s of RUNS interleaved runs each, and the
-#     ratio table/neural (the slowdown of the neural BSDF);
+#     of scenes/materials/latent.bin; min / median / max samples/s of RUNS interleaved runs
+#     each, and the ratio of the medians table/neural (the slowdown of the neural BSDF);
 #  2. load: load seconds (from --stats) and peak resident memory of a 1-spp 64x64 render
 #     binding the code against the same render without any latent file.
 # Needs the tables from assets-scripts/make_merl_tables.sh.
@@ -27,17 +27,21 @@ trap 'rm -rf "$OUT"' EXIT
 
 field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
 
-best_table=0
-best_neural=0
+tables=()
+neurals=()
 for i in $(seq "$RUNS"); do
     "$RENDER" "$SCENE" --bind "preview=merl:$TABLE" --spp "$SPP" --resolution "$RES" --output "$OUT/t.exr" --stats "$OUT/t.json" 2>/dev/null
     "$RENDER" "$SCENE" --material "$LATENT" --bind "preview=$NAME" --spp "$SPP" --resolution "$RES" --output "$OUT/n.exr" --stats "$OUT/n.json" 2>/dev/null
-    best_table=$(python3 -c "print(max($best_table, $(field "$OUT/t.json" samples_per_second)))")
-    best_neural=$(python3 -c "print(max($best_neural, $(field "$OUT/n.json" samples_per_second)))")
+    tables+=("$(field "$OUT/t.json" samples_per_second)")
+    neurals+=("$(field "$OUT/n.json" samples_per_second)")
 done
-python3 -c "
-t, n = $best_table, $best_neural
-print(f'render $NAME, $RES, $SPP spp: table {t/1e6:.3f} M samples/s, neural {n/1e6:.3f} M samples/s, neural is {t/n:.2f}x slower')"
+python3 - "${tables[*]}" "${neurals[*]}" <<PY
+import statistics, sys
+t, n = ([float(v) / 1e6 for v in a.split()] for a in sys.argv[1:3])
+fmt = lambda v: f"{min(v):.3f} / {statistics.median(v):.3f} / {max(v):.3f}"
+print(f"render $NAME, $RES, $SPP spp, {len(t)} interleaved runs, M samples/s min / median / max:")
+print(f"  table {fmt(t)}; neural {fmt(n)}; neural is {statistics.median(t) / statistics.median(n):.2f}x slower (medians)")
+PY
 
 measure() {  # prints: load_seconds peak_kb
     /usr/bin/time -f "%M" -o "$OUT/mem" "$RENDER" "$SCENE" "$@" --spp 1 --resolution 64x64 --output "$OUT/m.exr" --stats "$OUT/m.json" 2>/dev/null
