@@ -10,6 +10,9 @@
 //! log-value) from the f32 kernel over 4,098 points. AVX-512 machines only (the variants are
 //! skipped elsewhere). Run: `cargo bench -p renderer --bench half_weights`.
 
+// Kernels index points and registers by position, as the shipped one does.
+#![allow(clippy::needless_range_loop)]
+
 use renderer::neural::mlp::{DenseLayer, Mlp};
 use renderer::neural::target_net::{TargetNet, INPUTS, OUTPUTS};
 use std::hint::black_box;
