@@ -28,6 +28,25 @@ fn rays(scene: &SceneDescription, n: usize) -> Vec<Ray> {
         .collect()
 }
 
+/// Rays leaving the scene's surfaces, as a path's continuation and shadow rays do: from a
+/// point of a random triangle (offset along its normal) into the hemisphere of that normal.
+fn surface_rays(scene: &SceneDescription, n: usize) -> Vec<Ray> {
+    let g = &scene.geometry;
+    let mut s = Sampler::new(4, 5, 6);
+    (0..n)
+        .map(|_| {
+            let t = ((s.next_1d() * g.triangle_count() as f32) as usize).min(g.triangle_count() - 1);
+            let [a, b, c] = g.triangle_positions(t);
+            let (u, v) = (s.next_1d(), s.next_1d());
+            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+            let normal = (b - a).cross(c - a).normalize();
+            let d = sample_uniform_sphere(s.next_2d());
+            let d = if d.dot(normal) < 0.0 { -d } else { d };
+            Ray::new(a + (b - a) * u + (c - a) * v + normal * 1e-4, d)
+        })
+        .collect()
+}
+
 fn bench(c: &mut Criterion) {
     for name in ["cornell-box", "material-preview"] {
         let scene = load(name);
@@ -37,6 +56,7 @@ fn bench(c: &mut Criterion) {
         group.bench_function("build", |b| b.iter(|| black_box(Bvh::build(corners()))));
         let rays = rays(&scene, 4096);
         group.throughput(Throughput::Elements(rays.len() as u64));
+        let from_surfaces = surface_rays(&scene, 4096);
         let presets = [
             ("fast", BvhBuildParams::fast_build()),
             ("medium", BvhBuildParams::medium_build()),
@@ -52,6 +72,9 @@ fn bench(c: &mut Criterion) {
             });
             group.bench_function(format!("occlusion, {} nodes, {mode}", bvh.node_count()), |b| {
                 b.iter(|| bvh.occluded_all_with(&rays, &mut blocked, packets))
+            });
+            group.bench_function(format!("closest hit from surfaces, {mode}"), |b| {
+                b.iter(|| bvh.intersect_all_with(&from_surfaces, &mut hits, packets))
             });
         }
         for (preset, params) in presets {
