@@ -21,9 +21,9 @@
 use super::{Binding, SharedBsdf};
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::tabulated_sampling::{SamplerTables, TabulatedBrdf, TabulatedSampler};
-use crate::bsdf::{BsdfSample, Bxdf};
+use crate::bsdf::{BatchEval, BsdfSample, Bxdf};
 use crate::neural::latent_library::{LatentCode, LatentLibrary};
-use crate::{Error, Result};
+use crate::{Error, Result, Rgb};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::path::Path;
@@ -171,13 +171,25 @@ impl MaterialBsdf {
         }
     }
 
+    /// f_r(wo, wi) of many pairs into `out`: a decoded net's values in one batched forward
+    /// pass, a table's look-ups prefetched together ([`BatchEval`]), an NBRDF network's one
+    /// by one. The same values as [`MaterialBsdf::eval`], bit for bit.
+    fn values(&self, pairs: &[(Vec3, Vec3)], out: &mut [Rgb]) {
+        match &self.bsdf {
+            SharedBsdf::Neural(b) => values_together(b, pairs, out),
+            SharedBsdf::Merl(b) => values_together(b, pairs, out),
+            SharedBsdf::Nbrdf(b) => {
+                for (o, &(wo, wi)) in out.iter_mut().zip(pairs) {
+                    *o = b.eval(wo, wi);
+                }
+            }
+        }
+    }
+
     /// [`MaterialBsdf::eval`] for every pair (`wo[i]`, `wi[i]`) into `f[i]`, in parallel.
     /// Errors (naming the argument and index) on different lengths or a non-finite direction.
     pub fn eval_batch(&self, wo: &[[f32; 3]], wi: &[[f32; 3]], f: &mut [[f32; 3]]) -> Result<()> {
-        check_batch(wo, "wo", f.len())?;
-        check_batch(wi, "wi", f.len())?;
-        batch(f, |i| self.eval(wo[i], wi[i]));
-        Ok(())
+        self.eval_pdf_chunks(wo, wi, f, None)
     }
 
     /// [`MaterialBsdf::pdf`] for every pair into `pdf[i]`, in parallel; errors as
@@ -193,15 +205,33 @@ impl MaterialBsdf {
     /// evaluation per pair; errors as [`MaterialBsdf::eval_batch`] (also when `pdf` and `f`
     /// differ in length).
     pub fn eval_pdf_batch(&self, wo: &[[f32; 3]], wi: &[[f32; 3]], f: &mut [[f32; 3]], pdf: &mut [f32]) -> Result<()> {
-        check_batch(wo, "wo", f.len())?;
-        check_batch(wi, "wi", f.len())?;
         if pdf.len() != f.len() {
             return Err(batch_error("pdf", format!("{} entries for {} outputs", pdf.len(), f.len())));
         }
-        f.par_chunks_mut(BATCH_CHUNK).zip(pdf.par_chunks_mut(BATCH_CHUNK)).enumerate().for_each(|(c, (fc, pc))| {
-            for (k, (fo, po)) in fc.iter_mut().zip(pc.iter_mut()).enumerate() {
-                let i = c * BATCH_CHUNK + k;
-                (*fo, *po) = self.eval_pdf(wo[i], wi[i]);
+        self.eval_pdf_chunks(wo, wi, f, Some(pdf))
+    }
+
+    /// Values (and densities) of every pair, in parallel chunks of [`BATCH_CHUNK`].
+    fn eval_pdf_chunks(&self, wo: &[[f32; 3]], wi: &[[f32; 3]], f: &mut [[f32; 3]], pdf: Option<&mut [f32]>) -> Result<()> {
+        check_batch(wo, "wo", f.len())?;
+        check_batch(wi, "wi", f.len())?;
+        let mut pdf_chunks: Vec<Option<&mut [f32]>> = match pdf {
+            Some(pdf) => pdf.chunks_mut(BATCH_CHUNK).map(Some).collect(),
+            None => f.chunks(BATCH_CHUNK).map(|_| None).collect(),
+        };
+        f.par_chunks_mut(BATCH_CHUNK).zip(pdf_chunks.par_iter_mut()).enumerate().for_each(|(c, (fc, pc))| {
+            let first = c * BATCH_CHUNK;
+            let pairs: Vec<(Vec3, Vec3)> =
+                (first..first + fc.len()).map(|i| (Vec3::from(wo[i]), Vec3::from(wi[i]))).collect();
+            let mut values = vec![Rgb::ZERO; pairs.len()];
+            self.values(&pairs, &mut values);
+            for (o, v) in fc.iter_mut().zip(&values) {
+                *o = v.to_array();
+            }
+            if let Some(pc) = pc {
+                for (o, &(wo, wi)) in pc.iter_mut().zip(&pairs) {
+                    *o = self.sampler().pdf(wo, wi);
+                }
             }
         });
         Ok(())
@@ -209,7 +239,8 @@ impl MaterialBsdf {
 
     /// [`MaterialBsdf::sample`] (three numbers per direction) or [`MaterialBsdf::sample_2d`]
     /// (two) for every `wo[i]` with the numbers `u[i]`, in parallel; a draw that fails gives
-    /// `None`. Errors on different lengths, a non-finite `wo` or a `u` outside [0, 1].
+    /// `None`. Errors on different lengths, a non-finite `wo` or a `u` outside [0, 1]. The
+    /// directions of a chunk are drawn first, then their values evaluated together.
     pub fn sample_batch<U: UniformNumbers>(&self, wo: &[[f32; 3]], u: &[U], out: &mut [Option<Sample>]) -> Result<()> {
         check_batch(wo, "wo", out.len())?;
         if u.len() != out.len() {
@@ -218,8 +249,45 @@ impl MaterialBsdf {
         if let Some(i) = u.iter().position(|v| !v.numbers().iter().all(|x| (0.0..=1.0).contains(x))) {
             return Err(batch_error("u", format!("entry {i} is {:?}, not in [0, 1]", u[i].numbers())));
         }
-        batch(out, |i| u[i].draw(self, wo[i]));
+        out.par_chunks_mut(BATCH_CHUNK).enumerate().for_each(|(c, chunk)| {
+            let first = c * BATCH_CHUNK;
+            let drawn: Vec<Option<(Vec3, f32)>> =
+                (first..first + chunk.len()).map(|i| u[i].direction(self.sampler(), Vec3::from(wo[i]))).collect();
+            let pairs: Vec<(Vec3, Vec3)> = (first..first + chunk.len())
+                .zip(&drawn)
+                .filter_map(|(i, d)| d.map(|(wi, _)| (Vec3::from(wo[i]), wi)))
+                .collect();
+            let mut values = vec![Rgb::ZERO; pairs.len()];
+            self.values(&pairs, &mut values);
+            let mut values = values.into_iter();
+            for (o, d) in chunk.iter_mut().zip(drawn) {
+                *o = d.map(|(wi, pdf)| Sample {
+                    wi: wi.to_array(),
+                    f: values.next().expect("one value per drawn direction").to_array(),
+                    pdf,
+                });
+            }
+        });
         Ok(())
+    }
+}
+
+/// [`BatchEval`]: every pair prepared, the prepared ones evaluated in one call; pairs it
+/// leaves out (below either horizon) are zero.
+fn values_together<B: BatchEval>(bsdf: &B, pairs: &[(Vec3, Vec3)], out: &mut [Rgb]) {
+    let mut points = Vec::with_capacity(pairs.len());
+    let mut slots = Vec::with_capacity(pairs.len());
+    for (k, &(wo, wi)) in pairs.iter().enumerate() {
+        out[k] = Rgb::ZERO;
+        if let Some(p) = bsdf.prepare(wo, wi) {
+            points.push(p);
+            slots.push(k);
+        }
+    }
+    let mut values = vec![Rgb::ZERO; points.len()];
+    bsdf.eval_prepared(&points, &mut values);
+    for (&k, v) in slots.iter().zip(values) {
+        out[k] = v;
     }
 }
 
@@ -228,16 +296,18 @@ impl MaterialBsdf {
 pub trait UniformNumbers: Copy + Sync {
     /// The numbers, each in [0, 1].
     fn numbers(&self) -> &[f32];
-    /// Draws from `material` given `wo` with these numbers.
-    fn draw(self, material: &MaterialBsdf, wo: [f32; 3]) -> Option<Sample>;
+    /// The direction and density the draw with these numbers gives from `sampler` (the
+    /// material's) given `wo`, before its value: `None` where the draw fails or its density
+    /// is not positive and finite.
+    fn direction(self, sampler: &TabulatedSampler, wo: Vec3) -> Option<(Vec3, f32)>;
 }
 
 impl UniformNumbers for [f32; 3] {
     fn numbers(&self) -> &[f32] {
         self
     }
-    fn draw(self, material: &MaterialBsdf, wo: [f32; 3]) -> Option<Sample> {
-        material.sample(wo, self)
+    fn direction(self, sampler: &TabulatedSampler, wo: Vec3) -> Option<(Vec3, f32)> {
+        sampler.sample_with_pdf(wo, Vec2::new(self[0], self[1]), self[2])
     }
 }
 
@@ -245,8 +315,10 @@ impl UniformNumbers for [f32; 2] {
     fn numbers(&self) -> &[f32] {
         self
     }
-    fn draw(self, material: &MaterialBsdf, wo: [f32; 3]) -> Option<Sample> {
-        material.sample_2d(wo, self)
+    fn direction(self, sampler: &TabulatedSampler, wo: Vec3) -> Option<(Vec3, f32)> {
+        let wi = sampler.sample_2d(wo, Vec2::from(self))?;
+        let pdf = sampler.pdf(wo, wi);
+        (pdf > 0.0 && pdf.is_finite()).then_some((wi, pdf))
     }
 }
 
@@ -330,32 +402,52 @@ mod tests {
         assert_eq!(table.sampler_tables().row_v, t.row_v);
     }
 
+    /// The batched calls give every pair exactly what the single calls give — their values
+    /// evaluated together (a net's batched forward pass, a table's prefetched look-ups) —
+    /// for a decoded code, a MERL table and an NBRDF network, with three and two numbers
+    /// per draw; and drawn samples carry their density and value.
     #[test]
     fn batches_match_single_calls_and_samples_carry_their_density() {
-        let m = MaterialBsdf::open(&shipped(), Some("chrome")).unwrap();
-        let n = 3000;
+        let dir = tempfile::tempdir().unwrap();
+        let table = dir.path().join("alum-bronze.binary");
+        crate::testing::bsdfs::merl_fitted_table("alum-bronze").write(&table).unwrap();
+        let materials = [
+            MaterialBsdf::open(&shipped(), Some("chrome")).unwrap(),
+            MaterialBsdf::open(&table, None).unwrap(),
+            MaterialBsdf::open(&data_dir().join("merl/alum-bronze"), None).unwrap(),
+        ];
+        assert!(matches!(materials[1].shared(), SharedBsdf::Merl(_)));
+        assert!(matches!(materials[2].shared(), SharedBsdf::Nbrdf(_)));
+        // More than one chunk, the last one partial; some directions below the horizon.
+        let n = BATCH_CHUNK * 2 + 333;
         let wo: Vec<[f32; 3]> = (0..n).map(|i| unit(1.4 * (i as f32 / n as f32), i as f32 * 0.37)).collect();
-        let wi: Vec<[f32; 3]> = (0..n).map(|i| unit(1.5 * ((i * 7 % n) as f32 / n as f32), i as f32 * 1.1)).collect();
+        let wi: Vec<[f32; 3]> = (0..n).map(|i| unit(1.7 * ((i * 7 % n) as f32 / n as f32), i as f32 * 1.1)).collect();
         let u: Vec<[f32; 3]> = (0..n).map(|i| [(i as f32 * 0.618).fract(), (i as f32 * 0.414).fract(), (i as f32 * 0.732).fract()]).collect();
-        let mut f = vec![[0.0; 3]; n];
-        let mut pdf = vec![0.0; n];
-        let (mut f_joint, mut pdf_joint) = (vec![[0.0; 3]; n], vec![0.0; n]);
-        let mut samples = vec![None; n];
-        m.eval_batch(&wo, &wi, &mut f).unwrap();
-        m.pdf_batch(&wo, &wi, &mut pdf).unwrap();
-        m.eval_pdf_batch(&wo, &wi, &mut f_joint, &mut pdf_joint).unwrap();
-        m.sample_batch(&wo, &u, &mut samples).unwrap();
-        assert_eq!((&f_joint, &pdf_joint), (&f, &pdf));
-        for i in (0..n).step_by(97) {
-            assert_eq!(f[i], m.eval(wo[i], wi[i]));
-            assert_eq!(pdf[i], m.pdf(wo[i], wi[i]));
-            assert_eq!(samples[i], m.sample(wo[i], u[i]));
-        }
-        let drawn: Vec<(usize, Sample)> = samples.iter().enumerate().filter_map(|(i, s)| Some((i, (*s)?))).collect();
-        assert!(drawn.len() > n / 2);
-        for &(i, s) in drawn.iter().step_by(53) {
-            assert!((m.pdf(wo[i], s.wi) - s.pdf).abs() <= 1e-4 * s.pdf, "{s:?}");
-            assert_eq!(m.eval(wo[i], s.wi), s.f);
+        let u2: Vec<[f32; 2]> = u.iter().map(|v| [v[0], v[1]]).collect();
+        for (m, kind) in materials.iter().zip(["code", "table", "network"]) {
+            let mut f = vec![[0.0; 3]; n];
+            let mut pdf = vec![0.0; n];
+            let (mut f_joint, mut pdf_joint) = (vec![[0.0; 3]; n], vec![0.0; n]);
+            let (mut samples, mut samples_2d) = (vec![None; n], vec![None; n]);
+            m.eval_batch(&wo, &wi, &mut f).unwrap();
+            m.pdf_batch(&wo, &wi, &mut pdf).unwrap();
+            m.eval_pdf_batch(&wo, &wi, &mut f_joint, &mut pdf_joint).unwrap();
+            m.sample_batch(&wo, &u, &mut samples).unwrap();
+            m.sample_batch(&wo, &u2, &mut samples_2d).unwrap();
+            assert_eq!((&f_joint, &pdf_joint), (&f, &pdf));
+            for i in 0..n {
+                assert_eq!(f[i], m.eval(wo[i], wi[i]), "{kind}: pair {i}");
+                assert_eq!(pdf[i], m.pdf(wo[i], wi[i]));
+                assert_eq!(samples[i], m.sample(wo[i], u[i]), "{kind}: draw {i}");
+                assert_eq!(samples_2d[i], m.sample_2d(wo[i], u2[i]), "{kind}: two-number draw {i}");
+            }
+            assert!(f.iter().any(|v| v[0] > 0.0) && f.contains(&[0.0; 3]), "{kind}: lit and unlit pairs");
+            let drawn: Vec<(usize, Sample)> = samples.iter().enumerate().filter_map(|(i, s)| Some((i, (*s)?))).collect();
+            assert!(drawn.len() > n / 2);
+            for &(i, s) in drawn.iter().step_by(53) {
+                assert!((m.pdf(wo[i], s.wi) - s.pdf).abs() <= 1e-4 * s.pdf, "{s:?}");
+                assert_eq!(m.eval(wo[i], s.wi), s.f);
+            }
         }
     }
 
