@@ -31,8 +31,16 @@ What the sphere is:
       --mitsuba-bsdf '{"type": "neural_brdf", "filename": "scenes/materials/latent.bin", "material": "chrome"}' \
       --render-arg=--material --render-arg=scenes/materials/latent.bin --bind preview=neural:chrome
 
+What the stage is: --stage studio (default) is the scene as it is; --stage constant keeps the
+sphere and the camera only, under a constant environment of radiance --constant (both sides:
+our glTF copy's extras.environment.color, Mitsuba's `constant` emitter), e.g. a glossy metal
+sphere in a constant environment. The render times printed compare the two renderers' speed
+(run the script three times for min/median/max).
+
     python3 assets-scripts/compare_preview_mitsuba.py                  # 128x128, 256 spp, depth 8
     python3 assets-scripts/compare_preview_mitsuba.py --preset metallic-roughness
+    python3 assets-scripts/compare_preview_mitsuba.py --preset metallic-roughness --stage constant \
+        --resolution 256 --spp 512
 """
 
 import argparse
@@ -52,8 +60,11 @@ import make_material_preview as preview  # noqa: E402
 from compare_mitsuba import channel_means, fmt, parse_resolution, run_render, set_variant  # noqa: E402
 
 
-def diffuse_gltf(scene, albedo, out_dir):
-    """A copy of `scene` whose preview material is Lambert with `albedo`; returns its path."""
+def staged_gltf(scene, out_dir, albedo=None, constant=None):
+    """A copy of `scene` in `out_dir` (buffer and environment referenced by relative paths):
+    with `albedo`, its preview material is Lambert with that albedo; with `constant`, the
+    stage is the sphere alone (no ground, no key light) under a constant environment of that
+    radiance. Returns its path."""
     with open(scene) as f:
         gltf = json.load(f)
     scene_dir = os.path.dirname(os.path.abspath(scene))
@@ -66,18 +77,25 @@ def diffuse_gltf(scene, albedo, out_dir):
         env = s.get("extras", {}).get("environment", {})
         if "image" in env:
             env["image"] = os.path.join(rel, env["image"]).replace(os.sep, "/")
-    found = False
-    for m in gltf["materials"]:
-        if m.get("name") == preview.PREVIEW_MATERIAL:
-            pbr = m.setdefault("pbrMetallicRoughness", {})
-            pbr["baseColorFactor"] = [float(c) for c in albedo] + [1.0]
-            pbr["metallicFactor"] = 0.0
-            pbr["roughnessFactor"] = 1.0
-            m["extras"] = {"bsdf": "diffuse"}
-            found = True
-    if not found:
-        raise SystemExit(f"{scene}: no material named {preview.PREVIEW_MATERIAL!r}")
-    path = os.path.join(out_dir, "scene-diffuse-sphere.gltf")
+    if albedo is not None:
+        found = False
+        for m in gltf["materials"]:
+            if m.get("name") == preview.PREVIEW_MATERIAL:
+                pbr = m.setdefault("pbrMetallicRoughness", {})
+                pbr["baseColorFactor"] = [float(c) for c in albedo] + [1.0]
+                pbr["metallicFactor"] = 0.0
+                pbr["roughnessFactor"] = 1.0
+                m["extras"] = {"bsdf": "diffuse"}
+                found = True
+        if not found:
+            raise SystemExit(f"{scene}: no material named {preview.PREVIEW_MATERIAL!r}")
+    if constant is not None:
+        keep = {"sphere", "camera"}
+        for s in gltf.get("scenes", []):
+            s["nodes"] = [i for i in s["nodes"] if gltf["nodes"][i].get("name") in keep]
+            s.setdefault("extras", {})["environment"] = {"color": [float(constant)] * 3}
+    name = "scene" + ("-diffuse-sphere" if albedo is not None else "") + ("-constant" if constant is not None else "")
+    path = os.path.join(out_dir, f"{name}.gltf")
     with open(path, "w") as f:
         json.dump(gltf, f, indent=1)
     return path
@@ -108,17 +126,20 @@ def render_mitsuba(args, sphere_bsdf, width, height, out_exr):
         if callable(getattr(module, "register", None)):
             module.register()  # e.g. neural_brdf.mitsuba
     t0 = time.perf_counter()
-    scene = mi.load_dict(
-        preview.mitsuba_scene(
-            sphere_bsdf,
-            width=width,
-            height=height,
-            max_depth=args.max_depth,
-            scene_dir=os.path.dirname(os.path.abspath(args.scene)),
-            spp=args.spp,
-            env_supersample=args.env_supersample,
-        )
+    definition = preview.mitsuba_scene(
+        sphere_bsdf,
+        width=width,
+        height=height,
+        max_depth=args.max_depth,
+        scene_dir=os.path.dirname(os.path.abspath(args.scene)),
+        spp=args.spp,
+        env_supersample=args.env_supersample,
     )
+    if args.stage == "constant":
+        del definition["ground"], definition["key-light"]
+        definition["environment"] = {"type": "constant",
+                                     "radiance": {"type": "rgb", "value": [args.constant] * 3}}
+    scene = mi.load_dict(definition)
     t_load = time.perf_counter() - t0
     t0 = time.perf_counter()
     img = np.array(mi.render(scene, spp=args.spp, seed=args.seed))
@@ -187,6 +208,10 @@ def main():
                     help="our sphere: diffuse = a Lambert copy of the scene, metallic-roughness = scene.gltf "
                          "as is; and Mitsuba's sphere unless --mitsuba-bsdf is given (default: diffuse, or "
                          "metallic-roughness with --mitsuba-bsdf)")
+    ap.add_argument("--stage", choices=["studio", "constant"], default="studio",
+                    help="studio = the scene as it is (ground, key light, studio environment); constant = "
+                         "the sphere alone in a constant environment of radiance --constant")
+    ap.add_argument("--constant", type=float, default=1.0, help="radiance of the constant stage (default 1)")
     ap.add_argument("--albedo", type=float, nargs=3, default=preview.PREVIEW_BASE_COLOR[:3],
                     metavar=("R", "G", "B"), help="albedo of the diffuse preset (default: preview base colour)")
     ap.add_argument("--mitsuba-bsdf", type=json.loads, default=None,
@@ -214,17 +239,20 @@ def main():
     out_dir = os.path.abspath(args.out_dir)
     os.makedirs(out_dir, exist_ok=True)
     preset = args.preset or ("metallic-roughness" if args.mitsuba_bsdf is not None else "diffuse")
+    constant = args.constant if args.stage == "constant" else None
     if preset == "diffuse":
         sphere_bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(args.albedo)}}
-        our_scene = None if args.mitsuba_only else diffuse_gltf(args.scene, args.albedo, out_dir)
+        our_scene = None if args.mitsuba_only else staged_gltf(args.scene, out_dir, args.albedo, constant)
     else:
-        our_scene = args.scene
+        our_scene = args.scene if constant is None else staged_gltf(args.scene, out_dir, None, constant)
         sphere_bsdf = {"type": "principled",
                        "base_color": {"type": "rgb", "value": preview.PREVIEW_BASE_COLOR[:3]},
                        "metallic": 1.0, "roughness": preview.PREVIEW_ROUGHNESS}
     label = preset
     if args.mitsuba_bsdf is not None:
         sphere_bsdf, label = args.mitsuba_bsdf, f"{preset}-custom"
+    if constant is not None:
+        label += "-constant"
     tag = f"preview-{label}_{width}x{height}_{args.spp}spp_d{args.max_depth}"
 
     mit, mimg = render_mitsuba(args, sphere_bsdf, width, height,
