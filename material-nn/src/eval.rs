@@ -36,7 +36,7 @@ use crate::dataset::{MaterialTable, SampleSet};
 use crate::error::{Error, Result};
 use crate::inference::{EncodeSettings, TrainedRun};
 use crate::loss::FreOperator;
-use burn::tensor::Device;
+use crate::splat::SplatMap;
 use rand::{Rng, SeedableRng};
 use renderer::brdf_coords::rendered_point;
 use crate::dataset::draw_angles;
@@ -170,7 +170,7 @@ fn compare(
     truth: &dyn Fn(f32, f32, f32) -> Option<[f32; 3]>,
     settings: &EvalSettings,
     fre: &FreOperator,
-    device: &Device,
+    splats: &mut SplatCache,
 ) -> Result<Metrics> {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(settings.seed);
     let mut set = SampleSet::default();
@@ -235,11 +235,11 @@ fn compare(
             true_cos.push(y_true as f64 * c);
         }
     }
-    let splat = fre.splat(&set.directions(), device)?;
+    let map = splats.map(fre, set.directions())?;
     Ok(Metrics {
         rmse: (se / (3 * n) as f64).sqrt(),
         rec: abs / (3 * n) as f64,
-        fre: fre.loss_cpu(&splat.map, &pred_cos, &true_cos),
+        fre: fre.loss_cpu(map, &pred_cos, &true_cos),
         image: None,
         albedo_ratio: None,
     })
@@ -353,6 +353,25 @@ fn nbrdf_prefix(dir: &Path, name: &str) -> Result<PathBuf> {
     Ok(prefix)
 }
 
+/// The splat map of the last sample set's directions: every comparison draws its points
+/// with the evaluation's seed, so the sets (and their maps, half of an evaluation's time
+/// when recomputed) are the same unless a table leaves points out.
+#[derive(Default)]
+struct SplatCache {
+    last: Option<(Vec<[f32; 3]>, SplatMap)>,
+}
+
+impl SplatCache {
+    /// The map of `directions`, made only when they differ from the last ones.
+    fn map(&mut self, fre: &FreOperator, directions: Vec<[f32; 3]>) -> Result<&SplatMap> {
+        if self.last.as_ref().is_none_or(|(last, _)| *last != directions) {
+            let map = fre.splat_map(&directions)?;
+            self.last = Some((directions, map));
+        }
+        Ok(&self.last.as_ref().expect("just filled").1)
+    }
+}
+
 /// Reconstruction and editing rows for the materials `names` of `data_dir`; `progress` is
 /// called with a description of each step as it starts.
 pub fn evaluate(
@@ -370,6 +389,7 @@ pub fn evaluate(
     let device = run.codec.device.clone();
     let fre_config: FreConfig = run.config.fre.clone();
     let fre = FreOperator::new(&fre_config, &device);
+    let mut splats = SplatCache::default();
     let model = model_name(run);
     let table_path =
         |name: &str| crate::tables::table_path(data_dir, name);
@@ -412,7 +432,7 @@ pub fn evaluate(
     for (i, ((name, table), z)) in names.iter().zip(&tables).zip(&codes).enumerate() {
         progress(&format!("reconstruction {name}"));
         let truth = |a, b, c| table.lookup(a, b, c);
-        let mut latent = compare(run, &Candidate::Latent(z), &truth, settings, &fre, &device)?;
+        let mut latent = compare(run, &Candidate::Latent(z), &truth, settings, &fre, &mut splats)?;
         let table_bsdf = MerlBsdf::load(table_path(name))?;
         let neural = neural_bsdf(run, &file, &reference, name, z)?;
         latent.albedo_ratio = Some(albedo_ratios(&neural, &table_bsdf, settings.albedo_samples));
@@ -425,7 +445,7 @@ pub fn evaluate(
                     &truth,
                     settings,
                     &fre,
-                    &device,
+                    &mut splats,
                 )?;
                 let bsdf = NbrdfBsdf::load(prefixes[i].as_path())?;
                 m.albedo_ratio = Some(albedo_ratios(&bsdf, &table_bsdf, settings.albedo_samples));
@@ -482,7 +502,7 @@ pub fn evaluate(
                 let (fa, fb) = (ta.lookup(h, d, p)?, tb.lookup(h, d, p)?);
                 Some([0, 1, 2].map(|c| (1.0 - t) * fa[c] + t * fb[c]))
             };
-            let metrics = compare(run, &Candidate::Latent(&z), &blend, settings, &fre, &device)?;
+            let metrics = compare(run, &Candidate::Latent(&z), &blend, settings, &fre, &mut splats)?;
             editing.push(Row {
                 model: model.clone(),
                 name: format!("{}|{}", names[a], names[b]),

@@ -155,14 +155,15 @@ impl FreOperator {
         self.targets.len()
     }
 
+    /// The splat map of a sample set with difference directions `directions` (unit
+    /// vectors): which samples each grid point takes, with what weights.
+    pub fn splat_map(&self, directions: &[[f32; 3]]) -> Result<SplatMap> {
+        splat_map(directions, &self.targets, self.config.neighbours, self.config.splat_sigma)
+    }
+
     /// The splat of a sample set with difference directions `directions` (unit vectors).
     pub fn splat(&self, directions: &[[f32; 3]], device: &Device) -> Result<SplatTensors> {
-        let map = splat_map(
-            directions,
-            &self.targets,
-            self.config.neighbours,
-            self.config.splat_sigma,
-        )?;
+        let map = self.splat_map(directions)?;
         let idx: Vec<i64> = map.indices.iter().map(|&i| i as i64).collect();
         let n = idx.len();
         let indices = Tensor::from_data(TensorData::new(idx, [n]), device);
