@@ -156,11 +156,7 @@ impl BatchEval for MerlBsdf {
 
     #[inline]
     fn prepare(&self, wo: Vec3, wi: Vec3) -> Option<TablePoint> {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return None;
-        }
-        let [th, td, pd] = crate::brdf_coords::isotropic_angles(wi, wo);
-        let point = corners(self.interpolation, th, td, pd);
+        let point = table_point(self.interpolation, wo, wi)?;
         merl::prefetch_corners(&self.values, &point.corners);
         Some(point)
     }
@@ -176,11 +172,17 @@ impl BatchEval for MerlBsdf {
 /// f_r(wo, wi) from render values; zero below either horizon.
 #[inline]
 fn eval_values(values: &[[f32; 3]], interpolation: Interpolation, wo: Vec3, wi: Vec3) -> Rgb {
+    table_point(interpolation, wo, wi).map_or(Rgb::ZERO, |point| weigh(values, interpolation, &point))
+}
+
+/// The bins f_r(wo, wi) reads and their weights; `None` below either horizon (f_r is 0).
+#[inline]
+fn table_point(interpolation: Interpolation, wo: Vec3, wi: Vec3) -> Option<TablePoint> {
     if wo.z <= 0.0 || wi.z <= 0.0 {
-        return Rgb::ZERO;
+        return None;
     }
     let [th, td, pd] = crate::brdf_coords::isotropic_angles(wi, wo);
-    lookup_values(values, interpolation, th, td, pd)
+    Some(corners(interpolation, th, td, pd))
 }
 
 impl TabulatedBrdf for MerlBsdf {

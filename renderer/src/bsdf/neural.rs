@@ -118,27 +118,30 @@ fn eval_decoded(
     wo: Vec3,
     wi: Vec3,
 ) -> (Rgb, bool) {
-    if wo.z <= 0.0 || wi.z <= 0.0 {
-        return (Rgb::ZERO, false);
+    match net_point(wo, wi) {
+        Some(point) => map_back(reference, mapping, epsilon, &point, net.forward(point.x)),
+        None => (Rgb::ZERO, false),
     }
-    let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles(wi, wo);
-    let (idx, w) = crate::formats::merl::trilinear_corners(theta_h, theta_d, phi_d);
-    map_back(reference, mapping, epsilon, &idx, &w, net.forward(x))
 }
 
-/// f_r in 1/sr from the net's output `y` and whether a channel was clamped: f_ref looked up
-/// at the trilinear corners `idx` with weights `w` of the point's (θh, θd, φd) (φd folded),
-/// the mapping inverted, the value capped.
+/// The net's input at (wo, wi) and where f_ref is looked up; `None` below either horizon
+/// (f_r is 0).
 #[inline]
-fn map_back(
-    reference: &[[f32; 3]],
-    mapping: MappingForm,
-    epsilon: f32,
-    idx: &[usize; 8],
-    w: &[f32; 8],
-    y: [f32; 3],
-) -> (Rgb, bool) {
-    let f_ref = crate::formats::merl::weigh_measured_corners(reference, idx, w).unwrap_or([0.0; 3]);
+fn net_point(wo: Vec3, wi: Vec3) -> Option<NetPoint> {
+    if wo.z <= 0.0 || wi.z <= 0.0 {
+        return None;
+    }
+    let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles(wi, wo);
+    let (corners, weights) = crate::formats::merl::trilinear_corners(theta_h, theta_d, phi_d);
+    Some(NetPoint { x, corners, weights })
+}
+
+/// f_r in 1/sr at `point` from the net's output `y` there, and whether a channel was
+/// clamped: f_ref looked up at the point's trilinear corners, the mapping inverted, the
+/// value capped.
+#[inline]
+fn map_back(reference: &[[f32; 3]], mapping: MappingForm, epsilon: f32, point: &NetPoint, y: [f32; 3]) -> (Rgb, bool) {
+    let f_ref = crate::formats::merl::weigh_measured_corners(reference, &point.corners, &point.weights).unwrap_or([0.0; 3]);
     let mut clamped = false;
     let f = [0, 1, 2].map(|c| {
         let v = mapping.inverse(y[c].min(MAX_LOG_VALUE), f_ref[c], epsilon);
@@ -176,13 +179,9 @@ impl BatchEval for NeuralBsdf {
 
     #[inline]
     fn prepare(&self, wo: Vec3, wi: Vec3) -> Option<NetPoint> {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return None;
-        }
-        let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles(wi, wo);
-        let (corners, weights) = crate::formats::merl::trilinear_corners(theta_h, theta_d, phi_d);
-        crate::formats::merl::prefetch_corners(&self.reference, &corners);
-        Some(NetPoint { x, corners, weights })
+        let point = net_point(wo, wi)?;
+        crate::formats::merl::prefetch_corners(&self.reference, &point.corners);
+        Some(point)
     }
 
     fn eval_prepared(&self, points: &[NetPoint], values: &mut [Rgb]) {
@@ -191,7 +190,7 @@ impl BatchEval for NeuralBsdf {
         let mut outputs = vec![[0.0; OUTPUTS]; points.len()];
         self.net.forward_batch(&inputs, &mut outputs);
         for ((point, y), value) in points.iter().zip(&outputs).zip(values) {
-            let (f, clamped) = map_back(&self.reference, self.mapping, self.epsilon, &point.corners, &point.weights, *y);
+            let (f, clamped) = map_back(&self.reference, self.mapping, self.epsilon, point, *y);
             if clamped {
                 self.count_clamped();
             }

@@ -1,10 +1,11 @@
-//! Vertices on BSDFs whose values are evaluated in batches ([`BatchEval`]: the decoded neural
-//! materials), scattered together. Each vertex's light sample and BSDF sample are drawn one
-//! by one exactly as [`PathTracer::scatter`] draws them, and the two values they need are
-//! prepared (a net's input, f_ref's table lines prefetched); then every value of a material
-//! in the batch is evaluated in one call (one batched forward pass of its net, many points
-//! per weight load); then each vertex is finished with its values. The result is the same,
-//! bit for bit, as scattering the vertices one by one.
+//! Vertices on BSDFs whose values are evaluated in batches ([`BatchEval`]: the decoded
+//! neural materials and the MERL tables), scattered together. Each vertex's light sample and
+//! BSDF sample are drawn one by one exactly as [`PathTracer::scatter`] draws them, and the two
+//! values they need are prepared (a net's input or a table's corners, the table entries
+//! prefetched); then every value of a material in the batch is evaluated in one call (one
+//! batched forward pass of its net, many points per weight load); then each vertex is
+//! finished with its values. The result is the same, bit for bit, as scattering the vertices
+//! one by one.
 
 use super::{continuation, light_direction, PathTracer, Scattered, Vertex};
 use crate::bsdf::tabulated_sampling::TabulatedBrdf;
