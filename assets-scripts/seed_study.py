@@ -6,8 +6,15 @@ interpolated in latent space), as mean ± standard deviation over the seeds of e
 For each model (scenes/materials/frenbrdf.json, scenes/materials/hyperbrdf.json: the same
 configuration without L_fre) and seed, trains runs/seed-study/MODEL-sSEED with the seed and
 epoch count overridden, then `material-nn eval` on its test split (the seed also draws the
-split, so the two models of one seed see the same materials). Runs and evaluations already
-made are kept, so the script resumes where it stopped.
+split, so the two models of one seed see the same materials). Seeds go in order, both models
+of a seed one after the other, so a partial study is still paired.
+
+The study takes hours (about 43 min per run on a 2-core machine), more than one sitting: each
+finished run's results — the per-material reconstruction CSV and the means of both tables —
+go to docs/seed-study/ (small, committed), and a run with results there is not trained again.
+Runs and evaluations under --out are kept too (checkpoints resume per epoch), so the script
+resumes where it stopped on the same machine, and where the last committed run ended on a
+fresh checkout. The tables are printed and written to docs/seed-study/tables.md.
 
     python3 assets-scripts/seed_study.py [--seeds 1 2 3] [--epochs 100] [--spp 1024] [--pairs 2000]
 """
@@ -16,6 +23,8 @@ import argparse
 import csv
 import json
 import statistics
+import platform
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -46,6 +55,16 @@ def means(path: Path) -> dict[str, float]:
     return out
 
 
+def machine() -> str:
+    """The CPU model and the cores this process may use, for the record of a run."""
+    model = platform.machine()
+    try:
+        model = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{model}, {len(os.sched_getaffinity(0))} cores"
+
+
 def cell(values: list[float], scale: float) -> str:
     if not values:
         return "–"
@@ -62,12 +81,21 @@ def main() -> None:
     ap.add_argument("--pairs", type=int, default=2000)
     ap.add_argument("--data", type=Path, default=ROOT / "data" / "merl-fitted")
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "seed-study")
+    ap.add_argument("--results", type=Path, default=ROOT / "docs" / "seed-study",
+                    help="where each finished run's results are kept (committed)")
     args = ap.parse_args()
     subprocess.run(["cargo", "build", "--release", "-p", "material-nn"], cwd=ROOT, check=True)
     args.out.mkdir(parents=True, exist_ok=True)
+    args.results.mkdir(parents=True, exist_ok=True)
     results: dict[str, list[tuple[dict, dict]]] = {}
-    for model in ["frenbrdf", "hyperbrdf"]:
-        for seed in args.seeds:
+    for seed in args.seeds:
+        for model in ["frenbrdf", "hyperbrdf"]:
+            name = f"{model}-e{args.epochs}-s{seed}-spp{args.spp}-pairs{args.pairs}"
+            kept = args.results / f"{name}.json"
+            if kept.exists():
+                means_of = json.loads(kept.read_text())
+                results.setdefault(model, []).append((means_of["reconstruction"], means_of["editing"]))
+                continue
             name = f"{model}-e{args.epochs}-s{seed}"
             run_dir = args.out / name
             config = json.loads((ROOT / "scenes" / "materials" / f"{model}.json").read_text())
@@ -84,21 +112,30 @@ def main() -> None:
                 print(f"evaluating {name}", file=sys.stderr)
                 run([str(BIN), "eval", "--run", str(run_dir), "--spp", str(args.spp), "--pairs", str(args.pairs),
                      "--out", str(eval_dir)], args.out / f"{name}.eval.log")
-            results.setdefault(model, []).append(
-                (means(eval_dir / "reconstruction.csv"), means(eval_dir / "editing.csv")))
+            table1, table2 = means(eval_dir / "reconstruction.csv"), means(eval_dir / "editing.csv")
+            shutil.copyfile(eval_dir / "reconstruction.csv", args.results / f"{kept.stem}-reconstruction.csv")
+            # Written last and atomically: its presence marks the run as done.
+            tmp = kept.with_suffix(".json.tmp")
+            tmp.write_text(json.dumps({"model": model, "seed": seed, "epochs": args.epochs, "spp": args.spp,
+                                       "pairs": args.pairs, "machine": machine(),
+                                       "reconstruction": table1, "editing": table2}, indent=2) + "\n")
+            tmp.replace(kept)
+            results.setdefault(model, []).append((table1, table2))
+    lines = []
     header = "| model | seeds | " + " | ".join(label for _, label, _ in COLUMNS) + " | worst PSNR (dB) |"
     rule = "|" + " --- |" * (len(COLUMNS) + 3)
     for title, index in [("Table 1 analogue: reconstruction of the test materials", 0),
                          ("Table 2 analogue: editing, random pairs of test materials", 1)]:
-        print(f"\n{title} ({args.epochs} epochs, previews at {args.spp} spp, {args.pairs} pairs; "
-              f"mean ± std over seeds {', '.join(map(str, args.seeds))})\n")
-        print(header)
-        print(rule)
+        lines += [f"\n{title} ({args.epochs} epochs, previews at {args.spp} spp, {args.pairs} pairs; "
+                  f"mean ± std over the seeds done of {', '.join(map(str, args.seeds))})\n", header, rule]
         for model, rows in results.items():
             tables = [r[index] for r in rows]
             cells = [cell([t[k] for t in tables if k in t], scale) for k, _, scale in COLUMNS]
             worst = cell([t["worst_psnr"] for t in tables if "worst_psnr" in t], 1.0)
-            print(f"| {model} | {len(tables)} | " + " | ".join(cells) + f" | {worst} |")
+            lines.append(f"| {model} | {len(tables)} | " + " | ".join(cells) + f" | {worst} |")
+    text = "\n".join(lines).lstrip() + "\n"
+    print(text)
+    (args.results / "tables.md").write_text(text)
 
 
 if __name__ == "__main__":

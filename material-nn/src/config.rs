@@ -3,6 +3,7 @@
 //! inside every checkpoint; a JSON file given with `--config` may set any subset of the
 //! fields.
 
+use crate::augment::Augmentation;
 use crate::error::{Error, Result};
 use renderer::neural::mapping::MappingForm;
 use serde::{Deserialize, Serialize};
@@ -182,6 +183,8 @@ pub struct TrainConfig {
     pub patience: usize,
     /// Samples per validation material (drawn from a fixed seed, the same every epoch).
     pub validation_samples: usize,
+    /// Synthetic variants of the training materials ([`crate::augment`]); none by default.
+    pub augment: Augmentation,
 }
 
 impl Default for TrainConfig {
@@ -208,6 +211,7 @@ impl Default for TrainConfig {
             net: ModelConfig::default(),
             patience: 30,
             validation_samples: 16_384,
+            augment: Augmentation::default(),
         }
     }
 }
@@ -313,7 +317,7 @@ impl TrainConfig {
                 "fre: lmax, neighbours, splat_sigma and degree_sigma must be positive".to_string(),
             );
         }
-        Ok(())
+        self.augment.check()
     }
 }
 

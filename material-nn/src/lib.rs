@@ -1,6 +1,7 @@
 //! Learns neural materials from measured BRDFs (FreNBRDF, with HyperBRDF and NBRDF as
 //! baselines); docs/training.md describes the method, the commands and the measured results.
 
+pub mod augment;
 pub mod backend;
 pub mod checkpoint;
 pub mod config;

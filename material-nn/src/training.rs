@@ -1,6 +1,7 @@
 //! The training loop of HyperBRDF / FreNBRDF (`material-nn train`).
 //!
-//! One step: for each of `materials_per_step` training materials (the method uses 1) draw a
+//! One step: for each of `materials_per_step` training materials (the method uses 1; with
+//! `augment`, a share of them replaced by a synthetic variant, [`crate::augment`]) draw a
 //! fresh sample set of the rendered domain ([`crate::dataset::Sampler`]: θh partly with MERL's
 //! spacing, φd folded as the renderer folds it, nothing below either horizon), encode its
 //! first `encoder_samples` samples into z, decode z into target-net weights, evaluate the
@@ -179,26 +180,41 @@ impl FreLoss {
                 for i in 0..dataset.len() {
                     let t = dataset.table(i)?;
                     dataset.prefetch((i + 1..dataset.len()).take(1).collect());
-                    let target = op.target(
-                        |p| {
-                            let [h, d, f] = p.angles;
-                            sampler.sample_of(p, t.lookup(h, d, f)?).map(|(_, y, _)| y)
-                        },
-                        device,
-                    );
-                    targets.insert(t.name.clone(), target);
+                    targets.insert(t.name.clone(), slice_target(&op, &t, sampler, device));
                 }
                 FreLoss::Slices { op, targets }
             }
         })
     }
+
+    /// The slice target of a material made during the run (an augmentation variant), which
+    /// [`FreLoss::new`] could not precompute; `None` for the splat form, which needs none.
+    fn target_of(&self, table: &MaterialTable, sampler: &Sampler, device: &Device) -> Option<SliceTarget> {
+        match self {
+            FreLoss::Splat(_) => None,
+            FreLoss::Slices { op, .. } => Some(slice_target(op, table, sampler, device)),
+        }
+    }
+}
+
+/// The fixed part of L_fre on slices for `table`: its mapped values on the slices' grid.
+fn slice_target(op: &SlicedFre, table: &MaterialTable, sampler: &Sampler, device: &Device) -> SliceTarget {
+    op.target(
+        |p| {
+            let [h, d, f] = p.angles;
+            sampler.sample_of(p, table.lookup(h, d, f)?).map(|(_, y, _)| y)
+        },
+        device,
+    )
 }
 
 /// Forward pass and losses of a batch of materials `tables` with sample sets `sets`:
-/// (total, data term, L_fre) as tensors.
+/// (total, data term, L_fre) as tensors. `own_targets[i]`, where present, is material i's
+/// slice target (a variant's); the others are looked up by name in `fre`.
 fn batch_loss(
     model: &HyperBrdf,
     tables: &[&MaterialTable],
+    own_targets: &[Option<SliceTarget>],
     sets: &[SampleSet],
     config: &TrainConfig,
     fre: Option<&FreLoss>,
@@ -228,7 +244,8 @@ fn batch_loss(
             }
             Some(FreLoss::Slices { op, targets }) => {
                 let name = &tables[i].name;
-                let target = targets.get(name).ok_or_else(|| {
+                let own = own_targets.get(i).and_then(Option::as_ref);
+                let target = own.or_else(|| targets.get(name)).ok_or_else(|| {
                     Error::Invalid(format!("no L_fre slice target for material '{name}'"))
                 })?;
                 let p = slice_pred.as_ref().map(|p| p.clone().narrow(0, i, 1));
@@ -269,6 +286,7 @@ fn mean_losses(
         let (_, data, l_fre) = batch_loss(
             &model,
             &[table.as_ref()],
+            &[],
             std::slice::from_ref(&set),
             config,
             fre,
@@ -482,14 +500,22 @@ pub fn train(
         setup.train.prefetch(state.order[end..next_end].to_vec());
         let mut sets = Vec::with_capacity(end - state.position);
         let mut tables = Vec::with_capacity(end - state.position);
+        let mut own_targets = Vec::with_capacity(end - state.position);
         for &i in &state.order[state.position..end] {
-            let table = setup.train.table(i)?;
+            let mut table = setup.train.table(i)?;
+            let mut own_target = None;
+            if let Some(recipe) = config.augment.draw(i, n_train, &mut state.rng) {
+                let partner = recipe.partner.map(|p| setup.train.table(p.index)).transpose()?;
+                table = Arc::new(recipe.apply(&table, partner.as_deref()));
+                own_target = fre.as_ref().and_then(|f| f.target_of(&table, &setup.sampler, &device));
+            }
             sets.push(setup.sampler.draw(&table, config.samples_per_step, &mut state.rng)?);
             tables.push(table);
+            own_targets.push(own_target);
         }
         let tables: Vec<&MaterialTable> = tables.iter().map(Arc::as_ref).collect();
         let (total, data, l_fre) =
-            batch_loss(&model, &tables, &sets, &config, fre.as_ref(), &device)?;
+            batch_loss(&model, &tables, &own_targets, &sets, &config, fre.as_ref(), &device)?;
         let grads = total.backward();
         let mut grads = GradientsParams::from_grads(grads, &model);
         if let Some(max) = config.grad_clip_norm {

@@ -389,6 +389,26 @@ fn a_resumed_run_ends_with_the_same_weights() {
 }
 
 #[test]
+fn augmented_runs_see_variants_and_resume_to_the_same_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = make_data(dir.path());
+    let stop = AtomicBool::new(false);
+    let mut config = small_config(2);
+    let plain_run = dir.path().join("plain");
+    train(&request(&data, &plain_run, Some(config.clone()), false, None), &stop, &mut |_| {}).unwrap();
+    config.augment = material_nn::augment::Augmentation { share: 1.0, blend: 0.5 };
+    let whole = dir.path().join("whole");
+    train(&request(&data, &whole, Some(config.clone()), false, None), &stop, &mut |_| {}).unwrap();
+    let parts = dir.path().join("parts");
+    let o = train(&request(&data, &parts, Some(config), false, Some(1)), &stop, &mut |_| {}).unwrap();
+    assert_eq!(o, Outcome::Interrupted { step: 1 });
+    train(&request(&data, &parts, None, true, None), &stop, &mut |_| {}).unwrap();
+    let weights = |run: &Path| model_weights(&Checkpoint::read(&RunDir(run.to_path_buf()).checkpoint()).unwrap());
+    assert!(weights(&whole) == weights(&parts), "an augmented run resumed to other weights");
+    assert!(weights(&whole) != weights(&plain_run), "the variants changed nothing");
+}
+
+#[test]
 fn bad_input_gives_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
     let data = make_data(dir.path());
