@@ -87,6 +87,9 @@ def main() -> None:
     subprocess.run(["cargo", "build", "--release", "-p", "material-nn"], cwd=ROOT, check=True)
     args.out.mkdir(parents=True, exist_ok=True)
     args.results.mkdir(parents=True, exist_ok=True)
+    references = args.out / "table-renders"
+    if references.exists() and references.stat().st_mtime < BIN.stat().st_mtime:
+        shutil.rmtree(references)
     results: dict[str, list[tuple[dict, dict]]] = {}
     for seed in args.seeds:
         for model in ["frenbrdf", "hyperbrdf"]:
@@ -110,8 +113,10 @@ def main() -> None:
             eval_dir = run_dir / f"eval-spp{args.spp}-pairs{args.pairs}"
             if not (eval_dir / "summary.md").exists():
                 print(f"evaluating {name}", file=sys.stderr)
+                # Both models of a seed have the same test materials: the tables' renders are
+                # made once (the cache is for this build; cleared when the binary is newer).
                 run([str(BIN), "eval", "--run", str(run_dir), "--spp", str(args.spp), "--pairs", str(args.pairs),
-                     "--out", str(eval_dir)], args.out / f"{name}.eval.log")
+                     "--out", str(eval_dir), "--reference-cache", str(references)], args.out / f"{name}.eval.log")
             table1, table2 = means(eval_dir / "reconstruction.csv"), means(eval_dir / "editing.csv")
             shutil.copyfile(eval_dir / "reconstruction.csv", args.results / f"{kept.stem}-reconstruction.csv")
             # Written last and atomically: its presence marks the run as done.

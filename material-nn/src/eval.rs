@@ -129,6 +129,9 @@ pub struct ImageSettings {
     pub spp: u32,
     /// Where to write the previews as PNG (`NAME-table.png`, `NAME-MODEL.png`), if anywhere.
     pub out_dir: Option<PathBuf>,
+    /// Where the tables' renders are kept between evaluations, if anywhere
+    /// ([`PreviewScene::render_table`]).
+    pub reference_cache: Option<PathBuf>,
 }
 
 /// Evaluation settings.
@@ -247,6 +250,7 @@ fn compare(
 
 /// The material-preview scene, ready to render with any BSDF bound to its preview material.
 pub struct PreviewScene {
+    scene_path: PathBuf,
     scene: RenderScene,
     camera: PinholeCamera,
     slot: usize,
@@ -280,6 +284,7 @@ impl PreviewScene {
             Error::invalid_file(path, format!("material '{PREVIEW_MATERIAL}' is on no triangle"))
         })?;
         Ok(PreviewScene {
+            scene_path: path.clone(),
             camera: PinholeCamera::new(&camera, settings.width, settings.height),
             scene,
             slot,
@@ -311,6 +316,41 @@ impl PreviewScene {
             &mut |_, _| {},
         );
         film.mean()
+    }
+
+    /// The render of the table at `path` (loaded as `bsdf`), or, with a `cache` directory,
+    /// the one kept there by an earlier evaluation with the same scene file, table file
+    /// (path, size and modification time), resolution, spp and seed: two models of one
+    /// seed are compared against the same reference renders, which cost half an
+    /// evaluation's previews. A linear f32 EXR per table, so a kept render equals a fresh
+    /// one bit for bit — with the same build: the key does not cover the renderer's code,
+    /// so clear the cache after changing it.
+    pub fn render_table(&mut self, path: &Path, bsdf: MerlBsdf, cache: Option<&Path>) -> Result<Vec<Rgb>> {
+        let Some(dir) = cache else {
+            return Ok(self.render(SharedBsdf::Merl(bsdf)));
+        };
+        let kept = dir.join(format!("{}-{:016x}.exr", crate::tables::material_name(path)?, self.key_of(path)?));
+        if let Ok((w, h, pixels)) = renderer::formats::image_io::read_image(&kept) {
+            if (w, h) == (self.width, self.height) {
+                return Ok(pixels);
+            }
+        }
+        let image = self.render(SharedBsdf::Merl(bsdf));
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        renderer::formats::image_io::write_exr(&kept, self.width, self.height, &image)?;
+        Ok(image)
+    }
+
+    /// What a render of the table at `table` depends on besides the code, hashed.
+    fn key_of(&self, table: &Path) -> Result<u64> {
+        use std::hash::{Hash, Hasher};
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        std::fs::read(&self.scene_path).map_err(|e| Error::io(&self.scene_path, e))?.hash(&mut hasher);
+        let table = std::path::absolute(table).map_err(|e| Error::io(table, e))?;
+        let meta = std::fs::metadata(&table).map_err(|e| Error::io(&table, e))?;
+        (table, meta.len(), meta.modified().ok()).hash(&mut hasher);
+        (self.width, self.height, self.spp, self.seed, PREVIEW_MAX_DEPTH).hash(&mut hasher);
+        Ok(hasher.finish())
     }
 
     /// The image metrics of `image` against `reference` (see the module documentation).
@@ -455,7 +495,8 @@ pub fn evaluate(
         };
         if let Some((scene, dir)) = &mut preview {
             let dir = dir.as_deref();
-            let table_image = scene.render(SharedBsdf::Merl(table_bsdf));
+            let cache = settings.images.as_ref().and_then(|i| i.reference_cache.as_deref());
+            let table_image = scene.render_table(&table_path(name), table_bsdf, cache)?;
             scene.write_png(dir, &format!("{name}-table.png"), &table_image)?;
             let image = scene.render(SharedBsdf::Neural(neural));
             scene.write_png(dir, &format!("{name}-{model}.png"), &image)?;

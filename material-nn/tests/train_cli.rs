@@ -159,6 +159,28 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         "{summary}"
     );
 
+    // The tables' renders kept in a cache: the first evaluation with it gives the same
+    // figures as without, the next one reads the kept renders instead of rendering.
+    let cache = dir.path().join("table-renders");
+    let eval_cached = |out: &str| {
+        let out = dir.path().join(out);
+        let status = material_nn(&[
+            "eval", "--run", path_str(&run), "--split", "train", "--samples", "2000", "--pairs", "0",
+            "--resolution", "16x16", "--spp", "2", "--reference-cache", path_str(&cache), "--out", path_str(&out),
+        ]);
+        assert!(status.status.success(), "{status:?}");
+        let csv = std::fs::read_to_string(out.join("reconstruction.csv")).unwrap();
+        csv.lines().filter(|l| l.starts_with("frenbrdf,")).map(String::from).collect::<Vec<_>>()
+    };
+    let uncached: Vec<String> = csv.lines().filter(|l| l.starts_with("frenbrdf,")).map(String::from).collect();
+    assert_eq!(eval_cached("cached-a"), uncached);
+    let kept: Vec<_> = std::fs::read_dir(&cache).unwrap().map(|e| e.unwrap().path()).collect();
+    assert_eq!(kept.len(), 2, "one render per material: {kept:?}");
+    for path in &kept {
+        renderer::formats::image_io::write_exr(path, 16, 16, &[renderer::Rgb::ZERO; 256]).unwrap();
+    }
+    assert_ne!(eval_cached("cached-b"), uncached, "the kept (blackened) renders were not read");
+
     // BRDF space only: no image columns.
     let out = material_nn(&[
         "eval",

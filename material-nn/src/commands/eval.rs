@@ -64,6 +64,11 @@ pub struct EvalArgs {
     /// codes as they are).
     #[arg(long, default_value_t = RefineSettings::default().steps)]
     pub refine_steps: usize,
+    /// Keep the tables' preview renders in DIR and reuse them when scene, table, resolution,
+    /// spp and seed are the same (e.g. two models of one seed); clear DIR after changing the
+    /// renderer.
+    #[arg(long, value_name = "DIR")]
+    pub reference_cache: Option<PathBuf>,
 }
 
 /// scenes/material-preview/scene.gltf of the workspace this binary was built in.
@@ -99,6 +104,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         height,
         spp: args.spp,
         out_dir: Some(out.join("images")),
+        reference_cache: args.reference_cache.clone(),
     });
     let settings = eval::EvalSettings {
         samples: args.samples,
