@@ -22,9 +22,10 @@ fresh checkout. The tables are printed and written to docs/seed-study/tables.md.
 import argparse
 import csv
 import json
-import statistics
+import os
 import platform
 import shutil
+import statistics
 import subprocess
 import sys
 from pathlib import Path
