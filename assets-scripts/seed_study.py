@@ -21,6 +21,7 @@ fresh checkout. The tables are printed and written to docs/seed-study/tables.md.
 
 import argparse
 import csv
+import fcntl
 import json
 import os
 import platform
@@ -74,6 +75,25 @@ def cell(values: list[float], scale: float) -> str:
     return f"{m:.3f} ± {s:.3f}"
 
 
+def write_tables(results: dict[str, list[tuple[dict, dict]]], args: argparse.Namespace) -> None:
+    """Prints the two tables over the runs done so far and writes them to RESULTS/tables.md."""
+    lines = []
+    header = "| model | seeds | " + " | ".join(label for _, label, _ in COLUMNS) + " | worst PSNR (dB) |"
+    rule = "|" + " --- |" * (len(COLUMNS) + 3)
+    for title, index in [("Table 1 analogue: reconstruction of the test materials", 0),
+                         ("Table 2 analogue: editing, random pairs of test materials", 1)]:
+        lines += [f"\n{title} ({args.epochs} epochs, previews at {args.spp} spp, {args.pairs} pairs; "
+                  f"mean ± std over the seeds done of {', '.join(map(str, args.seeds))})\n", header, rule]
+        for model, rows in results.items():
+            tables = [r[index] for r in rows]
+            cells = [cell([t[k] for t in tables if k in t], scale) for k, _, scale in COLUMNS]
+            worst = cell([t["worst_psnr"] for t in tables if "worst_psnr" in t], 1.0)
+            lines.append(f"| {model} | {len(tables)} | " + " | ".join(cells) + f" | {worst} |")
+    text = "\n".join(lines).lstrip() + "\n"
+    print(text)
+    (args.results / "tables.md").write_text(text)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
@@ -88,6 +108,12 @@ def main() -> None:
     subprocess.run(["cargo", "build", "--release", "-p", "material-nn"], cwd=ROOT, check=True)
     args.out.mkdir(parents=True, exist_ok=True)
     args.results.mkdir(parents=True, exist_ok=True)
+    # Two studies on one directory would resume the same run twice at once.
+    lock = (args.out / "study.lock").open("w")
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        sys.exit(f"error: {args.out}: another seed study is running on it")
     references = args.out / "table-renders"
     if references.exists() and references.stat().st_mtime < BIN.stat().st_mtime:
         shutil.rmtree(references)
@@ -127,21 +153,8 @@ def main() -> None:
                                        "reconstruction": table1, "editing": table2}, indent=2) + "\n")
             tmp.replace(kept)
             results.setdefault(model, []).append((table1, table2))
-    lines = []
-    header = "| model | seeds | " + " | ".join(label for _, label, _ in COLUMNS) + " | worst PSNR (dB) |"
-    rule = "|" + " --- |" * (len(COLUMNS) + 3)
-    for title, index in [("Table 1 analogue: reconstruction of the test materials", 0),
-                         ("Table 2 analogue: editing, random pairs of test materials", 1)]:
-        lines += [f"\n{title} ({args.epochs} epochs, previews at {args.spp} spp, {args.pairs} pairs; "
-                  f"mean ± std over the seeds done of {', '.join(map(str, args.seeds))})\n", header, rule]
-        for model, rows in results.items():
-            tables = [r[index] for r in rows]
-            cells = [cell([t[k] for t in tables if k in t], scale) for k, _, scale in COLUMNS]
-            worst = cell([t["worst_psnr"] for t in tables if "worst_psnr" in t], 1.0)
-            lines.append(f"| {model} | {len(tables)} | " + " | ".join(cells) + f" | {worst} |")
-    text = "\n".join(lines).lstrip() + "\n"
-    print(text)
-    (args.results / "tables.md").write_text(text)
+            write_tables(results, args)
+    write_tables(results, args)
 
 
 if __name__ == "__main__":
