@@ -319,8 +319,8 @@ impl PreviewScene {
     }
 
     /// The render of the table at `path` (loaded as `bsdf`), or, with a `cache` directory,
-    /// the one kept there by an earlier evaluation with the same scene file, table file
-    /// (path, size and modification time), resolution, spp and seed: two models of one
+    /// the one kept there by an earlier evaluation with the same scene file and table file
+    /// (each by path, size and modification time), resolution, spp and seed: two models of one
     /// seed are compared against the same reference renders, which cost half an
     /// evaluation's previews. A linear f32 EXR per table, so a kept render equals a fresh
     /// one bit for bit — with the same build: the key does not cover the renderer's code,
@@ -341,14 +341,18 @@ impl PreviewScene {
         Ok(image)
     }
 
-    /// What a render of the table at `table` depends on besides the code, hashed.
+    /// What a render of the table at `table` depends on besides the code, hashed: the scene
+    /// file and the table file (each by path, size and modification time), and the render
+    /// settings.
     fn key_of(&self, table: &Path) -> Result<u64> {
         use std::hash::{Hash, Hasher};
+        let identity = |path: &Path| -> Result<(PathBuf, u64, Option<std::time::SystemTime>)> {
+            let path = std::path::absolute(path).map_err(|e| Error::io(path, e))?;
+            let meta = std::fs::metadata(&path).map_err(|e| Error::io(&path, e))?;
+            Ok((path, meta.len(), meta.modified().ok()))
+        };
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
-        std::fs::read(&self.scene_path).map_err(|e| Error::io(&self.scene_path, e))?.hash(&mut hasher);
-        let table = std::path::absolute(table).map_err(|e| Error::io(table, e))?;
-        let meta = std::fs::metadata(&table).map_err(|e| Error::io(&table, e))?;
-        (table, meta.len(), meta.modified().ok()).hash(&mut hasher);
+        (identity(&self.scene_path)?, identity(table)?).hash(&mut hasher);
         (self.width, self.height, self.spp, self.seed, PREVIEW_MAX_DEPTH).hash(&mut hasher);
         Ok(hasher.finish())
     }
