@@ -98,13 +98,16 @@ pub fn power_heuristic(f: f32, g: f32) -> f32 {
 pub struct Distribution1D {
     /// Non-negative cell weights as given.
     func: Vec<f32>,
-    /// Normalised CDF, `func.len() + 1` entries from 0 to 1.
+    /// Normalised CDF, `func.len() + 1` entries from 0 to 1, followed by [`SCAN_CELLS`]
+    /// entries of +∞ so that a window of [`SCAN_CELLS`] entries from any index is in bounds.
     cdf: Vec<f32>,
     /// Guide table of the search (the cutpoint method), for more than [`SCAN_CELLS`] cells:
     /// `guide[k]` = number of CDF entries ≤ k / K for k = 0 … K, K = `guide.len() − 1` a power
     /// of two near an eighth of the cells (a search then spans a cache line or two of the CDF
     /// and the table stays small), so the entries ≤ u lie below `guide[k + 1]` and include
     /// the first `guide[k]` for u in [k / K, (k + 1) / K) (exact in f32: K is a power of two).
+    /// Where those bounds are at most [`SCAN_CELLS`] apart (nearly always), the entries are
+    /// counted in a fixed window without branches; else searched by bisection.
     guide: Vec<u32>,
     /// Integral of `func` over [0, 1).
     integral: f32,
@@ -141,9 +144,10 @@ impl Distribution1D {
             }
         }
         cdf[n] = 1.0;
+        cdf.extend([f32::INFINITY; SCAN_CELLS]);
         let guide = if n > SCAN_CELLS {
             let k = (n / 8).next_power_of_two();
-            (0..=k).map(|j| cdf.partition_point(|&c| c <= j as f32 / k as f32) as u32).collect()
+            (0..=k).map(|j| cdf[..=n].partition_point(|&c| c <= j as f32 / k as f32) as u32).collect()
         } else {
             Vec::new()
         };
@@ -217,16 +221,20 @@ impl Distribution1D {
         // lights) are counted without branches; many are searched between the guide table's
         // bounds (the same index as a search of the whole CDF).
         let n = self.func.len();
+        let count = |window: &[f32]| window.iter().map(|&c| (c <= u) as usize).sum::<usize>();
         let at_most_u = if n <= SCAN_CELLS {
-            self.cdf.iter().map(|&c| (c <= u) as usize).sum()
+            count(&self.cdf[..=n])
         } else {
             let k = self.guide.len() - 1;
             let j = ((u * k as f32).max(0.0) as usize).min(k - 1);
             let (lo, hi) = (self.guide[j] as usize, self.guide[j + 1] as usize);
-            if (0.0..1.0).contains(&u) {
-                lo + self.cdf[lo..hi].partition_point(|&c| c <= u)
+            if !(0.0..1.0).contains(&u) {
+                self.cdf[..=n].partition_point(|&c| c <= u)
+            } else if hi - lo <= SCAN_CELLS {
+                // Entries from `hi` on (the CDF's or the +∞ padding) exceed u.
+                lo + count(&self.cdf[lo..lo + SCAN_CELLS])
             } else {
-                self.cdf.partition_point(|&c| c <= u)
+                lo + self.cdf[lo..hi].partition_point(|&c| c <= u)
             }
         };
         let mut i = at_most_u.saturating_sub(1).min(n - 1);
@@ -249,6 +257,9 @@ impl Distribution1D {
 pub struct Distribution2D {
     conditional: Vec<Distribution1D>,
     marginal: Distribution1D,
+    /// The density of each cell (row-major), the product of the marginal's and the row's
+    /// densities: [`Self::pdf`] is one look-up instead of two in two tables.
+    density: Vec<f32>,
 }
 
 impl Distribution2D {
@@ -260,10 +271,26 @@ impl Distribution2D {
             .map(Distribution1D::new)
             .collect();
         let marginal_weights: Vec<f32> = conditional.iter().map(|c| c.integral()).collect();
+        let marginal = Distribution1D::new(&marginal_weights);
+        let density = conditional
+            .iter()
+            .enumerate()
+            .flat_map(|(row, c)| {
+                let pdf_v = marginal.pdf_cell(row) * height as f32;
+                (0..width).map(move |col| pdf_v * (c.pdf_cell(col) * width as f32))
+            })
+            .collect();
         Distribution2D {
-            marginal: Distribution1D::new(&marginal_weights),
+            marginal,
             conditional,
+            density,
         }
+    }
+
+    /// Number of cells along u (columns) and v (rows).
+    #[inline]
+    pub fn size(&self) -> (usize, usize) {
+        (self.conditional[0].len(), self.conditional.len())
     }
 
     /// Integral of the weights over [0, 1)².
@@ -271,19 +298,22 @@ impl Distribution2D {
         self.marginal.integral()
     }
 
-    /// Samples a point in [0, 1)²; returns it and its density (with respect to area in
-    /// the unit square).
-    pub fn sample_continuous(&self, u: Vec2) -> (Vec2, f32) {
+    /// Samples a point in [0, 1)²; returns it, its density (with respect to area in the
+    /// unit square) and the index (row-major) of the cell it was drawn in.
+    #[inline]
+    pub fn sample_continuous(&self, u: Vec2) -> (Vec2, f32, usize) {
         let (v, pdf_v, row) = self.marginal.sample_continuous(u.y);
-        let (x, pdf_u, _) = self.conditional[row].sample_continuous(u.x);
-        (Vec2::new(x, v), pdf_u * pdf_v)
+        let (x, pdf_u, col) = self.conditional[row].sample_continuous(u.x);
+        (Vec2::new(x, v), pdf_u * pdf_v, col + row * self.conditional[row].len())
     }
 
     /// Density at a point of [0, 1)² of [`Self::sample_continuous`].
+    #[inline]
     pub fn pdf(&self, p: Vec2) -> f32 {
-        let h = self.conditional.len();
+        let (w, h) = self.size();
         let row = ((p.y * h as f32) as usize).min(h - 1);
-        self.marginal.pdf_continuous(p.y) * self.conditional[row].pdf_continuous(p.x)
+        let col = ((p.x * w as f32) as usize).min(w - 1);
+        self.density[col + row * w]
     }
 }
 
@@ -340,7 +370,7 @@ mod tests {
                 .collect();
             let d = Distribution1D::new(&weights);
             let full = |u: f32| {
-                let mut i = d.cdf.partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
+                let mut i = d.cdf[..=n].partition_point(|&c| c <= u).saturating_sub(1).min(n - 1);
                 while i > 0 && d.pdf_cell(i) == 0.0 {
                     i -= 1;
                 }
@@ -351,7 +381,7 @@ mod tests {
             };
             let us = (0..20_000)
                 .map(|_| rng.random::<f32>())
-                .chain(d.cdf.iter().flat_map(|&c| [c, f32::from_bits(c.to_bits().saturating_sub(1)), c.next_up()]))
+                .chain(d.cdf[..=n].iter().flat_map(|&c| [c, f32::from_bits(c.to_bits().saturating_sub(1)), c.next_up()]))
                 .chain([0.0, ONE_MINUS_EPSILON, 1.0, -0.0, f32::NAN]);
             for u in us {
                 assert_eq!(d.find_cell(u), full(u), "n {n}, u {u:e}");
@@ -365,8 +395,12 @@ mod tests {
         let d = Distribution2D::new(&w, 4, 3);
         for k in 0..200 {
             let u = Vec2::new((k as f32 * 0.618_034) % 1.0, (k as f32 + 0.5) / 200.0);
-            let (p, pdf) = d.sample_continuous(u);
+            let (p, pdf, cell) = d.sample_continuous(u);
             assert!((d.pdf(p) - pdf).abs() < 1e-4 * pdf.max(1.0), "{p:?}");
+            assert_eq!(cell, (p.x * 4.0) as usize + 4 * (p.y * 3.0) as usize, "{p:?}");
+            // The table holds the product of the marginal and conditional densities exactly.
+            let row = (p.y * 3.0) as usize;
+            assert_eq!(d.pdf(p), d.marginal.pdf_continuous(p.y) * d.conditional[row].pdf_continuous(p.x));
         }
     }
 

@@ -186,9 +186,8 @@ impl PathTracer {
     fn begin<'s>(&self, scene: &'s RenderScene, path: &mut PathState, hit: Option<Hit>) -> Option<Vertex<'s>> {
         let ray = path.ray;
         let Some(hit) = hit else {
-            if let Some(env) = scene.lights.environment() {
-                let le = env.radiance(ray.direction);
-                let w = self.hit_weight(path.prev_bsdf_pdf, || scene.lights.pdf_environment(ray.direction));
+            if let Some((le, pdf)) = scene.lights.environment_radiance_pdf(ray.direction) {
+                let w = self.hit_weight(path.prev_bsdf_pdf, || pdf);
                 path.l += path.beta * le * w;
             }
             return None;

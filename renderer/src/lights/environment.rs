@@ -122,18 +122,33 @@ impl Environment {
     /// Radiance arriving from world direction `d` (unit), W/(m² sr).
     #[inline]
     pub fn radiance(&self, d: Vec3) -> Rgb {
+        self.radiance_pdf(d).0
+    }
+
+    /// Radiance arriving from world direction `d` (unit), W/(m² sr), and the solid-angle
+    /// density (1/sr) with which [`Self::sample`] draws `d`: both from one mapping of `d` to
+    /// the image (an atan2 and an acos), as a ray that leaves the scene needs them.
+    #[inline]
+    pub fn radiance_pdf(&self, d: Vec3) -> (Rgb, f32) {
         match &self.kind {
-            Kind::Constant(c) => *c,
+            Kind::Constant(c) => (*c, uniform_sphere_pdf()),
             Kind::Image {
                 width,
                 height,
                 texels,
-                ..
+                distribution,
             } => {
-                let uv = direction_to_uv(self.world_to_map(d));
+                let local = self.world_to_map(d);
+                let uv = direction_to_uv(local);
                 let x = ((uv.x * *width as f32) as usize).min(width - 1);
                 let y = ((uv.y * *height as f32) as usize).min(height - 1);
-                texels[x + width * y]
+                let sin_theta = (1.0 - local.y * local.y).max(0.0).sqrt();
+                let pdf = if sin_theta > 0.0 {
+                    distribution.pdf(uv) / (2.0 * PI * PI * sin_theta)
+                } else {
+                    0.0
+                };
+                (texels[x + width * y], pdf)
             }
         }
     }
@@ -146,8 +161,8 @@ impl Environment {
                 radiance: *c,
                 pdf: uniform_sphere_pdf(),
             }),
-            Kind::Image { distribution, .. } => {
-                let (uv, map_pdf) = distribution.sample_continuous(u);
+            Kind::Image { distribution, texels, .. } => {
+                let (uv, map_pdf, texel) = distribution.sample_continuous(u);
                 if map_pdf <= 0.0 {
                     return None;
                 }
@@ -156,10 +171,12 @@ impl Environment {
                 if sin_theta <= 0.0 {
                     return None;
                 }
-                let direction = self.map_to_world(local);
+                // The radiance of the texel drawn: the one whose density `pdf` is (looking
+                // the direction up again would cost an atan2 and an acos, and could land
+                // in the neighbouring texel by rounding).
                 Some(EnvironmentSample {
-                    direction,
-                    radiance: self.radiance(direction),
+                    direction: self.map_to_world(local),
+                    radiance: texels[texel],
                     pdf: map_pdf / (2.0 * PI * PI * sin_theta),
                 })
             }
@@ -167,18 +184,9 @@ impl Environment {
     }
 
     /// Solid-angle density (1/sr) with which [`Self::sample`] draws world direction `d`.
+    #[inline]
     pub fn pdf(&self, d: Vec3) -> f32 {
-        match &self.kind {
-            Kind::Constant(_) => uniform_sphere_pdf(),
-            Kind::Image { distribution, .. } => {
-                let local = self.world_to_map(d);
-                let sin_theta = (1.0 - local.y * local.y).max(0.0).sqrt();
-                if sin_theta <= 0.0 {
-                    return 0.0;
-                }
-                distribution.pdf(direction_to_uv(local)) / (2.0 * PI * PI * sin_theta)
-            }
-        }
+        self.radiance_pdf(d).1
     }
 }
 
@@ -196,7 +204,8 @@ pub fn uv_to_direction(uv: Vec2) -> Vec3 {
     let phi = (uv.x - 0.5) * 2.0 * PI;
     let theta = uv.y * PI;
     let (st, ct) = theta.sin_cos();
-    Vec3::new(st * phi.sin(), ct, -st * phi.cos())
+    let (sp, cp) = phi.sin_cos();
+    Vec3::new(st * sp, ct, -st * cp)
 }
 
 /// Reads an .exr or .hdr image as linear RGB radiance; rejects non-finite or negative texels.

@@ -200,14 +200,15 @@ impl LightSet {
         t.pdf(p, q) * selection.pdf_cell(light as usize)
     }
 
-    /// Density (1/sr, selection included) with which [`Self::sample`] picks the environment
-    /// in world direction `d`.
+    /// The environment's radiance from world direction `d` and the density (1/sr, selection
+    /// included) with which [`Self::sample`] picks the environment in that direction; `None`
+    /// without an environment.
     #[inline]
-    pub fn pdf_environment(&self, d: Vec3) -> f32 {
-        match (&self.environment, &self.selection) {
-            (Some(env), Some(selection)) => env.pdf(d) * selection.pdf_cell(self.environment_light),
-            _ => 0.0,
-        }
+    pub fn environment_radiance_pdf(&self, d: Vec3) -> Option<(Rgb, f32)> {
+        let env = self.environment.as_ref()?;
+        let (radiance, pdf) = env.radiance_pdf(d);
+        let select = self.selection.as_ref().map_or(0.0, |s| s.pdf_cell(self.environment_light));
+        Some((radiance, pdf * select))
     }
 }
 
