@@ -23,6 +23,7 @@ import argparse
 import csv
 import fcntl
 import json
+import math
 import os
 import platform
 import shutil
@@ -89,9 +90,48 @@ def write_tables(results: dict[str, list[tuple[dict, dict]]], args: argparse.Nam
             cells = [cell([t[k] for t in tables if k in t], scale) for k, _, scale in COLUMNS]
             worst = cell([t["worst_psnr"] for t in tables if "worst_psnr" in t], 1.0)
             lines.append(f"| {model} | {len(tables)} | " + " | ".join(cells) + f" | {worst} |")
+    lines += paired(args)
     text = "\n".join(lines).lstrip() + "\n"
     print(text)
     (args.results / "tables.md").write_text(text)
+
+
+def sign_test(wins: int, n: int) -> float:
+    """Two-sided p-value of `wins` of `n` under a fair coin (exact binomial)."""
+    k = min(wins, n - wins)
+    return min(1.0, 2.0 * sum(math.comb(n, i) for i in range(k + 1)) / 2.0 ** n)
+
+
+def paired(args: argparse.Namespace) -> list[str]:
+    """FreNBRDF against HyperBRDF paired on the seeds both finished (same split, same test
+    materials): per seed, the differences of the tables' means; over every material of every
+    such seed, the mean PSNR difference ± its standard error, the materials FreNBRDF renders
+    better, and the sign test of that count."""
+    stem = lambda model, seed: f"{model}-e{args.epochs}-s{seed}-spp{args.spp}-pairs{args.pairs}"
+    rows, diffs = [], []
+    for seed in args.seeds:
+        kept = [args.results / f"{stem(m, seed)}.json" for m in ("frenbrdf", "hyperbrdf")]
+        if not all(k.exists() for k in kept):
+            continue
+        fre, hyper = (json.loads(k.read_text()) for k in kept)
+        d = lambda table, key, scale: (fre[table][key] - hyper[table][key]) * scale
+        rows.append(f"| {seed} | {d('reconstruction', 'psnr', 1):+.2f} | {d('reconstruction', 'worst_psnr', 1):+.2f} | "
+                    f"{d('reconstruction', 'rec', 100):+.3f} | {d('reconstruction', 'fre', 1000):+.3f} | "
+                    f"{d('editing', 'rec', 100):+.3f} | {d('editing', 'fre', 1000):+.3f} |")
+        psnr = [{r["name"]: float(r["psnr"]) for r in csv.DictReader((args.results / f"{stem(m, seed)}-reconstruction.csv").open())}
+                for m in ("frenbrdf", "hyperbrdf")]
+        diffs += [psnr[0][name] - psnr[1][name] for name in psnr[0] if name in psnr[1]]
+    if not rows:
+        return []
+    lines = ["\nPaired by seed, FreNBRDF − HyperBRDF (positive PSNR and negative losses favour FreNBRDF)\n",
+             "| seed | PSNR (dB) | worst PSNR (dB) | L_rec data ×10² | L_fre×10³ | editing L_rec ×10² | editing L_fre×10³ |",
+             "|" + " --- |" * 7, *rows]
+    wins = sum(x > 0 for x in diffs)
+    se = statistics.stdev(diffs) / math.sqrt(len(diffs)) if len(diffs) > 1 else 0.0
+    lines.append(f"\nOver {len(diffs)} material-seed pairs: PSNR difference {statistics.fmean(diffs):+.2f} ± {se:.2f} dB "
+                 f"(mean ± standard error); FreNBRDF better on {wins} of {len(diffs)} "
+                 f"(sign test, two-sided p = {sign_test(wins, len(diffs)):.2f}).")
+    return lines
 
 
 def main() -> None:
