@@ -2,49 +2,16 @@
 //! shipped scenes, with incoherent rays from points inside the scene's bounds.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use glam::Vec3;
 use obvhs::BvhBuildParams;
-use renderer::accel::{Bvh, Ray};
-use renderer::sampler::Sampler;
-use renderer::sampling::sample_uniform_sphere;
+use renderer::accel::Bvh;
 use renderer::scene::SceneDescription;
+use renderer::testing::rays::{interior_rays, surface_rays};
 use std::hint::black_box;
 use std::path::Path;
 
 fn load(name: &str) -> SceneDescription {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name).join("scene.gltf");
     SceneDescription::load(&path).expect("shipped scene")
-}
-
-fn rays(scene: &SceneDescription, n: usize) -> Vec<Ray> {
-    let (lo, hi) = scene.geometry.bounds().expect("geometry");
-    let mut s = Sampler::new(1, 2, 3);
-    (0..n)
-        .map(|_| {
-            let t = Vec3::new(s.next_1d(), s.next_1d(), s.next_1d());
-            let origin = lo + (hi - lo) * (0.1 + 0.8 * t);
-            Ray::new(origin, sample_uniform_sphere(s.next_2d()))
-        })
-        .collect()
-}
-
-/// Rays leaving the scene's surfaces, as a path's continuation and shadow rays do: from a
-/// point of a random triangle (offset along its normal) into the hemisphere of that normal.
-fn surface_rays(scene: &SceneDescription, n: usize) -> Vec<Ray> {
-    let g = &scene.geometry;
-    let mut s = Sampler::new(4, 5, 6);
-    (0..n)
-        .map(|_| {
-            let t = ((s.next_1d() * g.triangle_count() as f32) as usize).min(g.triangle_count() - 1);
-            let [a, b, c] = g.triangle_positions(t);
-            let (u, v) = (s.next_1d(), s.next_1d());
-            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
-            let normal = (b - a).cross(c - a).normalize();
-            let d = sample_uniform_sphere(s.next_2d());
-            let d = if d.dot(normal) < 0.0 { -d } else { d };
-            Ray::new(a + (b - a) * u + (c - a) * v + normal * 1e-4, d)
-        })
-        .collect()
 }
 
 fn bench(c: &mut Criterion) {
@@ -54,9 +21,9 @@ fn bench(c: &mut Criterion) {
         let corners = || (0..g.triangle_count()).map(|i| g.triangle_positions(i));
         let mut group = c.benchmark_group(format!("bvh/{name} ({} triangles)", g.triangle_count()));
         group.bench_function("build", |b| b.iter(|| black_box(Bvh::build(corners()))));
-        let rays = rays(&scene, 4096);
+        let rays = interior_rays(g, 4096);
         group.throughput(Throughput::Elements(rays.len() as u64));
-        let from_surfaces = surface_rays(&scene, 4096);
+        let from_surfaces = surface_rays(g, 4096);
         let presets = [
             ("fast", BvhBuildParams::fast_build()),
             ("medium", BvhBuildParams::medium_build()),

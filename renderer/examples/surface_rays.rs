@@ -9,34 +9,13 @@
 //! the rays per second of single-ray and packet traversal (best of five passes) and the
 //! number of rays that hit.
 
-use renderer::accel::{Bvh, Ray};
-use renderer::sampler::Sampler;
-use renderer::sampling::sample_uniform_sphere;
+use renderer::accel::Bvh;
 use renderer::scene::SceneDescription;
+use renderer::testing::rays::surface_rays;
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
-
-/// `n` rays from uniformly chosen triangles (a uniform point, 10⁻⁴ off the surface along
-/// the triangle's normal) into the hemisphere of that normal, uniformly: the rays of the
-/// `bvh` bench's "closest hit from surfaces".
-fn surface_rays(scene: &SceneDescription, n: usize) -> Vec<Ray> {
-    let g = &scene.geometry;
-    let mut s = Sampler::new(4, 5, 6);
-    (0..n)
-        .map(|_| {
-            let t = ((s.next_1d() * g.triangle_count() as f32) as usize).min(g.triangle_count() - 1);
-            let [a, b, c] = g.triangle_positions(t);
-            let (u, v) = (s.next_1d(), s.next_1d());
-            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
-            let normal = (b - a).cross(c - a).normalize();
-            let d = sample_uniform_sphere(s.next_2d());
-            let d = if d.dot(normal) < 0.0 { -d } else { d };
-            Ray::new(a + (b - a) * u + (c - a) * v + normal * 1e-4, d)
-        })
-        .collect()
-}
 
 fn write_f32s(path: &PathBuf, values: impl Iterator<Item = f32>) -> std::io::Result<()> {
     let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
@@ -72,7 +51,7 @@ fn main() -> ExitCode {
         }
     };
     let g = &scene.geometry;
-    let rays = surface_rays(&scene, n);
+    let rays = surface_rays(g, n);
     let out = PathBuf::from(out);
     let written = std::fs::create_dir_all(&out)
         .and_then(|_| write_f32s(&out.join("triangles.f32"), (0..g.triangle_count()).flat_map(|i| g.triangle_positions(i)).flat_map(|v| v.to_array())))
