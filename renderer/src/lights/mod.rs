@@ -126,12 +126,6 @@ impl LightSet {
         self.lights.is_empty()
     }
 
-    /// The environment, if the scene has one.
-    #[inline]
-    pub fn environment(&self) -> Option<&Environment> {
-        self.environment.as_ref()
-    }
-
     /// Chooses a light with `u_select` and samples it from shading point `p`.
     #[inline]
     pub fn sample(&self, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
