@@ -16,7 +16,13 @@ Runs and evaluations under --out are kept too (checkpoints resume per epoch), so
 resumes where it stopped on the same machine, and where the last committed run ended on a
 fresh checkout. The tables are printed and written to docs/seed-study/tables.md.
 
+--split-seed N holds the split fixed (the configuration's `split_seed`): the seeds then vary
+only the initial weights and samples, every run is tested on the same materials, and the
+spread over seeds is the models' alone. Such runs are named MODEL-eE-sSEED-splitN-... and
+their tables go to docs/seed-study/tables-splitN.md; seed N itself is the study's run of seed N.
+
     python3 assets-scripts/seed_study.py [--seeds 1 2 3] [--epochs 100] [--spp 1024] [--pairs 2000]
+    python3 assets-scripts/seed_study.py --split-seed 3 --seeds 4 5 --pairs 200
 """
 
 import argparse
@@ -76,6 +82,16 @@ def cell(values: list[float], scale: float) -> str:
     return f"{m:.3f} ± {s:.3f}"
 
 
+def stem(model: str, seed: int, args: argparse.Namespace) -> str:
+    """The name of a run's results in RESULTS (without extension)."""
+    split = "" if args.split_seed in (None, seed) else f"-split{args.split_seed}"
+    return f"{model}-e{args.epochs}-s{seed}{split}-spp{args.spp}-pairs{args.pairs}"
+
+
+def tables_path(args: argparse.Namespace) -> Path:
+    return args.results / ("tables.md" if args.split_seed is None else f"tables-split{args.split_seed}.md")
+
+
 def write_tables(results: dict[str, list[tuple[dict, dict]]], args: argparse.Namespace) -> None:
     """Prints the two tables over the runs done so far and writes them to RESULTS/tables.md."""
     lines = []
@@ -83,7 +99,8 @@ def write_tables(results: dict[str, list[tuple[dict, dict]]], args: argparse.Nam
     rule = "|" + " --- |" * (len(COLUMNS) + 3)
     for title, index in [("Table 1 analogue: reconstruction of the test materials", 0),
                          ("Table 2 analogue: editing, random pairs of test materials", 1)]:
-        lines += [f"\n{title} ({args.epochs} epochs, previews at {args.spp} spp, {args.pairs} pairs; "
+        split = "" if args.split_seed is None else f", split of seed {args.split_seed} for all"
+        lines += [f"\n{title} ({args.epochs} epochs, previews at {args.spp} spp, {args.pairs} pairs{split}; "
                   f"mean ± std over the seeds done of {', '.join(map(str, args.seeds))})\n", header, rule]
         for model, rows in results.items():
             tables = [r[index] for r in rows]
@@ -93,7 +110,7 @@ def write_tables(results: dict[str, list[tuple[dict, dict]]], args: argparse.Nam
     lines += paired(args)
     text = "\n".join(lines).lstrip() + "\n"
     print(text)
-    (args.results / "tables.md").write_text(text)
+    tables_path(args).write_text(text)
 
 
 def sign_test(wins: int, n: int) -> float:
@@ -107,10 +124,9 @@ def paired(args: argparse.Namespace) -> list[str]:
     materials): per seed, the differences of the tables' means; over every material of every
     such seed, the mean PSNR difference ± its standard error, the materials FreNBRDF renders
     better, and the sign test of that count."""
-    stem = lambda model, seed: f"{model}-e{args.epochs}-s{seed}-spp{args.spp}-pairs{args.pairs}"
     rows, diffs = [], []
     for seed in args.seeds:
-        kept = [args.results / f"{stem(m, seed)}.json" for m in ("frenbrdf", "hyperbrdf")]
+        kept = [args.results / f"{stem(m, seed, args)}.json" for m in ("frenbrdf", "hyperbrdf")]
         if not all(k.exists() for k in kept):
             continue
         fre, hyper = (json.loads(k.read_text()) for k in kept)
@@ -118,7 +134,7 @@ def paired(args: argparse.Namespace) -> list[str]:
         rows.append(f"| {seed} | {d('reconstruction', 'psnr', 1):+.2f} | {d('reconstruction', 'worst_psnr', 1):+.2f} | "
                     f"{d('reconstruction', 'rec', 100):+.3f} | {d('reconstruction', 'fre', 1000):+.3f} | "
                     f"{d('editing', 'rec', 100):+.3f} | {d('editing', 'fre', 1000):+.3f} |")
-        psnr = [{r["name"]: float(r["psnr"]) for r in csv.DictReader((args.results / f"{stem(m, seed)}-reconstruction.csv").open())}
+        psnr = [{r["name"]: float(r["psnr"]) for r in csv.DictReader((args.results / f"{stem(m, seed, args)}-reconstruction.csv").open())}
                 for m in ("frenbrdf", "hyperbrdf")]
         diffs += [psnr[0][name] - psnr[1][name] for name in psnr[0] if name in psnr[1]]
     if not rows:
@@ -140,6 +156,8 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=100)
     ap.add_argument("--spp", type=int, default=1024)
     ap.add_argument("--pairs", type=int, default=2000)
+    ap.add_argument("--split-seed", type=int, default=None,
+                    help="hold the split fixed at this seed's (default: each seed draws its own)")
     ap.add_argument("--data", type=Path, default=ROOT / "data" / "merl-fitted")
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "seed-study")
     ap.add_argument("--results", type=Path, default=ROOT / "docs" / "seed-study",
@@ -160,16 +178,17 @@ def main() -> None:
     results: dict[str, list[tuple[dict, dict]]] = {}
     for seed in args.seeds:
         for model in ["frenbrdf", "hyperbrdf"]:
-            name = f"{model}-e{args.epochs}-s{seed}-spp{args.spp}-pairs{args.pairs}"
-            kept = args.results / f"{name}.json"
+            kept = args.results / f"{stem(model, seed, args)}.json"
             if kept.exists():
                 means_of = json.loads(kept.read_text())
                 results.setdefault(model, []).append((means_of["reconstruction"], means_of["editing"]))
                 continue
-            name = f"{model}-e{args.epochs}-s{seed}"
+            name = f"{model}-e{args.epochs}-s{seed}" + ("" if args.split_seed in (None, seed) else f"-split{args.split_seed}")
             run_dir = args.out / name
             config = json.loads((ROOT / "scenes" / "materials" / f"{model}.json").read_text())
             config.update(seed=seed, epochs=args.epochs)
+            if args.split_seed is not None:
+                config.update(split_seed=args.split_seed)
             config_path = args.out / f"{name}.json"
             config_path.write_text(json.dumps(config, indent=2))
             # A finished run resumes to its end at once; an interrupted one goes on.

@@ -332,7 +332,7 @@ fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
         .iter()
         .map(|p| material_name(p))
         .collect::<Result<Vec<_>>>()?;
-    let split = Split::new(&names, config.split, config.seed);
+    let split = Split::new(&names, config.split, config.split_seed());
     let (train, validation) = open_split(&req.data_dir, &split, req.table_cache_bytes)?;
     let reference = MaterialTable::median("reference", &train)?;
     std::fs::create_dir_all(&run.0).map_err(|e| Error::io(&run.0, e))?;
