@@ -37,8 +37,11 @@ enum Outcome {
 /// Reusable buffers of [`PathTracer::step_batch`] for the scene `'s`.
 #[derive(Default)]
 pub struct BatchBuffers<'s> {
-    /// Per vertex of the chunk: its outcome and position.
-    outcomes: Vec<(Outcome, Vec3)>,
+    /// Per vertex of the chunk: its outcome, and its position (unused where it ended). Two
+    /// vectors rather than one of pairs: a pair is assembled on the stack in pieces and read
+    /// back whole, which stalls store forwarding once per vertex.
+    outcomes: Vec<Outcome>,
+    positions: Vec<Vec3>,
     scattered: Vec<Scattered>,
     lanes: DiffuseLanes,
     groups: Vec<DiffuseScattered>,
@@ -75,6 +78,7 @@ impl PathTracer {
         let light_only = self.strategy == Strategy::LightOnly;
         let BatchBuffers {
             outcomes,
+            positions,
             scattered,
             lanes,
             groups,
@@ -86,6 +90,7 @@ impl PathTracer {
         groups.resize_with(CHUNK.div_ceil(LANES), DiffuseScattered::default);
         for (chunk, chunk_hits) in active.chunks(CHUNK).zip(hits.chunks(CHUNK)) {
             outcomes.clear();
+            positions.clear();
             scattered.clear();
             lanes.clear();
             neural.clear();
@@ -94,9 +99,11 @@ impl PathTracer {
             for (&i, &hit) in chunk.iter().zip(chunk_hits) {
                 let path = &mut paths[i as usize];
                 let Some(v) = self.begin(scene, path, hit) else {
-                    outcomes.push((Outcome::Ended, Vec3::ZERO));
+                    outcomes.push(Outcome::Ended);
+                    positions.push(Vec3::ZERO);
                     continue;
                 };
+                positions.push(v.sp.p);
                 let diffuse_triangle = match (&v.bsdf, v.light) {
                     (Bsdf::Lambert(b), Some((light, select_pdf))) if lanes_apply => {
                         scene.lights.triangle(light).filter(|t| t.texture.is_none()).map(|t| (b.albedo, t, select_pdf))
@@ -104,7 +111,7 @@ impl PathTracer {
                     _ => None,
                 };
                 if let Some((albedo, light, select_pdf)) = diffuse_triangle {
-                    outcomes.push((Outcome::Lane(group, lanes.len() as u32), v.sp.p));
+                    outcomes.push(Outcome::Lane(group, lanes.len() as u32));
                     lanes.push(&v, albedo, path.beta, light, select_pdf);
                     if lanes.is_full() {
                         lanes.scatter(light_only, &mut groups[group as usize]);
@@ -112,13 +119,13 @@ impl PathTracer {
                         group += 1;
                     }
                 } else if let Bsdf::Neural(bsdf) = v.bsdf {
-                    outcomes.push((Outcome::Neural(neural.len() as u32), v.sp.p));
+                    outcomes.push(Outcome::Neural(neural.len() as u32));
                     neural.push(self, scene, &v, bsdf, path.beta);
                 } else if let Bsdf::Merl(bsdf) = v.bsdf {
-                    outcomes.push((Outcome::Merl(merl.len() as u32), v.sp.p));
+                    outcomes.push(Outcome::Merl(merl.len() as u32));
                     merl.push(self, scene, &v, bsdf, path.beta);
                 } else {
-                    outcomes.push((Outcome::Alone(scattered.len() as u32), v.sp.p));
+                    outcomes.push(Outcome::Alone(scattered.len() as u32));
                     scattered.push(self.scatter(scene, &v, path.beta));
                 }
             }
@@ -127,7 +134,7 @@ impl PathTracer {
             }
             neural.scatter(self, neural_scattered);
             merl.scatter(self, merl_scattered);
-            for (&i, &(outcome, p)) in chunk.iter().zip(outcomes.iter()) {
+            for ((&i, &outcome), &p) in chunk.iter().zip(outcomes.iter()).zip(positions.iter()) {
                 let s = match outcome {
                     Outcome::Ended => continue,
                     Outcome::Alone(k) => scattered[k as usize],
