@@ -51,6 +51,7 @@ use renderer::formats::image_io::ToneMap;
 use renderer::integrator::PathTracer;
 use renderer::formats::latent_file::{LatentFile, WeightType};
 use renderer::metrics::{display_values, ImageError};
+use renderer::neural::latent_library::LatentCode;
 use renderer::neural::nbrdf::NbrdfNetwork;
 use renderer::render::{Budget, Renderer};
 use renderer::render_scene::RenderScene;
@@ -160,8 +161,8 @@ pub fn model_name(run: &TrainedRun) -> String {
 
 /// What is compared with a reference BRDF.
 enum Candidate<'a> {
-    /// The run's decoder at latent code z.
-    Latent(&'a [f32]),
+    /// The run's decoder at a latent code (z and output offset).
+    Latent(&'a LatentCode),
     /// An NBRDF network.
     Nbrdf(&'a NbrdfNetwork),
 }
@@ -206,8 +207,8 @@ fn compare(
     let (mapping, epsilon) = (run.codec.sampler.mapping, run.codec.sampler.epsilon);
     // (y', f') per point and channel.
     let predicted: Vec<(f32, f32)> = match candidate {
-        Candidate::Latent(z) => {
-            let y = run.codec.predict(z, &set.inputs);
+        Candidate::Latent(code) => {
+            let y = run.codec.predict(&code.z, code.offset, &set.inputs);
             (0..3 * n)
                 .map(|k| {
                     let r = f_ref[k / 3][k % 3].max(0.0);
@@ -455,7 +456,8 @@ pub fn evaluate(
             seed: settings.seed.wrapping_add(i as u64),
             ..settings.encode.clone()
         };
-        codes.push(run.codec.encode(&table, &encode)?.z);
+        let refined = run.codec.encode(&table, &encode)?;
+        codes.push(LatentCode { file: 0, z: refined.z, offset: refined.offset });
         tables.push(table);
     }
     let file = crate::export::latent_file(run, WeightType::F32);
@@ -473,12 +475,12 @@ pub fn evaluate(
         None => None,
     };
     let mut reconstruction = Vec::new();
-    for (i, ((name, table), z)) in names.iter().zip(&tables).zip(&codes).enumerate() {
+    for (i, ((name, table), code)) in names.iter().zip(&tables).zip(&codes).enumerate() {
         progress(&format!("reconstruction {name}"));
         let truth = |a, b, c| table.lookup(a, b, c);
-        let mut latent = compare(run, &Candidate::Latent(z), &truth, settings, &fre, &mut splats)?;
+        let mut latent = compare(run, &Candidate::Latent(code), &truth, settings, &fre, &mut splats)?;
         let table_bsdf = MerlBsdf::load(table_path(name))?;
-        let neural = neural_bsdf(run, &file, &reference, name, z)?;
+        let neural = neural_bsdf(run, &file, &reference, name, code)?;
         latent.albedo_ratio = Some(albedo_ratios(&neural, &table_bsdf, settings.albedo_samples));
         let (mut nbrdf, nbrdf_bsdf) = match &nbrdf_prefixes {
             Some(prefixes) => {
@@ -537,17 +539,13 @@ pub fn evaluate(
                 b += 1;
             }
             let t: f32 = rng.random();
-            let z: Vec<f32> = codes[a]
-                .iter()
-                .zip(&codes[b])
-                .map(|(x, y)| (1.0 - t) * x + t * y)
-                .collect();
+            let code = codes[a].lerp(&codes[b], t)?;
             let (ta, tb) = (&tables[a], &tables[b]);
             let blend = |h: f32, d: f32, p: f32| -> Option<[f32; 3]> {
                 let (fa, fb) = (ta.lookup(h, d, p)?, tb.lookup(h, d, p)?);
                 Some([0, 1, 2].map(|c| (1.0 - t) * fa[c] + t * fb[c]))
             };
-            let metrics = compare(run, &Candidate::Latent(&z), &blend, settings, &fre, &mut splats)?;
+            let metrics = compare(run, &Candidate::Latent(&code), &blend, settings, &fre, &mut splats)?;
             editing.push(Row {
                 model: model.clone(),
                 name: format!("{}|{}", names[a], names[b]),
@@ -559,17 +557,17 @@ pub fn evaluate(
     Ok((reconstruction, editing))
 }
 
-/// The renderer's BSDF of the run's decoder at z (the path a latent file takes).
+/// The renderer's BSDF of the run's decoder at a code (the path a latent file takes).
 fn neural_bsdf(
     run: &TrainedRun,
     file: &LatentFile,
     reference: &ReferenceValues,
     name: &str,
-    z: &[f32],
+    code: &LatentCode,
 ) -> Result<NeuralBsdf> {
     Ok(NeuralBsdf::new(
         name,
-        file.decode(z),
+        file.decode(&code.z, code.offset),
         reference.clone(),
         run.codec.sampler.mapping,
         run.codec.sampler.epsilon,

@@ -82,11 +82,12 @@ pub fn encode_materials(
                 seed: settings.seed.wrapping_add(i as u64),
                 ..settings.clone()
             };
-            let z = run.codec.encode(&table, &settings)?.z;
+            let refined = run.codec.encode(&table, &settings)?;
             progress(name);
             Ok(NamedLatent {
                 name: name.clone(),
-                z,
+                z: refined.z,
+                offset: refined.offset,
             })
         })
         .collect()

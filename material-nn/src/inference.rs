@@ -14,6 +14,12 @@
 //!    step (the encoder's ReLU output never leaves that orthant, so refined codes stay in
 //!    the latent space that editing interpolates). It brings a material the encoder has
 //!    never seen to the decoder's best fit.
+//!
+//! With [`RefineSettings::fit_offset`] the refinement also fits the code's output offset δ
+//! (one value per RGB channel added to the target net's output y; see
+//! [`renderer::formats::latent_file::NamedLatent::offset`]): under the talk mapping a colour
+//! gain e^δ on f_r + ε, which the shared decoder cannot always give a material it never saw
+//! (a saturated paper decodes to the right shape at the wrong colour).
 
 use crate::checkpoint::Checkpoint;
 use crate::config::TrainConfig;
@@ -65,6 +71,8 @@ pub struct RefineSettings {
     pub samples: usize,
     /// Adam learning rate, decayed along a half cosine to 5 % over the steps.
     pub learning_rate: f64,
+    /// Also fit the code's output offset δ per RGB channel (0 when false).
+    pub fit_offset: bool,
 }
 
 impl Default for RefineSettings {
@@ -73,14 +81,16 @@ impl Default for RefineSettings {
             steps: 100,
             samples: 16_384,
             learning_rate: 3e-2,
+            fit_offset: true,
         }
     }
 }
 
-/// A latent code being refined: the one trainable tensor, z [1, latent_dim].
+/// A latent code being refined: z [1, latent_dim] and the output offset δ [1, 3].
 #[derive(Module, Debug)]
 struct LatentCode {
     z: Param<Tensor<2>>,
+    offset: Param<Tensor<2>>,
 }
 
 /// A trained HyperBRDF model ready to encode and decode (see the module documentation).
@@ -104,6 +114,8 @@ pub struct Codec {
 pub struct Refined {
     /// The refined z.
     pub z: Vec<f32>,
+    /// The output offset δ per RGB channel (0 unless [`RefineSettings::fit_offset`]).
+    pub offset: [f32; 3],
     /// L_rec (data term) of the encoder's z on the refinement set.
     pub initial_loss: f64,
     /// L_rec (data term) of the refined z on the same set.
@@ -236,11 +248,13 @@ impl Codec {
         let objective = |code: &LatentCode| {
             let z = code.z.val();
             let params = self.frozen.decode(z.clone());
-            let pred = self.frozen.target_forward(&params, x.clone());
+            let pred = self.frozen.target_forward(&params, x.clone()) + code.offset.val().unsqueeze_dim::<3>(1);
             self.rec_loss.forward(pred, y.clone(), cos.clone(), &params, z)
         };
+        let zero_offset = || Param::from_tensor(Tensor::<2>::zeros([1, 3], &device));
         let mut code = LatentCode {
             z: Param::from_tensor(Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &device)),
+            offset: zero_offset(),
         };
         let initial_loss = objective(&code).1.into_scalar::<f32>() as f64;
         let mut optim = optimizer();
@@ -251,27 +265,37 @@ impl Codec {
             let grads = GradientsParams::from_grads(total.backward(), &code);
             code = optim.step(lr, code, grads);
             code.z = code.z.map(|z| z.clamp_min(0.0).detach().require_grad());
+            if !settings.fit_offset {
+                code.offset = zero_offset();
+            }
             progress(step + 1, data.into_scalar::<f32>() as f64);
         }
         let final_loss = objective(&code).1.into_scalar::<f32>() as f64;
         let z = to_vec(code.z.val());
-        if z.iter().any(|v| !v.is_finite()) {
+        let offset: [f32; 3] = to_vec(code.offset.val()).try_into().expect("offset of 3 channels");
+        if z.iter().chain(&offset).any(|v| !v.is_finite()) {
             return Err(Error::Invalid("latent refinement diverged (non-finite code)".to_string()));
         }
         Ok(Refined {
             z,
+            offset,
             initial_loss,
             final_loss,
         })
     }
 
-    /// The mapped predictions y [n, 3] of latent `z` at network inputs [n, 6].
-    pub fn predict(&self, z: &[f32], inputs: &[f32]) -> Vec<f32> {
+    /// The mapped predictions y [n, 3] of latent `z` with output offset `offset` (per RGB
+    /// channel) at network inputs [n, 6].
+    pub fn predict(&self, z: &[f32], offset: [f32; 3], inputs: &[f32]) -> Vec<f32> {
         let n = inputs.len() / 6;
         let zt = Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &self.device);
         let params = self.model.decode(zt);
         let x = Tensor::from_data(TensorData::new(inputs.to_vec(), [1, n, 6]), &self.device);
-        to_vec(self.model.target_forward(&params, x))
+        let mut y = to_vec(self.model.target_forward(&params, x));
+        for (k, v) in y.iter_mut().enumerate() {
+            *v += offset[k % 3];
+        }
+        y
     }
 }
 
@@ -408,6 +432,7 @@ mod tests {
             steps: 40,
             samples: 2048,
             learning_rate: 0.1,
+            fit_offset: false,
         };
         let mut losses = Vec::new();
         let refined = codec.refine(&z, &set, &settings, &mut |_, l| losses.push(l)).unwrap();
@@ -420,6 +445,19 @@ mod tests {
         );
         assert!(refined.z.iter().all(|v| *v >= 0.0), "{:?}", refined.z);
         assert_ne!(refined.z, z);
+        assert_eq!(refined.offset, [0.0; 3], "z alone");
+        // With the output offset the same steps fit further, and the offset is what makes
+        // the difference (a colour gain the random decoder has no code for).
+        let with_offset = RefineSettings { fit_offset: true, ..settings.clone() };
+        let tinted = codec.refine(&z, &set, &with_offset, &mut |_, _| {}).unwrap();
+        assert!(
+            tinted.final_loss < 0.9 * refined.final_loss,
+            "{} (offset {:?}) vs {} (z alone)",
+            tinted.final_loss,
+            tinted.offset,
+            refined.final_loss
+        );
+        assert!(tinted.offset.iter().any(|d| d.abs() > 0.05), "{:?}", tinted.offset);
         let none = RefineSettings { steps: 0, ..settings };
         let same = codec.refine(&z, &set, &none, &mut |_, _| {}).unwrap();
         assert_eq!((same.z, same.final_loss), (z.clone(), same.initial_loss));

@@ -80,10 +80,12 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     assert_eq!(file.latent_names(), vec!["grey-clay", "red-plastic"]);
     assert_eq!(file.training_materials.len(), 2);
     let trained = material_nn::inference::TrainedRun::load(&run).unwrap();
-    let z = file.latent("red-plastic").unwrap();
+    // The exported code (z and its output offset) decodes to the same net in burn and in
+    // the renderer's plain f32 forward pass.
+    let code = file.latent("red-plastic").unwrap();
     let x = renderer::brdf_coords::network_input_from_angles(0.3, 0.6, 1.1);
-    let burn_y = trained.codec.predict(z, &x);
-    let plain_y = file.decode(z).forward(&x);
+    let burn_y = trained.codec.predict(&code.z, code.offset, &x);
+    let plain_y = file.decode(&code.z, code.offset).forward(&x);
     for c in 0..3 {
         assert!(
             (burn_y[c] - plain_y[c]).abs() < 1e-4 * burn_y[c].abs().max(1.0),
@@ -257,6 +259,10 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     assert!(after < before, "refinement {before} -> {after}");
     let library = LatentFile::read(&lib).unwrap();
     assert_eq!(library.latent_names(), vec!["clay2"]);
+    // The output offset is fitted with z by default and stored with the code.
+    let offset: Vec<f32> = json["offset"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
+    assert_eq!(library.latents[0].offset[..], offset[..]);
+    assert!(offset.iter().any(|d| *d != 0.0), "{json}");
     assert_eq!(library.hypernetwork, file.hypernetwork);
     assert!(library.encoder.is_some());
     let out = material_nn(&[
@@ -275,6 +281,7 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     assert!(out.status.success(), "{out:?}");
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["loss_encoder"], json["loss_refined"], "no refinement: {json}");
+    assert_eq!(json["offset"], serde_json::json!([0.0, 0.0, 0.0]), "no refinement, no offset");
     assert_eq!(LatentFile::read(&lib).unwrap().latent_names(), vec!["clay2", "sparse2"]);
 
     // Bad input to encode: one line naming the file, exit 2, the library untouched.
@@ -322,9 +329,10 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
 
     // A latent file of another version is refused with its reason.
     let mut bytes = std::fs::read(&latent).unwrap();
-    bytes[8] = 3;
-    let v3 = dir.path().join("v3.bin");
-    std::fs::write(&v3, bytes).unwrap();
+    let next = renderer::formats::latent_file::VERSION + 1;
+    bytes[8..12].copy_from_slice(&next.to_le_bytes());
+    let future = dir.path().join("future.bin");
+    std::fs::write(&future, bytes).unwrap();
     let e = error_line(&material_nn(&[
         "encode",
         "--run",
@@ -332,9 +340,9 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         "--samples",
         path_str(&csv),
         "--add-to",
-        path_str(&v3),
+        path_str(&future),
     ]));
-    assert!(e.contains("v3.bin") && e.contains("version 3"), "{e}");
+    assert!(e.contains("future.bin") && e.contains(&format!("version {next}")), "{e}");
 }
 
 #[test]

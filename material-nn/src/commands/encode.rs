@@ -35,6 +35,9 @@ pub struct EncodeArgs {
     /// Refinement steps of the code, decoder frozen (0: the set encoder's code as it is).
     #[arg(long, default_value_t = RefineSettings::default().steps)]
     pub refine_steps: usize,
+    /// Refine z alone: no output offset (the code's colour gain) is fitted.
+    #[arg(long)]
+    pub no_offset: bool,
     /// Name of the latent code (default: the input's file stem).
     #[arg(long)]
     pub name: Option<String>,
@@ -88,6 +91,7 @@ pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
     };
     let refine = RefineSettings {
         steps: args.refine_steps,
+        fit_offset: !args.no_offset,
         ..RefineSettings::default()
     };
     let refined = codec.encode_and_refine(&set, &refine)?;
@@ -96,6 +100,7 @@ pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
         file.latents.push(NamedLatent {
             name: name.clone(),
             z: refined.z.clone(),
+            offset: refined.offset,
         });
         file.write(path)?;
     }
@@ -104,6 +109,7 @@ pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
         serde_json::json!({
             "name": name,
             "z": refined.z,
+            "offset": refined.offset,
             "samples": set.len(),
             "refine_steps": refine.steps,
             "loss_encoder": refined.initial_loss,

@@ -64,6 +64,9 @@ pub struct EvalArgs {
     /// codes as they are).
     #[arg(long, default_value_t = RefineSettings::default().steps)]
     pub refine_steps: usize,
+    /// Refine z alone, as `encode --no-offset` does (no output offset fitted).
+    #[arg(long)]
+    pub no_offset: bool,
     /// Keep the tables' preview renders in DIR and reuse them when scene, table, resolution,
     /// spp and seed are the same (e.g. two models of one seed); clear DIR after changing the
     /// renderer.
@@ -115,6 +118,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         encode: EncodeSettings {
             refine: RefineSettings {
                 steps: args.refine_steps,
+                fit_offset: !args.no_offset,
                 ..RefineSettings::default()
             },
             ..EncodeSettings::default()

@@ -50,8 +50,9 @@ const char *nb_last_error(void);
 // storage for a handle.
 enum NbStatus nb_material_open(const char *path, const char *name, struct NbMaterial **out);
 
-// Opens a latent file and decodes the latent vector `z` (`len` floats, the file's latent
-// size) into `*out`, e.g. an interpolated or edited code.
+// Opens a latent file and decodes the latent vector `z` into `*out`, e.g. an interpolated
+// or edited code: `len` floats, either the file's latent size (z alone) or 3 more (z, then
+// the code's output offset per RGB channel).
 //
 // # Safety
 // `path` is a NUL-terminated string; `z` points to `len` floats; `out` points to writable

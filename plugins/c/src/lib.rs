@@ -167,8 +167,9 @@ pub unsafe extern "C" fn nb_material_open(path: *const c_char, name: *const c_ch
     })
 }
 
-/// Opens a latent file and decodes the latent vector `z` (`len` floats, the file's latent
-/// size) into `*out`, e.g. an interpolated or edited code.
+/// Opens a latent file and decodes the latent vector `z` into `*out`, e.g. an interpolated
+/// or edited code: `len` floats, either the file's latent size (z alone) or 3 more (z, then
+/// the code's output offset per RGB channel).
 ///
 /// # Safety
 /// `path` is a NUL-terminated string; `z` points to `len` floats; `out` points to writable

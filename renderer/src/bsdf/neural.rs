@@ -261,13 +261,12 @@ mod tests {
         }
         let (a, b) = (lib.latent("chrome").unwrap(), lib.latent("black-phenolic").unwrap());
         for t in [-1.0f32, 2.0] {
-            let z = a.z.iter().zip(&b.z).map(|(x, y)| (1.0 - t) * x + t * y).collect();
-            let code = LatentCode { file: a.file, z };
-            check_stability(&lib.decode_code(&code, "extrapolated").unwrap());
+            check_stability(&lib.decode_code(&a.lerp(&b, t).unwrap(), "extrapolated").unwrap());
         }
         let zero = LatentCode {
             file: a.file,
             z: vec![0.0; a.z.len()],
+            offset: [0.0; 3],
         };
         check_stability(&lib.decode_code(&zero, "zero").unwrap());
     }

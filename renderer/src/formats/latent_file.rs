@@ -3,7 +3,7 @@
 //! layout is documented in `docs/latent-format.md`; in short (all little-endian):
 //!
 //! ```text
-//! magic "FRENBRDF" | version u32 = 2 (1 is read too) | latent_dim u32
+//! magic "FRENBRDF" | version u32 = 3 (1 and 2 are read too) | latent_dim u32
 //! target layer count u32 = K | target widths u32 × (K+1)            (6 60 60 60 60 3)
 //! hypernetwork hidden layer count u32 = H | hidden widths u32 × H    (128 128)
 //! mapping u8 (0 talk, 1 code) | weight dtype u8 (0 f32, 1 f16) | 2 zero bytes | epsilon f32
@@ -13,7 +13,8 @@
 //!               layer count u32 = E | widths u32 × (E+1) (9 128 128 128 latent_dim) |
 //!               per layer: weight [d_in, d_out] row-major, then bias [d_out], always f32
 //! f_ref: dims u32 × 3 (90 90 180) | f16 × bins × 3, bin-major RGB, f_r in 1/sr, < 0 unmeasured
-//! latent codes: count u32 | per code: name length u32, UTF-8 name, f32 × latent_dim
+//! latent codes: count u32 | per code: name length u32, UTF-8 name, f32 × latent_dim (z),
+//!               f32 × 3 (output offset δ; version 3 only)
 //! training materials: count u32 | per name: length u32, UTF-8 name
 //! checksum u64: FNV-1a 64 of every preceding byte
 //! ```
@@ -24,8 +25,10 @@
 //! input of [`crate::brdf_coords::network_input`] to the mapped value y per RGB channel; f_r
 //! comes back through [`MappingForm::inverse`] with f_ref looked up in the table. The optional
 //! set [`Encoder`] maps measured samples to a latent code (ReLU after every layer, its last
-//! included, then the mean over the samples). Version 1 files have no encoder section and read
-//! with `encoder: None`; writing always writes [`VERSION`].
+//! included, then the mean over the samples). A code's output offset δ is added to the
+//! decoded target net's output bias ([`LatentFile::decode`]). Version 1 files have no encoder
+//! section and read with `encoder: None`; versions 1 and 2 have no offsets and read with
+//! δ = 0; writing always writes [`VERSION`].
 //!
 //! This module is the format only: the forward passes (hypernetwork, encoder, target net) are
 //! in [`crate::neural`].
@@ -39,8 +42,9 @@ use std::path::Path;
 
 /// The 8 bytes every latent file starts with.
 pub const MAGIC: [u8; 8] = *b"FRENBRDF";
-/// The format version this module writes; it reads this one and version 1 (no encoder).
-pub const VERSION: u32 = 2;
+/// The format version this module writes; it reads this one, version 2 (no output offsets)
+/// and version 1 (no encoder either).
+pub const VERSION: u32 = 3;
 /// The oldest format version this module reads.
 const OLDEST_VERSION: u32 = 1;
 /// Upper bound on any one width, latent size or name length (sanity limit of the reader).
@@ -62,6 +66,12 @@ pub struct NamedLatent {
     pub name: String,
     /// z, `latent_dim` values.
     pub z: Vec<f32>,
+    /// Output offset δ per RGB channel, added to the target net's output y (the mapped value):
+    /// under the talk mapping f_r + ε is scaled by e^δ, a colour gain the shared decoder
+    /// may not reach through z for a material it never saw. Fitted with z when a material is
+    /// encoded (`material-nn encode`); 0 for codes that need none and in files before
+    /// version 3. Interpolated with z in edits.
+    pub offset: [f32; 3],
 }
 
 /// The contents of a latent file.
@@ -103,11 +113,8 @@ impl LatentFile {
     }
 
     /// The latent code called `name`.
-    pub fn latent(&self, name: &str) -> Option<&[f32]> {
-        self.latents
-            .iter()
-            .find(|l| l.name == name)
-            .map(|l| l.z.as_slice())
+    pub fn latent(&self, name: &str) -> Option<&NamedLatent> {
+        self.latents.iter().find(|l| l.name == name)
     }
 
     /// The names of the latent codes, in file order.
@@ -162,10 +169,12 @@ impl LatentFile {
                 NamedLatent {
                     name: "gold".into(),
                     z: vec![0.5, 1.0],
+                    offset: [0.0; 3],
                 },
                 NamedLatent {
                     name: "blue-acrylic".into(),
                     z: vec![0.0, 2.0],
+                    offset: [0.25, 0.0, -0.5],
                 },
             ],
             encoder: None,
@@ -205,6 +214,12 @@ impl LatentFile {
             return bad(format!(
                 "bad shape: latent_dim {}, target widths {:?}, hypernetwork widths {:?}",
                 self.latent_dim, self.target_widths, self.hyper_hidden
+            ));
+        }
+        if self.target_widths.last() != Some(&3) {
+            return bad(format!(
+                "the target net has {} outputs, expected 3 (RGB)",
+                self.target_widths[self.target_widths.len() - 1]
             ));
         }
         if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
@@ -265,7 +280,7 @@ impl LatentFile {
                     self.latent_dim
                 ));
             }
-            if l.z.iter().any(|v| !v.is_finite()) {
+            if l.z.iter().chain(&l.offset).any(|v| !v.is_finite()) {
                 return bad(format!("latent '{}' has a non-finite value", l.name));
             }
             if !names.insert(l.name.as_str()) {
@@ -307,9 +322,15 @@ impl LatentFile {
 
     /// Serialises the file (see the module documentation), checksum included.
     pub fn to_bytes(&self) -> Vec<u8> {
+        self.to_bytes_of_version(VERSION)
+    }
+
+    /// Serialises the file in the layout of `version` (1 to [`VERSION`]); what an older
+    /// version cannot hold (the encoder before 2, output offsets before 3) is left out.
+    fn to_bytes_of_version(&self, version: u32) -> Vec<u8> {
         let mut w = Vec::new();
         w.extend_from_slice(&MAGIC);
-        put_u32(&mut w, VERSION);
+        put_u32(&mut w, version);
         put_u32(&mut w, self.latent_dim as u32);
         put_u32(&mut w, (self.target_widths.len() - 1) as u32);
         self.target_widths
@@ -337,6 +358,7 @@ impl LatentFile {
             }
         }
         match &self.encoder {
+            _ if version < 2 => {}
             None => w.push(0),
             Some(encoder) => {
                 w.push(1);
@@ -364,7 +386,9 @@ impl LatentFile {
         put_u32(&mut w, self.latents.len() as u32);
         for l in &self.latents {
             put_str(&mut w, &l.name);
+            let offset: &[f32] = if version >= 3 { &l.offset } else { &[] };
             l.z.iter()
+                .chain(offset)
                 .for_each(|v| w.extend_from_slice(&v.to_le_bytes()));
         }
         put_u32(&mut w, self.training_materials.len() as u32);
@@ -387,7 +411,7 @@ impl LatentFile {
         let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
         if !(OLDEST_VERSION..=VERSION).contains(&version) {
             return Err(bad(format!(
-                "latent file version {version}, this build reads versions {OLDEST_VERSION} and \
+                "latent file version {version}, this build reads versions {OLDEST_VERSION} to \
                  {VERSION}"
             )));
         }
@@ -467,7 +491,8 @@ impl LatentFile {
             let z = (0..latent_dim)
                 .map(|_| r.f32())
                 .collect::<Result<Vec<_>>>()?;
-            latents.push(NamedLatent { name, z });
+            let offset = if version >= 3 { [r.f32()?, r.f32()?, r.f32()?] } else { [0.0; 3] };
+            latents.push(NamedLatent { name, z, offset });
         }
         let count = r.dim("training material count")?;
         let training_materials = (0..count).map(|_| r.string()).collect::<Result<Vec<_>>>()?;
@@ -641,7 +666,8 @@ pub(crate) mod tests {
         file.write(&path).unwrap();
         let back = LatentFile::read(&path).unwrap();
         assert_eq!(back, file);
-        let net = back.decode(back.latent("gold").unwrap());
+        let gold = back.latent("gold").unwrap();
+        let net = back.decode(&gold.z, gold.offset);
         assert_eq!(net.layers.len(), 2);
         assert_eq!(net.forward(&[0.1; 6]).len(), 3);
         assert_eq!(back.latent_names(), vec!["gold", "blue-acrylic"]);
@@ -663,13 +689,13 @@ pub(crate) mod tests {
         let e = err(b"PK\x03\x04 not a latent file");
         assert!(e.contains("latent.bin") && e.contains("bad magic"), "{e}");
 
-        let mut v3 = good.clone();
-        v3[8..12].copy_from_slice(&3u32.to_le_bytes());
-        let e = err(&v3);
+        let mut v4 = good.clone();
+        v4[8..12].copy_from_slice(&4u32.to_le_bytes());
+        let e = err(&v4);
         assert!(
             e.contains("latent.bin")
-                && e.contains("version 3")
-                && e.contains("reads versions 1 and 2"),
+                && e.contains("version 4")
+                && e.contains("reads versions 1 to 3"),
             "{e}"
         );
 
@@ -687,6 +713,10 @@ pub(crate) mod tests {
             e.contains("latent 'blue-acrylic' has a non-finite value"),
             "{e}"
         );
+        let mut nan_offset = small_file(WeightType::F32);
+        nan_offset.latents[0].offset[2] = f32::INFINITY;
+        let e = err(&nan_offset.to_bytes());
+        assert!(e.contains("latent 'gold' has a non-finite value"), "{e}");
         assert!(nan
             .write(std::env::temp_dir().join("never-written.bin"))
             .is_err());
@@ -703,7 +733,7 @@ pub(crate) mod tests {
         let codes: usize = file
             .latents
             .iter()
-            .map(|l| 4 + l.name.len() + 4 * l.z.len())
+            .map(|l| 4 + l.name.len() + 4 * (l.z.len() + l.offset.len()))
             .sum();
         let names: usize = file.training_materials.iter().map(|n| 4 + n.len()).sum();
         let tail = 4 + codes + 4 + names + 8;
@@ -735,12 +765,12 @@ pub(crate) mod tests {
     ];
 
     #[test]
-    fn version_2_round_trip_with_encoder() {
+    fn round_trip_with_encoder() {
         let path = Path::new("dir/latent.bin");
         for weight_type in [WeightType::F32, WeightType::F16] {
             let file = small_file(weight_type).with_synthetic_encoder();
             let bytes = file.to_bytes();
-            assert_eq!(bytes[8..12], 2u32.to_le_bytes());
+            assert_eq!(bytes[8..12], VERSION.to_le_bytes());
             let at = encoder_flag_offset(&file, &bytes);
             assert_eq!(bytes[at], 1, "encoder flag");
             let back = LatentFile::from_bytes(&bytes, path).unwrap();
@@ -802,23 +832,60 @@ pub(crate) mod tests {
     fn version_1_files_still_read_without_an_encoder() {
         let path = Path::new("dir/latent.bin");
         let file = small_file(WeightType::F16);
-        let mut bytes = file.to_bytes();
-        let at = encoder_flag_offset(&file, &bytes);
+        let mut bytes = file.to_bytes_of_version(2);
+        let at = encoder_flag_offset(&file, &file.to_bytes());
         assert_eq!(bytes[at], 0);
         let mut v1 = bytes.clone();
         v1.remove(at);
         v1[8..12].copy_from_slice(&1u32.to_le_bytes());
         fix_checksum(&mut v1);
+        assert_eq!(v1, file.to_bytes_of_version(1));
         let back = LatentFile::from_bytes(&v1, path).unwrap();
         assert_eq!(back.encoder, None);
-        // (f16 weights: equal to the version 2 file read back, not to `file`.)
+        // (f16 weights, no offsets: equal to the version 2 file read back, not to `file`.)
         assert!(back == LatentFile::from_bytes(&bytes, path).unwrap());
-        // Written again, it is version 2.
-        assert_eq!(back.to_bytes(), bytes);
         // A version 2 file without the flag byte is not one.
         bytes.remove(at);
         fix_checksum(&mut bytes);
         assert!(LatentFile::from_bytes(&bytes, path).is_err());
+    }
+
+    #[test]
+    fn version_2_files_read_with_zero_offsets() {
+        let path = Path::new("dir/latent.bin");
+        let file = small_file(WeightType::F32).with_synthetic_encoder();
+        assert!(file.latents.iter().any(|l| l.offset != [0.0; 3]));
+        let (v2, v3) = (file.to_bytes_of_version(2), file.to_bytes());
+        assert_eq!(v2[8..12], 2u32.to_le_bytes());
+        assert_eq!(v3.len() - v2.len(), 12 * file.latents.len(), "three f32 per code");
+        let back = LatentFile::from_bytes(&v2, path).unwrap();
+        assert!(back.latents.iter().all(|l| l.offset == [0.0; 3]));
+        let zeroed = LatentFile {
+            latents: file
+                .latents
+                .iter()
+                .map(|l| NamedLatent { offset: [0.0; 3], ..l.clone() })
+                .collect(),
+            ..file.clone()
+        };
+        assert_eq!(back, zeroed);
+        // Written again, it is the current version, and reads back the same.
+        assert_eq!(LatentFile::from_bytes(&back.to_bytes(), path).unwrap(), zeroed);
+    }
+
+    #[test]
+    fn the_offset_shifts_the_decoded_output_and_nothing_else() {
+        let file = small_file(WeightType::F32);
+        let code = file.latent("blue-acrylic").unwrap();
+        let (plain, shifted) = (file.decode(&code.z, [0.0; 3]), file.decode(&code.z, code.offset));
+        let last = plain.layers.len() - 1;
+        assert_eq!(plain.layers[..last], shifted.layers[..last]);
+        assert_eq!(plain.layers[last].weight, shifted.layers[last].weight);
+        let x = [0.2, 0.0, 0.9, 0.1, -0.3, 0.4];
+        let (a, b) = (plain.forward(&x), shifted.forward(&x));
+        for c in 0..3 {
+            assert!((b[c] - a[c] - code.offset[c]).abs() < 1e-6, "channel {c}: {a:?} {b:?}");
+        }
     }
 
     #[test]

@@ -22,7 +22,7 @@ use super::{Binding, SharedBsdf};
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::tabulated_sampling::{SamplerTables, TabulatedBrdf, TabulatedSampler};
 use crate::bsdf::{BatchEval, BsdfSample, Bxdf};
-use crate::neural::latent_library::{LatentCode, LatentLibrary};
+use crate::neural::latent_library::LatentLibrary;
 use crate::{Error, Result, Rgb};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -90,12 +90,13 @@ impl MaterialBsdf {
         Self::from_binding(&binding, &LatentLibrary::default())
     }
 
-    /// Opens a latent file and decodes the latent vector `z` (any code, e.g. an edited one)
-    /// with its decoder; `label` names it. Errors name the file when `z` has the wrong size
-    /// or a non-finite value.
-    pub fn open_latent_vector(path: &Path, z: &[f32], label: &str) -> Result<Self> {
+    /// Opens a latent file and decodes the latent vector `v` (any code, e.g. an edited one)
+    /// with its decoder; `label` names it. `v` is z, optionally followed by the code's 3
+    /// output offsets ([`crate::neural::latent_library::LatentCode::from_vector`]). Errors
+    /// name the file when `v` has the wrong size or a non-finite value.
+    pub fn open_latent_vector(path: &Path, v: &[f32], label: &str) -> Result<Self> {
         let latents = LatentLibrary::load(&[path])?;
-        let code = LatentCode { file: 0, z: z.to_vec() };
+        let code = latents.code_from_vector(0, v)?;
         Ok(MaterialBsdf {
             bsdf: SharedBsdf::Neural(latents.decode_code(&code, label)?),
         })
@@ -374,8 +375,8 @@ mod tests {
         assert_eq!(neural.pdf(wo, wi), reference.pdf(Vec3::from(wo), Vec3::from(wi)));
         let network = MaterialBsdf::open(&data_dir().join("merl/chrome"), None).unwrap();
         assert!(matches!(network.shared(), SharedBsdf::Nbrdf(_)));
-        let z = latents.latent("alum-bronze").unwrap().z;
-        let same = MaterialBsdf::open_latent_vector(&shipped(), &z, "copy").unwrap();
+        let v = latents.latent("alum-bronze").unwrap().to_vector();
+        let same = MaterialBsdf::open_latent_vector(&shipped(), &v, "copy").unwrap();
         assert_eq!(same.eval(wo, wi), neural.eval(wo, wi));
     }
 
@@ -487,6 +488,10 @@ mod tests {
         let e = MaterialBsdf::open(&shipped(), None).unwrap_err().to_string();
         assert!(e.contains("latent file"), "{e}");
         let e = MaterialBsdf::open_latent_vector(&shipped(), &[f32::NAN; 3], "bad").unwrap_err().to_string();
+        assert!(e.contains("latent.bin") && e.contains("not 3"), "{e}");
+        let mut v = LatentLibrary::load(&[shipped()]).unwrap().latent("chrome").unwrap().to_vector();
+        v[2] = f32::NAN;
+        let e = MaterialBsdf::open_latent_vector(&shipped(), &v, "bad").unwrap_err().to_string();
         assert!(e.contains("latent.bin") && e.contains("finite"), "{e}");
         let m = MaterialBsdf::open(&shipped(), Some("chrome")).unwrap();
         let mut f = vec![[0.0; 3]; 2];

@@ -37,12 +37,35 @@ pub struct LatentLibrary {
 #[derive(Clone, Debug, PartialEq)]
 pub struct LatentCode {
     pub file: usize,
+    /// z, the file's `latent_dim` values.
     pub z: Vec<f32>,
+    /// Output offset δ per RGB channel ([`crate::formats::latent_file::NamedLatent::offset`]).
+    pub offset: [f32; 3],
 }
 
 impl LatentCode {
-    /// z(t) = (1 − t) z_self + t z_other, for material-editing sweeps; both codes must come
-    /// from the same file (one decoder).
+    /// The code of file `file` from a flat vector: z (`latent_dim` values), optionally
+    /// followed by the 3 output offsets (0 when absent) — the vector [`LatentCode::to_vector`]
+    /// gives and the C and Python interfaces pass.
+    pub fn from_vector(file: usize, v: &[f32], latent_dim: usize) -> Option<LatentCode> {
+        match v.len() {
+            n if n == latent_dim => Some(LatentCode { file, z: v.to_vec(), offset: [0.0; 3] }),
+            n if n == latent_dim + 3 => Some(LatentCode {
+                file,
+                z: v[..latent_dim].to_vec(),
+                offset: [v[latent_dim], v[latent_dim + 1], v[latent_dim + 2]],
+            }),
+            _ => None,
+        }
+    }
+
+    /// z followed by the 3 output offsets: what editing interpolates, as one vector.
+    pub fn to_vector(&self) -> Vec<f32> {
+        self.z.iter().chain(&self.offset).copied().collect()
+    }
+
+    /// z(t) = (1 − t) z_self + t z_other and the same for the offsets, for material-editing
+    /// sweeps; both codes must come from the same file (one decoder).
     pub fn lerp(&self, other: &LatentCode, t: f32) -> Result<LatentCode> {
         if self.file != other.file || self.z.len() != other.z.len() {
             return Err(Error::InvalidArgument {
@@ -50,9 +73,11 @@ impl LatentCode {
                 reason: "the two latent codes come from different latent files".to_string(),
             });
         }
+        let lerp = |x: f32, y: f32| (1.0 - t) * x + t * y;
         Ok(LatentCode {
             file: self.file,
-            z: self.z.iter().zip(&other.z).map(|(x, y)| (1.0 - t) * x + t * y).collect(),
+            z: self.z.iter().zip(&other.z).map(|(&x, &y)| lerp(x, y)).collect(),
+            offset: [0, 1, 2].map(|c| lerp(self.offset[c], other.offset[c])),
         })
     }
 }
@@ -101,7 +126,9 @@ impl LatentLibrary {
         self.files
             .iter()
             .enumerate()
-            .find_map(|(file, f)| f.file.latent(name).map(|z| LatentCode { file, z: z.to_vec() }))
+            .find_map(|(file, f)| {
+                f.file.latent(name).map(|l| LatentCode { file, z: l.z.clone(), offset: l.offset })
+            })
             .ok_or_else(|| Error::UnknownName {
                 what: "latent code",
                 name: name.to_string(),
@@ -115,16 +142,33 @@ impl LatentLibrary {
         self.decode_code(&code, name)
     }
 
+    /// The code of file `file` from a flat vector ([`LatentCode::from_vector`]: z, optionally
+    /// followed by the 3 output offsets); errors name the file when the size fits neither.
+    pub fn code_from_vector(&self, file: usize, v: &[f32]) -> Result<LatentCode> {
+        let f = self.file(file)?;
+        let dim = f.file.latent_dim;
+        LatentCode::from_vector(file, v, dim).ok_or_else(|| {
+            Error::invalid_file(
+                &f.path,
+                format!("a latent vector has {dim} values (z) or {} (z and 3 offsets), not {}", dim + 3, v.len()),
+            )
+        })
+    }
+
+    fn file(&self, index: usize) -> Result<&LibraryFile> {
+        self.files.get(index).ok_or_else(|| Error::InvalidArgument {
+            flag: "latent code".to_string(),
+            reason: format!("file index {index} out of range"),
+        })
+    }
+
     /// Decodes any code (e.g. an interpolated one) with the decoder of `code.file`; `label`
     /// names the result. Errors name the file when the code has the wrong size or a
     /// non-finite value.
     pub fn decode_code(&self, code: &LatentCode, label: &str) -> Result<NeuralBsdf> {
-        let f = self.files.get(code.file).ok_or_else(|| Error::InvalidArgument {
-            flag: "latent code".to_string(),
-            reason: format!("file index {} out of range", code.file),
-        })?;
+        let f = self.file(code.file)?;
         let file = &f.file;
-        if code.z.len() != file.latent_dim || code.z.iter().any(|v| !v.is_finite()) {
+        if code.z.len() != file.latent_dim || code.z.iter().chain(&code.offset).any(|v| !v.is_finite()) {
             return Err(Error::invalid_file(
                 &f.path,
                 format!("latent '{label}' must be {} finite values", file.latent_dim),
@@ -134,7 +178,7 @@ impl LatentLibrary {
             .reference
             .get_or_init(|| Arc::new(file.f_ref.par_iter().map(|v| v.map(|h| h.to_f32())).collect()))
             .clone();
-        NeuralBsdf::new(label, file.decode(&code.z), reference, file.mapping, file.epsilon, &TabulatedSamplerConfig::default())
+        NeuralBsdf::new(label, file.decode(&code.z, code.offset), reference, file.mapping, file.epsilon, &TabulatedSamplerConfig::default())
             .map_err(|e| Error::invalid_file(&f.path, format!("decoding '{label}': {e}")))
     }
 
@@ -189,11 +233,26 @@ mod tests {
 
     #[test]
     fn lerp_hits_the_end_points() {
-        let a = LatentCode { file: 0, z: vec![1.0, -2.0] };
-        let b = LatentCode { file: 0, z: vec![3.0, 2.0] };
+        let a = LatentCode { file: 0, z: vec![1.0, -2.0], offset: [0.0, 0.5, -1.0] };
+        let b = LatentCode { file: 0, z: vec![3.0, 2.0], offset: [1.0, 0.5, 1.0] };
         assert_eq!(a.lerp(&b, 0.0).unwrap(), a);
         assert_eq!(a.lerp(&b, 1.0).unwrap(), b);
-        assert_eq!(a.lerp(&b, 0.5).unwrap().z, vec![2.0, 0.0]);
-        assert!(a.lerp(&LatentCode { file: 1, z: vec![0.0, 0.0] }, 0.5).is_err());
+        let half = a.lerp(&b, 0.5).unwrap();
+        assert_eq!((half.z, half.offset), (vec![2.0, 0.0], [0.5, 0.5, 0.0]));
+        assert!(a.lerp(&LatentCode { file: 1, z: vec![0.0, 0.0], offset: [0.0; 3] }, 0.5).is_err());
+    }
+
+    #[test]
+    fn latent_vectors_carry_the_offsets_when_given() {
+        let (_dir, lib) = library();
+        let code = lib.latent("blue-acrylic").unwrap();
+        assert_ne!(code.offset, [0.0; 3]);
+        let v = code.to_vector();
+        assert_eq!(v.len(), 2 + 3);
+        assert_eq!(lib.code_from_vector(0, &v).unwrap(), code);
+        let bare = lib.code_from_vector(0, &code.z).unwrap();
+        assert_eq!((bare.z, bare.offset), (code.z.clone(), [0.0; 3]));
+        let e = lib.code_from_vector(0, &v[..4]).unwrap_err().to_string();
+        assert!(e.contains("latent.bin") && e.contains("not 4"), "{e}");
     }
 }

@@ -128,19 +128,21 @@ impl Encoder {
 
 impl LatentFile {
     /// Decodes a latent code into the target net (hypernetwork forward pass in f32): one MLP
-    /// with ReLU after every hidden layer and a linear output y.
+    /// with ReLU after every hidden layer and a linear output y, the code's output offset
+    /// (per channel of the last layer) added to its output bias.
     ///
     /// # Panics
-    /// If `z.len()` differs from `latent_dim` (a file read by [`LatentFile::read`] is
-    /// consistent; check user-made codes first).
-    pub fn decode(&self, z: &[f32]) -> Mlp {
+    /// If `z.len()` differs from `latent_dim` or the target net does not end in
+    /// `offset.len()` outputs (a file read by [`LatentFile::read`] is consistent; check
+    /// user-made codes first).
+    pub fn decode(&self, z: &[f32], offset: [f32; 3]) -> Mlp {
         assert_eq!(z.len(), self.latent_dim, "latent code size");
         let outputs: Vec<Vec<f32>> = self
             .hypernetwork
             .iter()
             .map(|head| head.forward(z))
             .collect();
-        let layers = self
+        let mut layers: Vec<DenseLayer> = self
             .target_layers()
             .into_iter()
             .enumerate()
@@ -151,6 +153,9 @@ impl LatentFile {
                 bias: outputs[2 * k + 1].clone(),
             })
             .collect();
+        let last = layers.last_mut().expect("a target net has a layer");
+        assert_eq!(last.bias.len(), offset.len(), "one offset per output");
+        last.bias.iter_mut().zip(offset).for_each(|(b, d)| *b += d);
         Mlp { layers }
     }
 
