@@ -11,7 +11,7 @@ display values, as `material-nn eval`). Prints a markdown table per sweep.
 Usage (after `cargo build --release` and assets-scripts/make_merl_tables.sh):
     python3 assets-scripts/measure_encoding.py --tables data/merl-fitted \
         --materials brass,red-specular-plastic,orange-paint,gold-metallic-paint2 \
-        [--model scenes/materials/latent.bin] [--spp 256] [--out out/encoding]
+        [--model scenes/materials/latent.bin] [--spp 256] [--out out/encoding] [--no-offset]
 """
 import argparse
 import csv
@@ -57,6 +57,7 @@ def main():
     p.add_argument("--counts", default="100,400,1000,4000,65536")
     p.add_argument("--steps", default="0,25,100,300")
     p.add_argument("--out", type=pathlib.Path, default=ROOT / "out/encoding")
+    p.add_argument("--no-offset", action="store_true", help="refine z alone (encode --no-offset)")
     a = p.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     materials = a.materials.split(",")
@@ -73,7 +74,8 @@ def main():
         lib.unlink(missing_ok=True)
         info = json.loads(run([MATERIAL_NN, "encode", "--model", a.model, "--table",
                                a.tables / f"{m}.binary", "--count", count, "--refine-steps",
-                               refine, "--name", m, "--add-to", lib]))
+                               refine, "--name", m, "--add-to", lib]
+                              + (["--no-offset"] if a.no_offset else [])))
         psnr, ssim = render(a.out / f"{m}-{count}-{refine}.exr", f"preview={m}", a.spp,
                             material=lib, reference=references[m])
         return psnr, ssim, info["seconds"]

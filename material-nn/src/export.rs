@@ -6,7 +6,7 @@
 
 use crate::dataset::MaterialTable;
 use crate::error::{Error, Result};
-use crate::inference::{EncodeSettings, TrainedRun};
+use crate::inference::{Codec, EncodeSettings, TrainedRun};
 use half::f16;
 use rayon::prelude::*;
 use renderer::formats::latent_file::{LatentFile, NamedLatent, WeightType};
@@ -60,7 +60,7 @@ pub fn latent_file(run: &TrainedRun, weight_type: WeightType) -> LatentFile {
 /// Encodes the tables `names` of `data_dir` (`NAME.binary`) as `settings` say, the seed
 /// offset by the material's position; `progress(name)` after each.
 pub fn encode_materials(
-    run: &TrainedRun,
+    codec: &Codec,
     data_dir: &Path,
     names: &[String],
     settings: &EncodeSettings,
@@ -82,7 +82,7 @@ pub fn encode_materials(
                 seed: settings.seed.wrapping_add(i as u64),
                 ..settings.clone()
             };
-            let refined = run.codec.encode(&table, &settings)?;
+            let refined = codec.encode(&table, &settings)?;
             progress(name);
             Ok(NamedLatent {
                 name: name.clone(),
@@ -93,19 +93,23 @@ pub fn encode_materials(
         .collect()
 }
 
-/// Exports a run to `out`: the materials `names` (default: every material of the run's data
-/// directory) encoded from `data_dir` with `settings`.
+/// Writes `decoder` (a latent file's decoder part: [`latent_file`] of a run, or a latent file
+/// read back) to `out` with the materials `names` encoded by `codec` from `data_dir` with
+/// `settings` as its codes (any codes `decoder` held are replaced). Nothing is written when a
+/// material fails.
 pub fn export(
-    run: &TrainedRun,
+    codec: &Codec,
+    decoder: LatentFile,
     data_dir: &Path,
     names: &[String],
-    weight_type: WeightType,
     settings: &EncodeSettings,
     out: &Path,
     progress: &mut dyn FnMut(&str),
 ) -> Result<LatentFile> {
-    let mut file = latent_file(run, weight_type);
-    file.latents = encode_materials(run, data_dir, names, settings, progress)?;
+    let file = LatentFile {
+        latents: encode_materials(codec, data_dir, names, settings, progress)?,
+        ..decoder
+    };
     file.write(out)?;
     Ok(file)
 }

@@ -93,6 +93,29 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         );
     }
 
+    // Exporting again from the latent file alone keeps its decoder and encodes its
+    // materials again (here without offsets: the codes differ from the first export's).
+    let again = dir.path().join("again.bin");
+    let out = material_nn(&[
+        "export",
+        "--model",
+        path_str(&latent),
+        "--data",
+        path_str(&data),
+        "--out",
+        path_str(&again),
+        "--refine-steps",
+        "5",
+        "--no-offset",
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let reexported = LatentFile::read(&again).unwrap();
+    assert_eq!(reexported.latent_names(), file.latent_names());
+    assert_eq!((&reexported.hypernetwork, &reexported.encoder, &reexported.f_ref), (&file.hypernetwork, &file.encoder, &file.f_ref));
+    assert_eq!(reexported.training_materials, file.training_materials);
+    assert!(reexported.latents.iter().all(|l| l.offset == [0.0; 3]));
+    assert!(file.latents.iter().any(|l| l.offset != [0.0; 3]), "the first export fitted offsets");
+
     // Evaluation beside a briefly fitted NBRDF baseline, with tiny preview renders.
     let nbrdf = dir.path().join("nbrdf");
     let out = material_nn(&[

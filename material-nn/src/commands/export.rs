@@ -1,71 +1,86 @@
-//! `material-nn export`: a run's decoder, f_ref, set encoder and latent codes as one `latent.bin`.
+//! `material-nn export`: a model's decoder, f_ref, set encoder and latent codes as one
+//! `latent.bin` — from a run directory, or from a latent file whose codes are made again
+//! (e.g. the shipped model's codes with the current encoding settings).
 
-use clap::Args;
-use material_nn::inference::{EncodeSettings, RefineSettings, TrainedRun};
-use renderer::formats::latent_file::WeightType;
+use anyhow::bail;
+use clap::{ArgGroup, Args};
+use material_nn::inference::{Codec, EncodeSettings, RefineSettings, TrainedRun};
+use renderer::formats::latent_file::{LatentFile, WeightType};
 use std::path::PathBuf;
 use std::time::Instant;
 use super::progress_bar;
 
 #[derive(Args)]
+#[command(group(ArgGroup::new("source").required(true).args(["run", "model"])))]
 pub struct ExportArgs {
     /// Run directory of `train`.
     #[arg(long, value_name = "RUN")]
-    pub run: PathBuf,
+    pub run: Option<PathBuf>,
+    /// A latent file that carries its set encoder: its decoder is kept and its materials
+    /// (or --materials) encoded again from --data.
+    #[arg(long, value_name = "LATENT_BIN", requires = "data")]
+    pub model: Option<PathBuf>,
     /// Output latent file.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
-    /// Materials to encode (comma-separated names), default every material of the data.
+    /// Materials to encode (comma-separated names), default every material of the run's data
+    /// (with --model: every code of the file).
     #[arg(long, value_name = "A,B,...", value_delimiter = ',')]
     pub materials: Option<Vec<String>>,
     /// Directory of the tables to encode (default: the run's data directory).
     #[arg(long, value_name = "DIR")]
     pub data: Option<PathBuf>,
-    /// Store the hypernetwork weights as f16 (half the size).
+    /// Store the hypernetwork weights as f16 (half the size; with --model the file's type is
+    /// kept unless this is given).
     #[arg(long)]
     pub half_weights: bool,
     /// Refinement steps of each code, decoder frozen (0: the set encoder's codes as they are).
     #[arg(long, default_value_t = RefineSettings::default().steps)]
     pub refine_steps: usize,
+    /// Refine z alone: no output offsets are fitted.
+    #[arg(long)]
+    pub no_offset: bool,
 }
 
 pub fn run(args: ExportArgs) -> anyhow::Result<()> {
     let start = Instant::now();
-    let run = TrainedRun::load(&args.run)?;
-    let data = args
-        .data
-        .clone()
-        .unwrap_or_else(|| run.info.data_dir.clone());
-    let names = args
-        .materials
-        .clone()
-        .unwrap_or_else(|| run.info.materials.clone());
-    let weight_type = if args.half_weights {
-        WeightType::F16
-    } else {
-        WeightType::F32
+    let refine = RefineSettings {
+        steps: args.refine_steps,
+        fit_offset: !args.no_offset,
+        ..RefineSettings::default()
     };
+    // The codec, the decoder file, the default data directory and materials, and the seed.
+    let (codec, mut decoder, data, names, seed) = match (&args.run, &args.model) {
+        (Some(run), _) => {
+            let run = TrainedRun::load(run)?;
+            let decoder = material_nn::export::latent_file(&run, WeightType::F32);
+            let seed = run.config.seed;
+            (run.codec, decoder, run.info.data_dir, run.info.materials, seed)
+        }
+        (None, Some(path)) => {
+            let file = LatentFile::read(path)?;
+            let codec = Codec::from_latent_file(&file, path)?;
+            let names = file.latent_names();
+            let data = args.data.clone().unwrap_or_default();
+            (codec, file, data, names, EncodeSettings::default().seed)
+        }
+        (None, None) => bail!("export needs --run or --model"),
+    };
+    if args.half_weights {
+        decoder.weight_type = WeightType::F16;
+    }
+    let data = args.data.clone().unwrap_or(data);
+    let names = args.materials.clone().unwrap_or(names);
     let settings = EncodeSettings {
-        seed: run.config.seed,
-        refine: RefineSettings {
-            steps: args.refine_steps,
-            ..RefineSettings::default()
-        },
+        seed,
+        refine,
         ..EncodeSettings::default()
     };
     let bar = progress_bar(names.len(), "encode");
-    let file = material_nn::export::export(
-        &run,
-        &data,
-        &names,
-        weight_type,
-        &settings,
-        &args.out,
-        &mut |name| {
-            bar.set_message(name.to_string());
-            bar.inc(1);
-        },
-    );
+    let file = material_nn::export::export(&codec, decoder, &data, &names, &settings, &args.out, &mut |name| {
+        bar.set_message(name.to_string());
+        bar.inc(1);
+    });
     bar.finish_and_clear();
     let file = file?;
     let size = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
