@@ -251,10 +251,10 @@ impl Codec {
             let pred = self.frozen.target_forward(&params, x.clone()) + code.offset.val().unsqueeze_dim::<3>(1);
             self.rec_loss.forward(pred, y.clone(), cos.clone(), &params, z)
         };
-        let zero_offset = || Param::from_tensor(Tensor::<2>::zeros([1, 3], &device));
+        // Without fit_offset the offset stays a constant 0 (no gradient, Adam leaves it).
         let mut code = LatentCode {
             z: Param::from_tensor(Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &device)),
-            offset: zero_offset(),
+            offset: Param::from_tensor(Tensor::<2>::zeros([1, 3], &device)).set_require_grad(settings.fit_offset),
         };
         let initial_loss = objective(&code).1.into_scalar::<f32>() as f64;
         let mut optim = optimizer();
@@ -265,9 +265,6 @@ impl Codec {
             let grads = GradientsParams::from_grads(total.backward(), &code);
             code = optim.step(lr, code, grads);
             code.z = code.z.map(|z| z.clamp_min(0.0).detach().require_grad());
-            if !settings.fit_offset {
-                code.offset = zero_offset();
-            }
             progress(step + 1, data.into_scalar::<f32>() as f64);
         }
         let final_loss = objective(&code).1.into_scalar::<f32>() as f64;

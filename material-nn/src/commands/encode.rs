@@ -4,8 +4,8 @@
 use anyhow::bail;
 use clap::{ArgGroup, Args};
 use material_nn::dataset::MaterialTable;
-use material_nn::inference::{Codec, RefineSettings, TrainedRun};
-use renderer::formats::latent_file::{LatentFile, NamedLatent, WeightType};
+use material_nn::inference::RefineSettings;
+use renderer::formats::latent_file::{LatentFile, NamedLatent};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -50,18 +50,7 @@ pub struct EncodeArgs {
 pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     // The codec and the decoder file a new --add-to library starts from.
-    let (codec, model_file) = match (&args.model, &args.run) {
-        (Some(path), _) => {
-            let file = LatentFile::read(path)?;
-            (Codec::from_latent_file(&file, path)?, file)
-        }
-        (None, Some(run)) => {
-            let run = TrainedRun::load(run)?;
-            let file = material_nn::export::latent_file(&run, WeightType::F32);
-            (run.codec, file)
-        }
-        (None, None) => bail!("encode needs --model or --run"),
-    };
+    let super::Model { codec, file: model_file, .. } = super::load_model(args.model.as_deref(), args.run.as_deref())?;
     let (input, set) = match (&args.table, &args.samples) {
         (Some(table), _) => {
             let t = MaterialTable::read(table)?;

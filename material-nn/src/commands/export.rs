@@ -2,10 +2,9 @@
 //! `latent.bin` — from a run directory, or from a latent file whose codes are made again
 //! (e.g. the shipped model's codes with the current encoding settings).
 
-use anyhow::bail;
 use clap::{ArgGroup, Args};
-use material_nn::inference::{Codec, EncodeSettings, RefineSettings, TrainedRun};
-use renderer::formats::latent_file::{LatentFile, WeightType};
+use material_nn::inference::{EncodeSettings, RefineSettings};
+use renderer::formats::latent_file::WeightType;
 use std::path::PathBuf;
 use std::time::Instant;
 use super::progress_bar;
@@ -49,22 +48,12 @@ pub fn run(args: ExportArgs) -> anyhow::Result<()> {
         fit_offset: !args.no_offset,
         ..RefineSettings::default()
     };
-    // The codec, the decoder file, the default data directory and materials, and the seed.
-    let (codec, mut decoder, data, names, seed) = match (&args.run, &args.model) {
-        (Some(run), _) => {
-            let run = TrainedRun::load(run)?;
-            let decoder = material_nn::export::latent_file(&run, WeightType::F32);
-            let seed = run.config.seed;
-            (run.codec, decoder, run.info.data_dir, run.info.materials, seed)
-        }
-        (None, Some(path)) => {
-            let file = LatentFile::read(path)?;
-            let codec = Codec::from_latent_file(&file, path)?;
-            let names = file.latent_names();
-            let data = args.data.clone().unwrap_or_default();
-            (codec, file, data, names, EncodeSettings::default().seed)
-        }
-        (None, None) => bail!("export needs --run or --model"),
+    let super::Model { codec, file: mut decoder, run } = super::load_model(args.model.as_deref(), args.run.as_deref())?;
+    // Defaults: a run's data directory, materials and seed; a file's codes (--model requires
+    // --data).
+    let (data, names, seed) = match run {
+        Some((info, seed)) => (info.data_dir, info.materials, seed),
+        None => (PathBuf::new(), decoder.latent_names(), EncodeSettings::default().seed),
     };
     if args.half_weights {
         decoder.weight_type = WeightType::F16;

@@ -2,7 +2,11 @@
 //! they share: argument parsers, the progress bar and the stop flag Ctrl-C sets.
 
 use indicatif::{ProgressBar, ProgressStyle};
+use material_nn::inference::{Codec, TrainedRun};
+use material_nn::run::RunInfo;
+use renderer::formats::latent_file::{LatentFile, WeightType};
 use renderer::Rgb;
+use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 pub mod encode;
@@ -56,6 +60,36 @@ pub fn progress_bar(len: usize, what: &str) -> ProgressBar {
     }
     bar.set_prefix(what.to_string());
     bar
+}
+
+/// The trained model a command encodes with (`encode`, `export`).
+pub struct Model {
+    /// Encodes and refines codes.
+    pub codec: Codec,
+    /// The model as a latent file: the file given (with its codes), or a run's decoder and
+    /// encoder (no codes).
+    pub file: LatentFile,
+    /// When the model came from a run directory: what it was trained on, and its seed.
+    pub run: Option<(RunInfo, u64)>,
+}
+
+/// The model of `--model FILE` (a latent file that carries its set encoder) or, without one,
+/// of `--run DIR`.
+pub fn load_model(model: Option<&Path>, run: Option<&Path>) -> anyhow::Result<Model> {
+    match (model, run) {
+        (Some(path), _) => {
+            let file = LatentFile::read(path)?;
+            let codec = Codec::from_latent_file(&file, path)?;
+            Ok(Model { codec, file, run: None })
+        }
+        (None, Some(dir)) => {
+            let run = TrainedRun::load(dir)?;
+            let file = material_nn::export::latent_file(&run, WeightType::F32);
+            let seed = run.config.seed;
+            Ok(Model { codec: run.codec, file, run: Some((run.info, seed)) })
+        }
+        (None, None) => anyhow::bail!("give --model or --run"),
+    }
 }
 
 /// Set by Ctrl-C; the training loop stops after the current step.
