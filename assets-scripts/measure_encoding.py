@@ -11,7 +11,12 @@ display values, as `material-nn eval`). Prints a markdown table per sweep.
 Usage (after `cargo build --release` and assets-scripts/make_merl_tables.sh):
     python3 assets-scripts/measure_encoding.py --tables data/merl-fitted \
         --materials brass,red-specular-plastic,orange-paint,gold-metallic-paint2 \
-        [--model scenes/materials/latent.bin] [--spp 256] [--out out/encoding] [--no-offset]
+        [--model scenes/materials/latent.bin] [--spp 256] [--out out/encoding] \
+        [--counts 100,400,1000,4000,65536] [--steps 0,100,300,1000] \
+        [--encode-args "--no-offset --no-residual"]
+
+An empty --counts or --steps skips that sweep; --encode-args are passed to every `encode`
+(e.g. "--no-offset --no-residual" for z alone, "--no-residual" for z and offsets).
 """
 import argparse
 import csv
@@ -55,14 +60,14 @@ def main():
     p.add_argument("--model", type=pathlib.Path, default=ROOT / "scenes/materials/latent.bin")
     p.add_argument("--spp", type=int, default=256)
     p.add_argument("--counts", default="100,400,1000,4000,65536")
-    p.add_argument("--steps", default="0,25,100,300")
+    p.add_argument("--steps", default="0,100,300,1000")
     p.add_argument("--out", type=pathlib.Path, default=ROOT / "out/encoding")
-    p.add_argument("--no-offset", action="store_true", help="refine z alone (encode --no-offset)")
+    p.add_argument("--encode-args", default="", help="more arguments of every encode")
     a = p.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     materials = a.materials.split(",")
-    counts = [int(c) for c in a.counts.split(",")]
-    steps = [int(s) for s in a.steps.split(",")]
+    counts = [int(c) for c in a.counts.split(",") if c]
+    steps = [int(s) for s in a.steps.split(",") if s]
     references = {}
     for m in materials:
         table = (a.tables / f"{m}.binary").resolve()
@@ -75,16 +80,18 @@ def main():
         info = json.loads(run([MATERIAL_NN, "encode", "--model", a.model, "--table",
                                a.tables / f"{m}.binary", "--count", count, "--refine-steps",
                                refine, "--name", m, "--add-to", lib]
-                              + (["--no-offset"] if a.no_offset else [])))
+                              + a.encode_args.split()))
         psnr, ssim = render(a.out / f"{m}-{count}-{refine}.exr", f"preview={m}", a.spp,
                             material=lib, reference=references[m])
         return psnr, ssim, info["seconds"]
 
-    default_steps = 100
+    default_steps = 300
     for title, settings in [
-        ("samples (refinement 100 steps)", [(c, default_steps) for c in counts]),
+        (f"samples (refinement {default_steps} steps)", [(c, default_steps) for c in counts]),
         ("refinement steps (65,536 samples)", [(65536, s) for s in steps]),
     ]:
+        if not settings:
+            continue
         print(f"\n### Preview PSNR (dB) against the table, {a.spp} spp, by {title}\n")
         head = [f"{c} / {s}" for c, s in settings]
         print("| material | " + " | ".join(head) + " |")

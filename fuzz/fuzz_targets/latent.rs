@@ -16,7 +16,7 @@ fuzz_target!(|data: &[u8]| {
     match LatentFile::from_bytes(&bytes, &fuzz_path("latent.bin")) {
         Ok(file) => {
             for latent in &file.latents {
-                let mlp = file.decode(&latent.z, latent.offset);
+                let mlp = file.decode(&latent.z, latent.offset, &latent.residual);
                 let y = mlp.forward(&vec![0.1; file.target_widths[0]]);
                 assert_eq!(y.len(), *file.target_widths.last().expect("widths"));
                 if let Ok(net) = TargetNet::new(&mlp) {

@@ -19,7 +19,8 @@
 //! three columns measure the same quantity for both models.
 //!
 //! Editing: `pairs` random pairs (a, b) of the materials and t ~ U(0, 1); the network of
-//! z(t) = (1 − t) z_a + t z_b is compared with the linear blend (1 − t) f_a + t f_b of the
+//! z(t) = (1 − t) z_a + t z_b (offsets and residuals interpolated alike,
+//! [`LatentCode::lerp`]) is compared with the linear blend (1 − t) f_a + t f_b of the
 //! tables, with the same metrics (BRDF space only; NBRDF has no latent space to edit in).
 //!
 //! # Images
@@ -161,7 +162,7 @@ pub fn model_name(run: &TrainedRun) -> String {
 
 /// What is compared with a reference BRDF.
 enum Candidate<'a> {
-    /// The run's decoder at a latent code (z and output offset).
+    /// The run's decoder at a latent code (z, output offset and residual).
     Latent(&'a LatentCode),
     /// An NBRDF network.
     Nbrdf(&'a NbrdfNetwork),
@@ -208,7 +209,7 @@ fn compare(
     // (y', f') per point and channel.
     let predicted: Vec<(f32, f32)> = match candidate {
         Candidate::Latent(code) => {
-            let y = run.codec.predict(&code.z, code.offset, &set.inputs);
+            let y = run.codec.predict(&code.z, code.offset, &code.residual, &set.inputs);
             (0..3 * n)
                 .map(|k| {
                     let r = f_ref[k / 3][k % 3].max(0.0);
@@ -457,7 +458,7 @@ pub fn evaluate(
             ..settings.encode.clone()
         };
         let refined = run.codec.encode(&table, &encode)?;
-        codes.push(LatentCode { file: 0, z: refined.z, offset: refined.offset });
+        codes.push(refined.into_code(0));
         tables.push(table);
     }
     let file = crate::export::latent_file(run, WeightType::F32);
@@ -567,7 +568,7 @@ fn neural_bsdf(
 ) -> Result<NeuralBsdf> {
     Ok(NeuralBsdf::new(
         name,
-        file.decode(&code.z, code.offset),
+        file.decode(&code.z, code.offset, &code.residual),
         reference.clone(),
         run.codec.sampler.mapping,
         run.codec.sampler.epsilon,

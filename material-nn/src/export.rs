@@ -84,11 +84,7 @@ pub fn encode_materials(
             };
             let refined = codec.encode(&table, &settings)?;
             progress(name);
-            Ok(NamedLatent {
-                name: name.clone(),
-                z: refined.z,
-                offset: refined.offset,
-            })
+            Ok(refined.into_named(name))
         })
         .collect()
 }

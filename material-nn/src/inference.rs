@@ -19,7 +19,16 @@
 //! (one value per RGB channel added to the target net's output y; see
 //! [`renderer::formats::latent_file::NamedLatent::offset`]): under the talk mapping a colour
 //! gain e^δ on f_r + ε, which the shared decoder cannot always give a material it never saw
-//! (a saturated paper decodes to the right shape at the wrong colour).
+//! (a saturated paper decodes to the right shape at the wrong colour). With
+//! [`RefineSettings::fit_residual`] it fits, with them, a residual ΔΘ on every other decoded
+//! target-net parameter ([`renderer::formats::latent_file::NamedLatent::residual`]): the
+//! decoder gives the shape it knows, the residual what it has no code for — colour that
+//! changes with angle, a peak sharper than its training materials'. The residual starts at 0
+//! and moves `residual_step` times as fast as z (Adam's step is per parameter; ΔΘ = s·r with
+//! r the optimised variable), which keeps it a correction of the decoded net rather than a
+//! refit from scratch: from 0 and with Adam's bounded steps, 100 steps move it only as far as
+//! the data asks, so it helps even on sparse sets of 100 samples, far fewer than its 11,580
+//! values (docs/training.md measures it).
 
 use crate::checkpoint::Checkpoint;
 use crate::config::TrainConfig;
@@ -33,7 +42,8 @@ use burn::module::{Module, Param};
 use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use rand::SeedableRng;
-use renderer::formats::latent_file::LatentFile;
+use renderer::formats::latent_file::{LatentFile, NamedLatent};
+use renderer::neural::latent_library::LatentCode;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -73,24 +83,33 @@ pub struct RefineSettings {
     pub learning_rate: f64,
     /// Also fit the code's output offset δ per RGB channel (0 when false).
     pub fit_offset: bool,
+    /// Also fit the residual ΔΘ of the decoded parameters (none when false).
+    pub fit_residual: bool,
+    /// Adam's step on the residual relative to its step on z.
+    pub residual_step: f32,
 }
 
 impl Default for RefineSettings {
     fn default() -> Self {
         RefineSettings {
-            steps: 100,
+            steps: 300,
             samples: 16_384,
             learning_rate: 3e-2,
             fit_offset: true,
+            fit_residual: true,
+            residual_step: 0.3,
         }
     }
 }
 
-/// A latent code being refined: z [1, latent_dim] and the output offset δ [1, 3].
+/// A latent code being refined: z [1, latent_dim], the output offset δ [1, 3] and the
+/// residual, one [1, numel] tensor per decoded target-net tensor but the output bias (in
+/// units of 1/`residual_step`; none when not fitted).
 #[derive(Module, Debug)]
-struct LatentCode {
+struct CodeParams {
     z: Param<Tensor<2>>,
     offset: Param<Tensor<2>>,
+    residual: Vec<Param<Tensor<2>>>,
 }
 
 /// A trained HyperBRDF model ready to encode and decode (see the module documentation).
@@ -116,10 +135,35 @@ pub struct Refined {
     pub z: Vec<f32>,
     /// The output offset δ per RGB channel (0 unless [`RefineSettings::fit_offset`]).
     pub offset: [f32; 3],
+    /// The residual of the decoded parameters in the latent file's layout (empty unless
+    /// fitted).
+    pub residual: Vec<f32>,
     /// L_rec (data term) of the encoder's z on the refinement set.
     pub initial_loss: f64,
     /// L_rec (data term) of the refined z on the same set.
     pub final_loss: f64,
+}
+
+impl Refined {
+    /// The refined code under `name`, as a latent file stores it.
+    pub fn into_named(self, name: &str) -> NamedLatent {
+        NamedLatent {
+            name: name.to_string(),
+            z: self.z,
+            offset: self.offset,
+            residual: self.residual,
+        }
+    }
+
+    /// The refined code as the renderer decodes it, from latent file `file` of a library.
+    pub fn into_code(self, file: usize) -> LatentCode {
+        LatentCode {
+            file,
+            z: self.z,
+            offset: self.offset,
+            residual: self.residual,
+        }
+    }
 }
 
 impl Codec {
@@ -245,16 +289,31 @@ impl Codec {
         let x = tensor3(set.inputs[..6 * n].to_vec(), 6);
         let y = tensor3(set.values[..3 * n].to_vec(), 3);
         let cos = tensor3(set.cos_i[..n].to_vec(), 1);
-        let objective = |code: &LatentCode| {
+        let step = settings.residual_step;
+        let objective = |code: &CodeParams| {
             let z = code.z.val();
-            let params = self.frozen.decode(z.clone());
+            let mut params = self.frozen.decode(z.clone());
+            for (p, r) in params.iter_mut().zip(&code.residual) {
+                *p = p.clone() + r.val() * step;
+            }
             let pred = self.frozen.target_forward(&params, x.clone()) + code.offset.val().unsqueeze_dim::<3>(1);
             self.rec_loss.forward(pred, y.clone(), cos.clone(), &params, z)
         };
         // Without fit_offset the offset stays a constant 0 (no gradient, Adam leaves it).
-        let mut code = LatentCode {
+        let fit_residual = settings.fit_residual && settings.steps > 0;
+        let residual_sizes: Vec<usize> = if fit_residual {
+            let sizes = self.model.target_layers().iter().flat_map(|&(i, o)| [i * o, o]).collect::<Vec<_>>();
+            sizes[..sizes.len() - 1].to_vec()
+        } else {
+            Vec::new()
+        };
+        let mut code = CodeParams {
             z: Param::from_tensor(Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &device)),
             offset: Param::from_tensor(Tensor::<2>::zeros([1, 3], &device)).set_require_grad(settings.fit_offset),
+            residual: residual_sizes
+                .iter()
+                .map(|&numel| Param::from_tensor(Tensor::<2>::zeros([1, numel], &device)))
+                .collect(),
         };
         let initial_loss = objective(&code).1.into_scalar::<f32>() as f64;
         let mut optim = optimizer();
@@ -270,23 +329,39 @@ impl Codec {
         let final_loss = objective(&code).1.into_scalar::<f32>() as f64;
         let z = to_vec(code.z.val());
         let offset: [f32; 3] = to_vec(code.offset.val()).try_into().expect("offset of 3 channels");
-        if z.iter().chain(&offset).any(|v| !v.is_finite()) {
+        let residual: Vec<f32> = code.residual.iter().flat_map(|r| to_vec(r.val() * step)).collect();
+        if z.iter().chain(&offset).chain(&residual).any(|v| !v.is_finite()) {
             return Err(Error::Invalid("latent refinement diverged (non-finite code)".to_string()));
         }
         Ok(Refined {
             z,
             offset,
+            residual,
             initial_loss,
             final_loss,
         })
     }
 
-    /// The mapped predictions y [n, 3] of latent `z` with output offset `offset` (per RGB
-    /// channel) at network inputs [n, 6].
-    pub fn predict(&self, z: &[f32], offset: [f32; 3], inputs: &[f32]) -> Vec<f32> {
+    /// The mapped predictions y [n, 3] of a code (z, output offset per RGB channel, residual
+    /// in the latent file's layout or empty) at network inputs [n, 6].
+    ///
+    /// # Panics
+    /// If the residual is neither empty nor of the latent file's residual length.
+    pub fn predict(&self, z: &[f32], offset: [f32; 3], residual: &[f32], inputs: &[f32]) -> Vec<f32> {
         let n = inputs.len() / 6;
         let zt = Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &self.device);
-        let params = self.model.decode(zt);
+        let mut params = self.model.decode(zt);
+        if !residual.is_empty() {
+            // Every tensor but the output bias, in order.
+            let last = params.len() - 1;
+            let mut at = 0;
+            for p in &mut params[..last] {
+                let dims = p.dims();
+                let r = residual[at..at + dims[1]].to_vec();
+                *p = p.clone() + Tensor::from_data(TensorData::new(r, dims), &self.device);
+                at += dims[1];
+            }
+        }
         let x = Tensor::from_data(TensorData::new(inputs.to_vec(), [1, n, 6]), &self.device);
         let mut y = to_vec(self.model.target_forward(&params, x));
         for (k, v) in y.iter_mut().enumerate() {
@@ -430,6 +505,8 @@ mod tests {
             samples: 2048,
             learning_rate: 0.1,
             fit_offset: false,
+            fit_residual: false,
+            ..RefineSettings::default()
         };
         let mut losses = Vec::new();
         let refined = codec.refine(&z, &set, &settings, &mut |_, l| losses.push(l)).unwrap();
@@ -455,6 +532,24 @@ mod tests {
             refined.final_loss
         );
         assert!(tinted.offset.iter().any(|d| d.abs() > 0.05), "{:?}", tinted.offset);
+        assert!(tinted.residual.is_empty());
+        // With the residual as well the fit goes further again.
+        let full = RefineSettings { fit_residual: true, ..with_offset.clone() };
+        let corrected = codec.refine(&z, &set, &full, &mut |_, _| {}).unwrap();
+        assert_eq!(corrected.residual.len(), 6 * 16 + 16 + 16 * 3, "every tensor but the output bias");
+        assert!(corrected.residual.iter().any(|r| *r != 0.0));
+        assert!(
+            corrected.final_loss < 0.9 * tinted.final_loss,
+            "{} (residual) vs {} (offset)",
+            corrected.final_loss,
+            tinted.final_loss
+        );
+        // Its predictions are those of the decoded net with the residual added.
+        let y = codec.predict(&corrected.z, corrected.offset, &corrected.residual, &set.inputs[..6]);
+        let plain = codec.predict(&corrected.z, corrected.offset, &[], &set.inputs[..6]);
+        assert_ne!(y, plain);
+        let unrefined = RefineSettings { steps: 0, ..full };
+        assert!(codec.refine(&z, &set, &unrefined, &mut |_, _| {}).unwrap().residual.is_empty(), "nothing fitted");
         let none = RefineSettings { steps: 0, ..settings };
         let same = codec.refine(&z, &set, &none, &mut |_, _| {}).unwrap();
         assert_eq!((same.z, same.final_loss), (z.clone(), same.initial_loss));

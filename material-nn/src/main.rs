@@ -43,7 +43,8 @@ enum Command {
     #[command(verbatim_doc_comment)]
     Export(export::ExportArgs),
     /// Encode one material (a table or a sparse CSV sample set) into a latent code: the set
-    /// encoder's code, refined with the decoder frozen; prints it as JSON.
+    /// encoder's code, refined with the decoder frozen together with the code's output offset
+    /// and its residual of the decoded network; prints it as JSON.
     ///
     ///   material-nn encode --model scenes/materials/latent.bin --table gold.binary --add-to lib.bin
     ///   material-nn encode --model scenes/materials/latent.bin --samples measured.csv --name mine --add-to lib.bin

@@ -80,12 +80,15 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     assert_eq!(file.latent_names(), vec!["grey-clay", "red-plastic"]);
     assert_eq!(file.training_materials.len(), 2);
     let trained = material_nn::inference::TrainedRun::load(&run).unwrap();
-    // The exported code (z and its output offset) decodes to the same net in burn and in
-    // the renderer's plain f32 forward pass.
+    // The exported code (z, its output offset and its residual, fitted by default) decodes to
+    // the same net in burn and in the renderer's plain f32 forward pass.
     let code = file.latent("red-plastic").unwrap();
+    assert_eq!(code.residual.len(), file.residual_len());
+    assert!(code.residual.iter().any(|r| *r != 0.0));
     let x = renderer::brdf_coords::network_input_from_angles(0.3, 0.6, 1.1);
-    let burn_y = trained.codec.predict(&code.z, code.offset, &x);
-    let plain_y = file.decode(&code.z, code.offset).forward(&x);
+    let burn_y = trained.codec.predict(&code.z, code.offset, &code.residual, &x);
+    let plain_y = file.decode(&code.z, code.offset, &code.residual).forward(&x);
+    assert_ne!(plain_y, file.decode(&code.z, code.offset, &[]).forward(&x), "the residual counts");
     for c in 0..3 {
         assert!(
             (burn_y[c] - plain_y[c]).abs() < 1e-4 * burn_y[c].abs().max(1.0),
@@ -94,7 +97,7 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     }
 
     // Exporting again from the latent file alone keeps its decoder and encodes its
-    // materials again (here without offsets: the codes differ from the first export's).
+    // materials again (here z alone: the codes differ from the first export's).
     let again = dir.path().join("again.bin");
     let out = material_nn(&[
         "export",
@@ -107,13 +110,14 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         "--refine-steps",
         "5",
         "--no-offset",
+        "--no-residual",
     ]);
     assert!(out.status.success(), "{out:?}");
     let reexported = LatentFile::read(&again).unwrap();
     assert_eq!(reexported.latent_names(), file.latent_names());
     assert_eq!((&reexported.hypernetwork, &reexported.encoder, &reexported.f_ref), (&file.hypernetwork, &file.encoder, &file.f_ref));
     assert_eq!(reexported.training_materials, file.training_materials);
-    assert!(reexported.latents.iter().all(|l| l.offset == [0.0; 3]));
+    assert!(reexported.latents.iter().all(|l| l.offset == [0.0; 3] && l.residual.is_empty()));
     assert!(file.latents.iter().any(|l| l.offset != [0.0; 3]), "the first export fitted offsets");
 
     // Evaluation beside a briefly fitted NBRDF baseline, with tiny preview renders.
@@ -286,6 +290,9 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     let offset: Vec<f32> = json["offset"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
     assert_eq!(library.latents[0].offset[..], offset[..]);
     assert!(offset.iter().any(|d| *d != 0.0), "{json}");
+    // So is the residual.
+    assert_eq!(json["residual_values"], serde_json::json!(file.residual_len()), "{json}");
+    assert_eq!(library.latents[0].residual.len(), file.residual_len());
     assert_eq!(library.hypernetwork, file.hypernetwork);
     assert!(library.encoder.is_some());
     let out = material_nn(&[
@@ -305,6 +312,7 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["loss_encoder"], json["loss_refined"], "no refinement: {json}");
     assert_eq!(json["offset"], serde_json::json!([0.0, 0.0, 0.0]), "no refinement, no offset");
+    assert_eq!(json["residual_values"], serde_json::json!(0), "no refinement, no residual");
     assert_eq!(LatentFile::read(&lib).unwrap().latent_names(), vec!["clay2", "sparse2"]);
 
     // Bad input to encode: one line naming the file, exit 2, the library untouched.

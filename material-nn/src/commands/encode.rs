@@ -4,8 +4,7 @@
 use anyhow::bail;
 use clap::{ArgGroup, Args};
 use material_nn::dataset::MaterialTable;
-use material_nn::inference::RefineSettings;
-use renderer::formats::latent_file::{LatentFile, NamedLatent};
+use renderer::formats::latent_file::LatentFile;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -32,12 +31,8 @@ pub struct EncodeArgs {
     /// Seed of the samples drawn from --table.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Refinement steps of the code, decoder frozen (0: the set encoder's code as it is).
-    #[arg(long, default_value_t = RefineSettings::default().steps)]
-    pub refine_steps: usize,
-    /// Refine z alone: no output offset (the code's colour gain) is fitted.
-    #[arg(long)]
-    pub no_offset: bool,
+    #[command(flatten)]
+    pub refine: super::RefineArgs,
     /// Name of the latent code (default: the input's file stem).
     #[arg(long)]
     pub name: Option<String>,
@@ -78,19 +73,11 @@ pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
         )),
         None => None,
     };
-    let refine = RefineSettings {
-        steps: args.refine_steps,
-        fit_offset: !args.no_offset,
-        ..RefineSettings::default()
-    };
+    let refine = args.refine.settings();
     let refined = codec.encode_and_refine(&set, &refine)?;
     if let Some((path, mut file)) = library {
         file.latents.retain(|l| l.name != name);
-        file.latents.push(NamedLatent {
-            name: name.clone(),
-            z: refined.z.clone(),
-            offset: refined.offset,
-        });
+        file.latents.push(refined.clone().into_named(&name));
         file.write(path)?;
     }
     println!(
@@ -99,6 +86,8 @@ pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
             "name": name,
             "z": refined.z,
             "offset": refined.offset,
+            "residual_values": refined.residual.len(),
+            "residual_rms": rms(&refined.residual),
             "samples": set.len(),
             "refine_steps": refine.steps,
             "loss_encoder": refined.initial_loss,
@@ -107,4 +96,9 @@ pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
         })
     );
     Ok(())
+}
+
+/// Root mean square of `v` (0 when empty).
+fn rms(v: &[f32]) -> f64 {
+    (v.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }

@@ -2,7 +2,7 @@
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use material_nn::inference::{EncodeSettings, RefineSettings, TrainedRun};
+use material_nn::inference::{EncodeSettings, TrainedRun};
 use std::path::PathBuf;
 use std::time::Instant;
 use super::progress_bar;
@@ -60,13 +60,8 @@ pub struct EvalArgs {
     /// Directions per directional-albedo estimate (decoded against table at 0°, 45°, 75°).
     #[arg(long, default_value_t = 1 << 17)]
     pub albedo_samples: usize,
-    /// Refinement steps of each material's code, as `encode` refines (0: the set encoder's
-    /// codes as they are).
-    #[arg(long, default_value_t = RefineSettings::default().steps)]
-    pub refine_steps: usize,
-    /// Refine z alone, as `encode --no-offset` does (no output offset fitted).
-    #[arg(long)]
-    pub no_offset: bool,
+    #[command(flatten)]
+    pub refine: super::RefineArgs,
     /// Keep the tables' preview renders in DIR and reuse them when scene, table, resolution,
     /// spp and seed are the same (e.g. two models of one seed); clear DIR after changing the
     /// renderer.
@@ -116,11 +111,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         nbrdf_dir: args.nbrdf.clone(),
         images,
         encode: EncodeSettings {
-            refine: RefineSettings {
-                steps: args.refine_steps,
-                fit_offset: !args.no_offset,
-                ..RefineSettings::default()
-            },
+            refine: args.refine.settings(),
             ..EncodeSettings::default()
         },
         albedo_samples: args.albedo_samples,

@@ -3,7 +3,7 @@
 //! (e.g. the shipped model's codes with the current encoding settings).
 
 use clap::{ArgGroup, Args};
-use material_nn::inference::{EncodeSettings, RefineSettings};
+use material_nn::inference::EncodeSettings;
 use renderer::formats::latent_file::WeightType;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -33,21 +33,13 @@ pub struct ExportArgs {
     /// kept unless this is given).
     #[arg(long)]
     pub half_weights: bool,
-    /// Refinement steps of each code, decoder frozen (0: the set encoder's codes as they are).
-    #[arg(long, default_value_t = RefineSettings::default().steps)]
-    pub refine_steps: usize,
-    /// Refine z alone: no output offsets are fitted.
-    #[arg(long)]
-    pub no_offset: bool,
+    #[command(flatten)]
+    pub refine: super::RefineArgs,
 }
 
 pub fn run(args: ExportArgs) -> anyhow::Result<()> {
     let start = Instant::now();
-    let refine = RefineSettings {
-        steps: args.refine_steps,
-        fit_offset: !args.no_offset,
-        ..RefineSettings::default()
-    };
+    let refine = args.refine.settings();
     let super::Model { codec, file: mut decoder, run } = super::load_model(args.model.as_deref(), args.run.as_deref())?;
     // Defaults: a run's data directory, materials and seed; a file's codes (--model requires
     // --data).

@@ -2,7 +2,7 @@
 //! they share: argument parsers, the progress bar and the stop flag Ctrl-C sets.
 
 use indicatif::{ProgressBar, ProgressStyle};
-use material_nn::inference::{Codec, TrainedRun};
+use material_nn::inference::{Codec, RefineSettings, TrainedRun};
 use material_nn::run::RunInfo;
 use renderer::formats::latent_file::{LatentFile, WeightType};
 use renderer::Rgb;
@@ -16,6 +16,37 @@ pub mod nbrdf_fit;
 pub mod search;
 pub mod tabulate;
 pub mod train;
+
+/// How a material's code is refined after the set encoder (`encode`, `export`, `eval`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct RefineArgs {
+    /// Refinement steps of each code, decoder frozen (0: the set encoder's code as it is).
+    #[arg(long, default_value_t = RefineSettings::default().steps)]
+    pub refine_steps: usize,
+    /// Fit no output offset (the code's colour gain).
+    #[arg(long)]
+    pub no_offset: bool,
+    /// Fit no residual of the decoded network (with --no-offset: z alone, a point of the
+    /// latent space).
+    #[arg(long)]
+    pub no_residual: bool,
+    /// Adam's step on the residual relative to its step on z.
+    #[arg(long, default_value_t = RefineSettings::default().residual_step, value_parser = parse_positive)]
+    pub residual_step: f32,
+}
+
+impl RefineArgs {
+    /// The refinement these arguments ask for.
+    pub fn settings(&self) -> RefineSettings {
+        RefineSettings {
+            steps: self.refine_steps,
+            fit_offset: !self.no_offset,
+            fit_residual: !self.no_residual,
+            residual_step: self.residual_step,
+            ..RefineSettings::default()
+        }
+    }
+}
 
 /// `R,G,B` (or one grey value), each in [0, 1].
 pub fn parse_rgb(s: &str) -> Result<Rgb, String> {

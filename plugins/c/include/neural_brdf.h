@@ -51,8 +51,9 @@ const char *nb_last_error(void);
 enum NbStatus nb_material_open(const char *path, const char *name, struct NbMaterial **out);
 
 // Opens a latent file and decodes the latent vector `z` into `*out`, e.g. an interpolated
-// or edited code: `len` floats, either the file's latent size (z alone) or 3 more (z, then
-// the code's output offset per RGB channel).
+// or edited code: `len` floats, either the file's latent size (z alone), 3 more (z, then
+// the code's output offset per RGB channel) or the file's residual length more again (z, the
+// offsets, then the residual of the decoded network).
 //
 // # Safety
 // `path` is a NUL-terminated string; `z` points to `len` floats; `out` points to writable

@@ -168,8 +168,9 @@ pub unsafe extern "C" fn nb_material_open(path: *const c_char, name: *const c_ch
 }
 
 /// Opens a latent file and decodes the latent vector `z` into `*out`, e.g. an interpolated
-/// or edited code: `len` floats, either the file's latent size (z alone) or 3 more (z, then
-/// the code's output offset per RGB channel).
+/// or edited code: `len` floats, either the file's latent size (z alone), 3 more (z, then
+/// the code's output offset per RGB channel) or the file's residual length more again (z, the
+/// offsets, then the residual of the decoded network).
 ///
 /// # Safety
 /// `path` is a NUL-terminated string; `z` points to `len` floats; `out` points to writable

@@ -99,7 +99,8 @@ impl Material {
 
     /// Opens a latent file and decodes the latent vector `z` (any code, e.g. an edited or
     /// interpolated one); `label` names it. `z` is a vector of `latent_codes`: the latent code
-    /// followed by its 3 output offsets (or the latent code alone, offsets 0).
+    /// followed by its 3 output offsets and its residual (or z and the offsets, no residual;
+    /// or z alone, offsets 0).
     #[staticmethod]
     #[pyo3(signature = (path, z, label="latent vector".to_string()))]
     fn from_latent_vector(py: Python<'_>, path: PathBuf, z: PyArrayLike1<'_, f32, AllowTypeChange>, label: String) -> PyResult<Self> {
@@ -282,15 +283,16 @@ fn bins_array<'py>(py: Python<'py>, values: &[[f32; 3]]) -> Bound<'py, numpy::Py
 }
 
 /// The latent codes of a latent file by name, each a float32 vector (z followed by the code's
-/// 3 output offsets: what to edit, interpolate and pass to `Material.from_latent_vector`),
-/// in the file's order.
+/// 3 output offsets and its residual, zeros when it has none, so that every vector of a file
+/// has one length: what to edit, interpolate and pass to `Material.from_latent_vector`), in
+/// the file's order.
 #[pyfunction]
 fn latent_codes<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
     let latents = py.detach(|| LatentLibrary::load(&[&path])).map_err(to_py)?;
     let codes = PyDict::new(py);
     for name in latents.names() {
-        let code = latents.latent(&name).map_err(to_py)?;
-        codes.set_item(name, PyArray1::from_vec(py, code.to_vector()))?;
+        let vector = latents.latent_vector(&name).map_err(to_py)?;
+        codes.set_item(name, PyArray1::from_vec(py, vector))?;
     }
     Ok(codes)
 }

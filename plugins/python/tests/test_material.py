@@ -67,6 +67,8 @@ def test_exports_the_decoded_net_reference_mapping_and_sampler_tables(bronze):
 def test_latent_vectors_decode_like_their_codes(latent_path, bronze):
     codes = neural_brdf.latent_codes(latent_path)
     assert "alum-bronze" in codes and "chrome" in codes and codes["chrome"].dtype == np.float32
+    # z, 3 offsets and the residual (zeros for a code without one): one length for the file.
+    assert {len(v) for v in codes.values()} == {40 + 3 + 11_580}
     same = neural_brdf.Material.from_latent_vector(latent_path, codes["alum-bronze"].astype(np.float64), "copy")
     assert same.name == "copy"
     wo, wi = direction_pairs(np.random.default_rng(3), 200)

@@ -267,16 +267,19 @@ mod tests {
             file: a.file,
             z: vec![0.0; a.z.len()],
             offset: [0.0; 3],
+            residual: Vec::new(),
         };
         check_stability(&lib.decode_code(&zero, "zero").unwrap());
     }
 
     /// The decoded codes of the shipped file reflect what their tables reflect: directional
-    /// albedo per channel within 30 % at θo = 0°, 45°, 75°, for a mirror-like metal (whose
-    /// peak, narrower than a degree, the first shipped model missed: 0.23–0.30 of chrome's
-    /// energy), a polished alloy and a metallic paint. Both sides are integrated over the same
-    /// directions, guided by the table. The aim is 10 %; the shipped model is at 0.73–1.14
-    /// for chrome, 0.82–1.12 for brass (docs/training.md).
+    /// albedo per channel within 10 % at θo = 0° and 45° and within 30 % at 75°, for a
+    /// mirror-like metal (whose peak, narrower than a degree, the first shipped model missed:
+    /// 0.23–0.30 of chrome's energy), a polished alloy and a metallic paint. Both sides are
+    /// integrated over the same directions, guided by the table. The shipped codes (with
+    /// residuals) are at 1.02–1.05 for chrome at 0° and 45° but 1.07–1.25 at 75°, brass
+    /// 0.99–1.05, gold-metallic-paint3 0.99–1.06 (docs/training.md); codes without residuals
+    /// were at 0.73–1.14 for chrome and fail.
     #[test]
     fn decoded_albedo_matches_the_table() {
         use crate::bsdf::merl::{Interpolation, MerlBsdf};
@@ -294,7 +297,8 @@ mod tests {
                 let a = crate::testing::chi2::guided_directional_albedo(&decoded, &table, wo, 40_000);
                 let b = crate::testing::chi2::guided_directional_albedo(&table, &table, wo, 40_000);
                 let ratio = a / b;
-                if (ratio - glam::DVec3::ONE).abs().max_element() > 0.3 {
+                let tolerance = if deg < 60.0 { 0.1 } else { 0.3 };
+                if (ratio - glam::DVec3::ONE).abs().max_element() > tolerance {
                     failures.push(format!("{name} θo={deg}°: decoded/table {ratio:.3}"));
                 }
             }

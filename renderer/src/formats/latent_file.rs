@@ -3,7 +3,7 @@
 //! layout is documented in `docs/latent-format.md`; in short (all little-endian):
 //!
 //! ```text
-//! magic "FRENBRDF" | version u32 = 3 (1 and 2 are read too) | latent_dim u32
+//! magic "FRENBRDF" | version u32 = 4 (1 to 3 are read too) | latent_dim u32
 //! target layer count u32 = K | target widths u32 × (K+1)            (6 60 60 60 60 3)
 //! hypernetwork hidden layer count u32 = H | hidden widths u32 × H    (128 128)
 //! mapping u8 (0 talk, 1 code) | weight dtype u8 (0 f32, 1 f16) | 2 zero bytes | epsilon f32
@@ -14,7 +14,9 @@
 //!               per layer: weight [d_in, d_out] row-major, then bias [d_out], always f32
 //! f_ref: dims u32 × 3 (90 90 180) | f16 × bins × 3, bin-major RGB, f_r in 1/sr, < 0 unmeasured
 //! latent codes: count u32 | per code: name length u32, UTF-8 name, f32 × latent_dim (z),
-//!               f32 × 3 (output offset δ; version 3 only)
+//!               f32 × 3 (output offset δ; version ≥ 3) | residual length u32 = R (0 or
+//!               the target net's parameter count less its output width; version 4) |
+//!               R residual values in the weight dtype
 //! training materials: count u32 | per name: length u32, UTF-8 name
 //! checksum u64: FNV-1a 64 of every preceding byte
 //! ```
@@ -26,9 +28,10 @@
 //! comes back through [`MappingForm::inverse`] with f_ref looked up in the table. The optional
 //! set [`Encoder`] maps measured samples to a latent code (ReLU after every layer, its last
 //! included, then the mean over the samples). A code's output offset δ is added to the
-//! decoded target net's output bias ([`LatentFile::decode`]). Version 1 files have no encoder
-//! section and read with `encoder: None`; versions 1 and 2 have no offsets and read with
-//! δ = 0; writing always writes [`VERSION`].
+//! decoded target net's output bias and its residual ΔΘ to the other decoded parameters
+//! ([`LatentFile::decode`]). Version 1 files have no encoder section and read with
+//! `encoder: None`; versions 1 and 2 have no offsets and read with δ = 0; versions before 4
+//! have no residuals and read with none; writing always writes [`VERSION`].
 //!
 //! This module is the format only: the forward passes (hypernetwork, encoder, target net) are
 //! in [`crate::neural`].
@@ -42,9 +45,9 @@ use std::path::Path;
 
 /// The 8 bytes every latent file starts with.
 pub const MAGIC: [u8; 8] = *b"FRENBRDF";
-/// The format version this module writes; it reads this one, version 2 (no output offsets)
-/// and version 1 (no encoder either).
-pub const VERSION: u32 = 3;
+/// The format version this module writes; it reads this one, version 3 (no residuals),
+/// version 2 (no output offsets either) and version 1 (no encoder either).
+pub const VERSION: u32 = 4;
 /// The oldest format version this module reads.
 const OLDEST_VERSION: u32 = 1;
 /// Upper bound on any one width, latent size or name length (sanity limit of the reader).
@@ -72,6 +75,14 @@ pub struct NamedLatent {
     /// encoded (`material-nn encode`); 0 for codes that need none and in files before
     /// version 3. Interpolated with z in edits.
     pub offset: [f32; 3],
+    /// Residual ΔΘ added to the decoded target net's parameters: every tensor in the
+    /// hypernetwork's order (W0 b0 W1 b1 … W_last) except the output bias, whose correction
+    /// is `offset` — [`LatentFile::residual_len`] values, or none (empty). Fitted with z and
+    /// δ when a material is encoded with residual refinement (the shared decoder keeps what
+    /// the materials have in common, the residual what it has no code for, such as colour
+    /// that changes with angle); empty in files before version 4. Interpolated with z in
+    /// edits. Stored in the file's weight dtype.
+    pub residual: Vec<f32>,
 }
 
 /// The contents of a latent file.
@@ -112,6 +123,13 @@ impl LatentFile {
             .collect()
     }
 
+    /// Length of a code's residual ([`NamedLatent::residual`]): the target net's parameter
+    /// count less its output width (11,580 for 6-60-60-60-60-3).
+    pub fn residual_len(&self) -> usize {
+        let params: usize = self.target_layers().iter().map(|(i, o)| i * o + o).sum();
+        params - self.target_widths.last().copied().unwrap_or(0)
+    }
+
     /// The latent code called `name`.
     pub fn latent(&self, name: &str) -> Option<&NamedLatent> {
         self.latents.iter().find(|l| l.name == name)
@@ -131,7 +149,8 @@ impl LatentFile {
     /// A tiny file for tests, fuzzing seeds and examples: target net 6-4-3, latent size 2,
     /// hypernetwork heads with hidden widths `hyper_hidden` and fixed pseudo-random weights in
     /// [−0.5, 0.5), talk mapping with ε = 0.002, f_ref 0.25 everywhere, codes "gold" (0.5, 1)
-    /// and "blue-acrylic" (0, 2), trained on "gold" and "silver", no encoder (see
+    /// and "blue-acrylic" (0, 2; with an output offset and a residual, both exact in f16),
+    /// trained on "gold" and "silver", no encoder (see
     /// [`LatentFile::with_synthetic_encoder`]). Valid unless a hidden width is 0 (which
     /// [`LatentFile::validate`] rejects).
     pub fn synthetic(hyper_hidden: &[usize], weight_type: WeightType) -> LatentFile {
@@ -170,11 +189,13 @@ impl LatentFile {
                     name: "gold".into(),
                     z: vec![0.5, 1.0],
                     offset: [0.0; 3],
+                    residual: Vec::new(),
                 },
                 NamedLatent {
                     name: "blue-acrylic".into(),
                     z: vec![0.0, 2.0],
                     offset: [0.25, 0.0, -0.5],
+                    residual: (0..40).map(|i| ((i % 7) as f32 - 3.0) / 32.0).collect(),
                 },
             ],
             encoder: None,
@@ -280,7 +301,15 @@ impl LatentFile {
                     self.latent_dim
                 ));
             }
-            if l.z.iter().chain(&l.offset).any(|v| !v.is_finite()) {
+            if !l.residual.is_empty() && l.residual.len() != self.residual_len() {
+                return bad(format!(
+                    "latent '{}' has a residual of {} values, expected {} or none",
+                    l.name,
+                    l.residual.len(),
+                    self.residual_len()
+                ));
+            }
+            if l.z.iter().chain(&l.offset).chain(&l.residual).any(|v| !v.is_finite()) {
                 return bad(format!("latent '{}' has a non-finite value", l.name));
             }
             if !names.insert(l.name.as_str()) {
@@ -326,7 +355,8 @@ impl LatentFile {
     }
 
     /// Serialises the file in the layout of `version` (1 to [`VERSION`]); what an older
-    /// version cannot hold (the encoder before 2, output offsets before 3) is left out.
+    /// version cannot hold (the encoder before 2, output offsets before 3, residuals before
+    /// 4) is left out.
     fn to_bytes_of_version(&self, version: u32) -> Vec<u8> {
         let mut w = Vec::new();
         w.extend_from_slice(&MAGIC);
@@ -347,13 +377,14 @@ impl LatentFile {
         });
         w.extend_from_slice(&[0, 0]);
         w.extend_from_slice(&self.epsilon.to_le_bytes());
+        let put_weight = |w: &mut Vec<u8>, v: f32| match self.weight_type {
+            WeightType::F32 => w.extend_from_slice(&v.to_le_bytes()),
+            WeightType::F16 => w.extend_from_slice(&f16::from_f32(v).to_le_bytes()),
+        };
         for head in &self.hypernetwork {
             for layer in &head.layers {
                 for v in layer.weight.iter().chain(&layer.bias) {
-                    match self.weight_type {
-                        WeightType::F32 => w.extend_from_slice(&v.to_le_bytes()),
-                        WeightType::F16 => w.extend_from_slice(&f16::from_f32(*v).to_le_bytes()),
-                    }
+                    put_weight(&mut w, *v);
                 }
             }
         }
@@ -390,6 +421,10 @@ impl LatentFile {
             l.z.iter()
                 .chain(offset)
                 .for_each(|v| w.extend_from_slice(&v.to_le_bytes()));
+            if version >= 4 {
+                put_u32(&mut w, l.residual.len() as u32);
+                l.residual.iter().for_each(|v| put_weight(&mut w, *v));
+            }
         }
         put_u32(&mut w, self.training_materials.len() as u32);
         self.training_materials
@@ -492,7 +527,13 @@ impl LatentFile {
                 .map(|_| r.f32())
                 .collect::<Result<Vec<_>>>()?;
             let offset = if version >= 3 { [r.f32()?, r.f32()?, r.f32()?] } else { [0.0; 3] };
-            latents.push(NamedLatent { name, z, offset });
+            let residual = if version >= 4 {
+                let n = r.dim("residual length")?;
+                r.weights(n, weight_type)?
+            } else {
+                Vec::new()
+            };
+            latents.push(NamedLatent { name, z, offset, residual });
         }
         let count = r.dim("training material count")?;
         let training_materials = (0..count).map(|_| r.string()).collect::<Result<Vec<_>>>()?;
@@ -667,7 +708,7 @@ pub(crate) mod tests {
         let back = LatentFile::read(&path).unwrap();
         assert_eq!(back, file);
         let gold = back.latent("gold").unwrap();
-        let net = back.decode(&gold.z, gold.offset);
+        let net = back.decode(&gold.z, gold.offset, &gold.residual);
         assert_eq!(net.layers.len(), 2);
         assert_eq!(net.forward(&[0.1; 6]).len(), 3);
         assert_eq!(back.latent_names(), vec!["gold", "blue-acrylic"]);
@@ -689,13 +730,13 @@ pub(crate) mod tests {
         let e = err(b"PK\x03\x04 not a latent file");
         assert!(e.contains("latent.bin") && e.contains("bad magic"), "{e}");
 
-        let mut v4 = good.clone();
-        v4[8..12].copy_from_slice(&4u32.to_le_bytes());
-        let e = err(&v4);
+        let mut v5 = good.clone();
+        v5[8..12].copy_from_slice(&5u32.to_le_bytes());
+        let e = err(&v5);
         assert!(
             e.contains("latent.bin")
-                && e.contains("version 4")
-                && e.contains("reads versions 1 to 3"),
+                && e.contains("version 5")
+                && e.contains("reads versions 1 to 4"),
             "{e}"
         );
 
@@ -717,6 +758,14 @@ pub(crate) mod tests {
         nan_offset.latents[0].offset[2] = f32::INFINITY;
         let e = err(&nan_offset.to_bytes());
         assert!(e.contains("latent 'gold' has a non-finite value"), "{e}");
+        let mut short = small_file(WeightType::F32);
+        short.latents[1].residual.pop();
+        let e = err(&short.to_bytes());
+        assert!(e.contains("residual of 39 values, expected 40 or none"), "{e}");
+        let mut nan_residual = small_file(WeightType::F32);
+        nan_residual.latents[1].residual[7] = f32::NAN;
+        let e = err(&nan_residual.to_bytes());
+        assert!(e.contains("latent 'blue-acrylic' has a non-finite value"), "{e}");
         assert!(nan
             .write(std::env::temp_dir().join("never-written.bin"))
             .is_err());
@@ -726,14 +775,18 @@ pub(crate) mod tests {
         assert!(err(&dup.to_bytes()).contains("appears twice"));
     }
 
-    /// Where the encoder flag byte of `file`'s bytes is: right before the encoder (if any) and
-    /// the f_ref dims, which come 6 · BIN_COUNT bytes before the codes, the names and the
-    /// checksum.
+    /// Where the encoder flag byte of `file`'s bytes (the current version) is: right before
+    /// the encoder (if any) and the f_ref dims, which come 6 · BIN_COUNT bytes before the
+    /// codes, the names and the checksum.
     fn encoder_flag_offset(file: &LatentFile, bytes: &[u8]) -> usize {
+        let weight_size = match file.weight_type {
+            WeightType::F32 => 4,
+            WeightType::F16 => 2,
+        };
         let codes: usize = file
             .latents
             .iter()
-            .map(|l| 4 + l.name.len() + 4 * (l.z.len() + l.offset.len()))
+            .map(|l| 4 + l.name.len() + 4 * (l.z.len() + l.offset.len()) + 4 + weight_size * l.residual.len())
             .sum();
         let names: usize = file.training_materials.iter().map(|n| 4 + n.len()).sum();
         let tail = 4 + codes + 4 + names + 8;
@@ -851,33 +904,41 @@ pub(crate) mod tests {
     }
 
     #[test]
-    fn version_2_files_read_with_zero_offsets() {
+    fn version_2_and_3_files_read_without_offsets_or_residuals() {
         let path = Path::new("dir/latent.bin");
         let file = small_file(WeightType::F32).with_synthetic_encoder();
         assert!(file.latents.iter().any(|l| l.offset != [0.0; 3]));
-        let (v2, v3) = (file.to_bytes_of_version(2), file.to_bytes());
+        assert!(file.latents.iter().any(|l| !l.residual.is_empty()));
+        let (v2, v3, v4) = (file.to_bytes_of_version(2), file.to_bytes_of_version(3), file.to_bytes());
         assert_eq!(v2[8..12], 2u32.to_le_bytes());
+        assert_eq!(v3[8..12], 3u32.to_le_bytes());
         assert_eq!(v3.len() - v2.len(), 12 * file.latents.len(), "three f32 per code");
-        let back = LatentFile::from_bytes(&v2, path).unwrap();
-        assert!(back.latents.iter().all(|l| l.offset == [0.0; 3]));
-        let zeroed = LatentFile {
+        let residuals: usize = file.latents.iter().map(|l| 4 + 4 * l.residual.len()).sum();
+        assert_eq!(v4.len() - v3.len(), residuals, "a length and the f32 values per code");
+        let strip = |offsets: bool| LatentFile {
             latents: file
                 .latents
                 .iter()
-                .map(|l| NamedLatent { offset: [0.0; 3], ..l.clone() })
+                .map(|l| NamedLatent {
+                    offset: if offsets { l.offset } else { [0.0; 3] },
+                    residual: Vec::new(),
+                    ..l.clone()
+                })
                 .collect(),
             ..file.clone()
         };
-        assert_eq!(back, zeroed);
+        let back = LatentFile::from_bytes(&v2, path).unwrap();
+        assert_eq!(back, strip(false));
+        assert_eq!(LatentFile::from_bytes(&v3, path).unwrap(), strip(true));
         // Written again, it is the current version, and reads back the same.
-        assert_eq!(LatentFile::from_bytes(&back.to_bytes(), path).unwrap(), zeroed);
+        assert_eq!(LatentFile::from_bytes(&back.to_bytes(), path).unwrap(), strip(false));
     }
 
     #[test]
     fn the_offset_shifts_the_decoded_output_and_nothing_else() {
         let file = small_file(WeightType::F32);
         let code = file.latent("blue-acrylic").unwrap();
-        let (plain, shifted) = (file.decode(&code.z, [0.0; 3]), file.decode(&code.z, code.offset));
+        let (plain, shifted) = (file.decode(&code.z, [0.0; 3], &[]), file.decode(&code.z, code.offset, &[]));
         let last = plain.layers.len() - 1;
         assert_eq!(plain.layers[..last], shifted.layers[..last]);
         assert_eq!(plain.layers[last].weight, shifted.layers[last].weight);
@@ -886,6 +947,28 @@ pub(crate) mod tests {
         for c in 0..3 {
             assert!((b[c] - a[c] - code.offset[c]).abs() < 1e-6, "channel {c}: {a:?} {b:?}");
         }
+    }
+
+    #[test]
+    fn the_residual_adds_to_every_decoded_parameter_but_the_output_bias() {
+        let file = small_file(WeightType::F32);
+        let code = file.latent("blue-acrylic").unwrap();
+        assert_eq!(code.residual.len(), file.residual_len());
+        assert_eq!(file.residual_len(), 6 * 4 + 4 + 4 * 3, "6-4-3 less the output bias");
+        let (plain, corrected) = (
+            file.decode(&code.z, code.offset, &[]),
+            file.decode(&code.z, code.offset, &code.residual),
+        );
+        let flat = |net: &Mlp| -> Vec<f32> {
+            net.layers.iter().flat_map(|l| l.weight.iter().chain(&l.bias)).copied().collect()
+        };
+        let (a, b) = (flat(&plain), flat(&corrected));
+        let n = file.residual_len();
+        for k in 0..n {
+            let d = b[k] - a[k];
+            assert!((d - code.residual[k]).abs() < 1e-6, "parameter {k}: {d} vs {}", code.residual[k]);
+        }
+        assert_eq!(a[n..], b[n..], "the output bias is the offset's");
     }
 
     #[test]

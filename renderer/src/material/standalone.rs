@@ -92,7 +92,8 @@ impl MaterialBsdf {
 
     /// Opens a latent file and decodes the latent vector `v` (any code, e.g. an edited one)
     /// with its decoder; `label` names it. `v` is z, optionally followed by the code's 3
-    /// output offsets ([`crate::neural::latent_library::LatentCode::from_vector`]). Errors
+    /// output offsets and then by its residual
+    /// ([`crate::neural::latent_library::LatentCode::from_vector`]). Errors
     /// name the file when `v` has the wrong size or a non-finite value.
     pub fn open_latent_vector(path: &Path, v: &[f32], label: &str) -> Result<Self> {
         let latents = LatentLibrary::load(&[path])?;
@@ -375,7 +376,7 @@ mod tests {
         assert_eq!(neural.pdf(wo, wi), reference.pdf(Vec3::from(wo), Vec3::from(wi)));
         let network = MaterialBsdf::open(&data_dir().join("merl/chrome"), None).unwrap();
         assert!(matches!(network.shared(), SharedBsdf::Nbrdf(_)));
-        let v = latents.latent("alum-bronze").unwrap().to_vector();
+        let v = latents.latent_vector("alum-bronze").unwrap();
         let same = MaterialBsdf::open_latent_vector(&shipped(), &v, "copy").unwrap();
         assert_eq!(same.eval(wo, wi), neural.eval(wo, wi));
     }
@@ -489,7 +490,7 @@ mod tests {
         assert!(e.contains("latent file"), "{e}");
         let e = MaterialBsdf::open_latent_vector(&shipped(), &[f32::NAN; 3], "bad").unwrap_err().to_string();
         assert!(e.contains("latent.bin") && e.contains("not 3"), "{e}");
-        let mut v = LatentLibrary::load(&[shipped()]).unwrap().latent("chrome").unwrap().to_vector();
+        let mut v = LatentLibrary::load(&[shipped()]).unwrap().latent_vector("chrome").unwrap();
         v[2] = f32::NAN;
         let e = MaterialBsdf::open_latent_vector(&shipped(), &v, "bad").unwrap_err().to_string();
         assert!(e.contains("latent.bin") && e.contains("finite"), "{e}");

@@ -41,31 +41,42 @@ pub struct LatentCode {
     pub z: Vec<f32>,
     /// Output offset δ per RGB channel ([`crate::formats::latent_file::NamedLatent::offset`]).
     pub offset: [f32; 3],
+    /// Residual of the decoded parameters, empty for none
+    /// ([`crate::formats::latent_file::NamedLatent::residual`]).
+    pub residual: Vec<f32>,
 }
 
 impl LatentCode {
     /// The code of file `file` from a flat vector: z (`latent_dim` values), optionally
-    /// followed by the 3 output offsets (0 when absent) — the vector [`LatentCode::to_vector`]
-    /// gives and the C and Python interfaces pass.
-    pub fn from_vector(file: usize, v: &[f32], latent_dim: usize) -> Option<LatentCode> {
-        match v.len() {
-            n if n == latent_dim => Some(LatentCode { file, z: v.to_vec(), offset: [0.0; 3] }),
-            n if n == latent_dim + 3 => Some(LatentCode {
-                file,
-                z: v[..latent_dim].to_vec(),
-                offset: [v[latent_dim], v[latent_dim + 1], v[latent_dim + 2]],
-            }),
-            _ => None,
+    /// followed by the 3 output offsets (0 when absent) and then by the residual
+    /// (`residual_len` values; none when absent) — the vector [`LatentCode::to_vector`] gives
+    /// and the C and Python interfaces pass.
+    pub fn from_vector(file: usize, v: &[f32], latent_dim: usize, residual_len: usize) -> Option<LatentCode> {
+        let offset = |v: &[f32]| [v[latent_dim], v[latent_dim + 1], v[latent_dim + 2]];
+        let (offset, residual) = match v.len() {
+            n if n == latent_dim => ([0.0; 3], Vec::new()),
+            n if n == latent_dim + 3 => (offset(v), Vec::new()),
+            n if n == latent_dim + 3 + residual_len => (offset(v), v[latent_dim + 3..].to_vec()),
+            _ => return None,
+        };
+        Some(LatentCode { file, z: v[..latent_dim].to_vec(), offset, residual })
+    }
+
+    /// z, the 3 output offsets and the residual (`residual_len` zeros when the code has
+    /// none, so that every code of a file gives a vector of one length): what editing
+    /// interpolates, as one vector.
+    pub fn to_vector(&self, residual_len: usize) -> Vec<f32> {
+        let mut v: Vec<f32> = self.z.iter().chain(&self.offset).copied().collect();
+        match self.residual.len() {
+            0 => v.resize(v.len() + residual_len, 0.0),
+            _ => v.extend(&self.residual),
         }
+        v
     }
 
-    /// z followed by the 3 output offsets: what editing interpolates, as one vector.
-    pub fn to_vector(&self) -> Vec<f32> {
-        self.z.iter().chain(&self.offset).copied().collect()
-    }
-
-    /// z(t) = (1 − t) z_self + t z_other and the same for the offsets, for material-editing
-    /// sweeps; both codes must come from the same file (one decoder).
+    /// z(t) = (1 − t) z_self + t z_other and the same for the offsets and residuals (a
+    /// missing residual counts as zeros), for material-editing sweeps; both codes must come
+    /// from the same file (one decoder).
     pub fn lerp(&self, other: &LatentCode, t: f32) -> Result<LatentCode> {
         if self.file != other.file || self.z.len() != other.z.len() {
             return Err(Error::InvalidArgument {
@@ -74,10 +85,17 @@ impl LatentCode {
             });
         }
         let lerp = |x: f32, y: f32| (1.0 - t) * x + t * y;
+        let residual = match (self.residual.len(), other.residual.len()) {
+            (0, 0) => Vec::new(),
+            (0, _) => other.residual.iter().map(|&y| lerp(0.0, y)).collect(),
+            (_, 0) => self.residual.iter().map(|&x| lerp(x, 0.0)).collect(),
+            _ => self.residual.iter().zip(&other.residual).map(|(&x, &y)| lerp(x, y)).collect(),
+        };
         Ok(LatentCode {
             file: self.file,
             z: self.z.iter().zip(&other.z).map(|(&x, &y)| lerp(x, y)).collect(),
             offset: [0, 1, 2].map(|c| lerp(self.offset[c], other.offset[c])),
+            residual,
         })
     }
 }
@@ -127,13 +145,24 @@ impl LatentLibrary {
             .iter()
             .enumerate()
             .find_map(|(file, f)| {
-                f.file.latent(name).map(|l| LatentCode { file, z: l.z.clone(), offset: l.offset })
+                f.file.latent(name).map(|l| LatentCode {
+                    file,
+                    z: l.z.clone(),
+                    offset: l.offset,
+                    residual: l.residual.clone(),
+                })
             })
             .ok_or_else(|| Error::UnknownName {
                 what: "latent code",
                 name: name.to_string(),
                 available: self.names(),
             })
+    }
+
+    /// The code called `name` as one vector ([`LatentCode::to_vector`]).
+    pub fn latent_vector(&self, name: &str) -> Result<Vec<f32>> {
+        let code = self.latent(name)?;
+        Ok(code.to_vector(self.files[code.file].file.residual_len()))
     }
 
     /// Decodes the code called `name` into a BSDF.
@@ -143,14 +172,21 @@ impl LatentLibrary {
     }
 
     /// The code of file `file` from a flat vector ([`LatentCode::from_vector`]: z, optionally
-    /// followed by the 3 output offsets); errors name the file when the size fits neither.
+    /// followed by the 3 output offsets and the residual); errors name the file when the size
+    /// fits none.
     pub fn code_from_vector(&self, file: usize, v: &[f32]) -> Result<LatentCode> {
         let f = self.file(file)?;
-        let dim = f.file.latent_dim;
-        LatentCode::from_vector(file, v, dim).ok_or_else(|| {
+        let (dim, residual) = (f.file.latent_dim, f.file.residual_len());
+        LatentCode::from_vector(file, v, dim, residual).ok_or_else(|| {
             Error::invalid_file(
                 &f.path,
-                format!("a latent vector has {dim} values (z) or {} (z and 3 offsets), not {}", dim + 3, v.len()),
+                format!(
+                    "a latent vector has {dim} values (z), {} (z and 3 offsets) or {} (z, offsets \
+                     and residual), not {}",
+                    dim + 3,
+                    dim + 3 + residual,
+                    v.len()
+                ),
             )
         })
     }
@@ -168,17 +204,25 @@ impl LatentLibrary {
     pub fn decode_code(&self, code: &LatentCode, label: &str) -> Result<NeuralBsdf> {
         let f = self.file(code.file)?;
         let file = &f.file;
-        if code.z.len() != file.latent_dim || code.z.iter().chain(&code.offset).any(|v| !v.is_finite()) {
+        let residual_ok = code.residual.is_empty() || code.residual.len() == file.residual_len();
+        if code.z.len() != file.latent_dim
+            || !residual_ok
+            || code.z.iter().chain(&code.offset).chain(&code.residual).any(|v| !v.is_finite())
+        {
             return Err(Error::invalid_file(
                 &f.path,
-                format!("latent '{label}' must be {} finite values", file.latent_dim),
+                format!(
+                    "latent '{label}' must be {} finite values (and a residual of {} or none)",
+                    file.latent_dim,
+                    file.residual_len()
+                ),
             ));
         }
         let reference = f
             .reference
             .get_or_init(|| Arc::new(file.f_ref.par_iter().map(|v| v.map(|h| h.to_f32())).collect()))
             .clone();
-        NeuralBsdf::new(label, file.decode(&code.z, code.offset), reference, file.mapping, file.epsilon, &TabulatedSamplerConfig::default())
+        NeuralBsdf::new(label, file.decode(&code.z, code.offset, &code.residual), reference, file.mapping, file.epsilon, &TabulatedSamplerConfig::default())
             .map_err(|e| Error::invalid_file(&f.path, format!("decoding '{label}': {e}")))
     }
 
@@ -233,26 +277,43 @@ mod tests {
 
     #[test]
     fn lerp_hits_the_end_points() {
-        let a = LatentCode { file: 0, z: vec![1.0, -2.0], offset: [0.0, 0.5, -1.0] };
-        let b = LatentCode { file: 0, z: vec![3.0, 2.0], offset: [1.0, 0.5, 1.0] };
-        assert_eq!(a.lerp(&b, 0.0).unwrap(), a);
+        let code = |file, z: Vec<f32>, offset, residual: Vec<f32>| LatentCode { file, z, offset, residual };
+        let a = code(0, vec![1.0, -2.0], [0.0, 0.5, -1.0], vec![]);
+        let b = code(0, vec![3.0, 2.0], [1.0, 0.5, 1.0], vec![2.0, -4.0]);
         assert_eq!(a.lerp(&b, 1.0).unwrap(), b);
+        assert_eq!(b.lerp(&a, 1.0).unwrap(), LatentCode { residual: vec![0.0, 0.0], ..a.clone() });
+        assert_eq!(a.lerp(&a, 0.5).unwrap(), a, "no residual stays none");
         let half = a.lerp(&b, 0.5).unwrap();
-        assert_eq!((half.z, half.offset), (vec![2.0, 0.0], [0.5, 0.5, 0.0]));
-        assert!(a.lerp(&LatentCode { file: 1, z: vec![0.0, 0.0], offset: [0.0; 3] }, 0.5).is_err());
+        assert_eq!((half.z, half.offset, half.residual), (vec![2.0, 0.0], [0.5, 0.5, 0.0], vec![1.0, -2.0]));
+        assert!(a.lerp(&code(1, vec![0.0, 0.0], [0.0; 3], vec![]), 0.5).is_err());
     }
 
     #[test]
-    fn latent_vectors_carry_the_offsets_when_given() {
+    fn latent_vectors_carry_the_offsets_and_residuals_when_given() {
         let (_dir, lib) = library();
         let code = lib.latent("blue-acrylic").unwrap();
         assert_ne!(code.offset, [0.0; 3]);
-        let v = code.to_vector();
-        assert_eq!(v.len(), 2 + 3);
+        assert_eq!(code.residual.len(), 40);
+        let v = lib.latent_vector("blue-acrylic").unwrap();
+        assert_eq!(v.len(), 2 + 3 + 40);
         assert_eq!(lib.code_from_vector(0, &v).unwrap(), code);
+        // A code without a residual gives a vector of the same length, zeros at the end.
+        let gold = lib.latent_vector("gold").unwrap();
+        assert_eq!(gold.len(), v.len());
+        assert!(gold[5..].iter().all(|&x| x == 0.0));
+        let tinted = lib.code_from_vector(0, &v[..5]).unwrap();
+        assert_eq!((tinted.offset, tinted.residual.len()), (code.offset, 0));
         let bare = lib.code_from_vector(0, &code.z).unwrap();
         assert_eq!((bare.z, bare.offset), (code.z.clone(), [0.0; 3]));
         let e = lib.code_from_vector(0, &v[..4]).unwrap_err().to_string();
-        assert!(e.contains("latent.bin") && e.contains("not 4"), "{e}");
+        assert!(e.contains("latent.bin") && e.contains("or 45") && e.contains("not 4"), "{e}");
+        // The residual changes the decoded BSDF.
+        let (wi, wo) = (Vec3::new(0.3, 0.1, 0.95).normalize(), Vec3::new(-0.2, 0.4, 0.89).normalize());
+        let f = |c: &LatentCode| lib.decode_code(c, "x").unwrap().eval(wi, wo);
+        assert_ne!(f(&code), f(&tinted));
+        let mut bad = code.clone();
+        bad.residual.pop();
+        let e = lib.decode_code(&bad, "bad").unwrap_err().to_string();
+        assert!(e.contains("residual of 40 or none"), "{e}");
     }
 }

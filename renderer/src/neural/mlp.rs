@@ -129,14 +129,21 @@ impl Encoder {
 impl LatentFile {
     /// Decodes a latent code into the target net (hypernetwork forward pass in f32): one MLP
     /// with ReLU after every hidden layer and a linear output y, the code's output offset
-    /// (per channel of the last layer) added to its output bias.
+    /// (per channel of the last layer) added to its output bias and its residual (empty:
+    /// none; see [`crate::formats::latent_file::NamedLatent::residual`]) to the other
+    /// parameters.
     ///
     /// # Panics
-    /// If `z.len()` differs from `latent_dim` or the target net does not end in
-    /// `offset.len()` outputs (a file read by [`LatentFile::read`] is consistent; check
-    /// user-made codes first).
-    pub fn decode(&self, z: &[f32], offset: [f32; 3]) -> Mlp {
+    /// If `z.len()` differs from `latent_dim`, the target net does not end in
+    /// `offset.len()` outputs, or the residual is neither empty nor
+    /// [`LatentFile::residual_len`] long (a file read by [`LatentFile::read`] is
+    /// consistent; check user-made codes first).
+    pub fn decode(&self, z: &[f32], offset: [f32; 3], residual: &[f32]) -> Mlp {
         assert_eq!(z.len(), self.latent_dim, "latent code size");
+        assert!(
+            residual.is_empty() || residual.len() == self.residual_len(),
+            "residual size"
+        );
         let outputs: Vec<Vec<f32>> = self
             .hypernetwork
             .iter()
@@ -153,6 +160,18 @@ impl LatentFile {
                 bias: outputs[2 * k + 1].clone(),
             })
             .collect();
+        if !residual.is_empty() {
+            let mut rest = residual;
+            for (k, layer) in layers.iter_mut().enumerate() {
+                let last = k + 1 == self.target_widths.len() - 1;
+                let tensors = [&mut layer.weight, &mut layer.bias];
+                for t in tensors.into_iter().take(if last { 1 } else { 2 }) {
+                    let (head, tail) = rest.split_at(t.len());
+                    t.iter_mut().zip(head).for_each(|(v, d)| *v += d);
+                    rest = tail;
+                }
+            }
+        }
         let last = layers.last_mut().expect("a target net has a layer");
         assert_eq!(last.bias.len(), offset.len(), "one offset per output");
         last.bias.iter_mut().zip(offset).for_each(|(b, d)| *b += d);

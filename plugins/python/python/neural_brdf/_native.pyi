@@ -15,7 +15,8 @@ class UnknownNameError(LookupError):
     """The latent file has no code of that name."""
 
 def latent_codes(path: "str | os.PathLike[str]") -> Dict[str, npt.NDArray[np.float32]]:
-    """The latent codes of a latent file by name: z followed by the code's 3 output offsets."""
+    """The latent codes of a latent file by name: z followed by the code's 3 output offsets
+    and its residual (zeros when it has none; every vector of a file has one length)."""
 
 class SamplerTables(TypedDict):
     theta_o: npt.NDArray[np.float32]
@@ -35,8 +36,8 @@ class Material:
         NBRDF network (the prefix of its ``.npy`` files)."""
     @staticmethod
     def from_latent_vector(path: "str | os.PathLike[str]", z: npt.ArrayLike, label: str = "latent vector") -> "Material":
-        """Decodes the latent vector ``z`` (z, optionally followed by the 3 output offsets) with
-        the decoder of the latent file ``path``."""
+        """Decodes the latent vector ``z`` (z, optionally followed by the 3 output offsets, then
+        optionally by the residual) with the decoder of the latent file ``path``."""
     @property
     def name(self) -> str: ...
     @property
