@@ -101,7 +101,7 @@ fn target_net(c: &mut Criterion) {
     let lib = latents();
     let code = lib.latent(MATERIAL).expect("latent");
     let file = renderer::formats::latent_file::LatentFile::read(repo().join("scenes/materials/latent.bin")).expect("file");
-    let mlp = file.decode(&code.z, code.offset);
+    let mlp = file.decode(&code.z, code.offset, &code.residual);
     let xs = inputs();
     let mut ys = vec![[0.0; OUTPUTS]; xs.len()];
     let mut group = c.benchmark_group("target net");
@@ -183,7 +183,7 @@ fn flop_utilisation(_: &mut Criterion) {
     let lib = latents();
     let file = renderer::formats::latent_file::LatentFile::read(repo().join("scenes/materials/latent.bin")).expect("file");
     let code = lib.latent(MATERIAL).expect("latent");
-    let net = TargetNet::new(&file.decode(&code.z, code.offset)).expect("net");
+    let net = TargetNet::new(&file.decode(&code.z, code.offset, &code.residual)).expect("net");
     let xs = inputs();
     let mut ys = vec![[0.0; OUTPUTS]; xs.len()];
     let rounds = 400;

@@ -758,9 +758,14 @@ fn latent_file() -> &'static (Vec<u8>, std::ops::Range<usize>) {
     FILE.get_or_init(|| {
         let file = LatentFile::synthetic(&[5], WeightType::F32).with_synthetic_encoder();
         let bytes = file.to_bytes();
-        // After f_ref: the codes (count, then name length, name, z and offsets each), the
-        // training names (count, then length and name each) and the checksum.
-        let codes: usize = file.latents.iter().map(|l| 4 + l.name.len() + 4 * (l.z.len() + 3)).sum();
+        // After f_ref: the codes (count, then name length, name, z, offsets, residual length
+        // and residual each, all f32 here), the training names (count, then length and name
+        // each) and the checksum.
+        let codes: usize = file
+            .latents
+            .iter()
+            .map(|l| 4 + l.name.len() + 4 * (l.z.len() + 3) + 4 + 4 * l.residual.len())
+            .sum();
         let names: usize = file.training_materials.iter().map(|n| 4 + n.len()).sum();
         let tail = 4 + codes + 4 + names + 8;
         let end = bytes.len() - tail;
@@ -772,7 +777,7 @@ fn check_latent(bytes: &[u8]) -> Result<(), TestCaseError> {
     match LatentFile::from_bytes(bytes, Path::new("props/latent.bin")) {
         Ok(file) => {
             for latent in &file.latents {
-                let net = file.decode(&latent.z, latent.offset);
+                let net = file.decode(&latent.z, latent.offset, &latent.residual);
                 let y = net.forward(&vec![0.1; file.target_widths[0]]);
                 prop_assert_eq!(y.len(), *file.target_widths.last().expect("widths"));
             }
