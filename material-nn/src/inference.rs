@@ -26,9 +26,9 @@
 //! changes with angle, a peak sharper than its training materials'. The residual starts at 0
 //! and moves `residual_step` times as fast as z (Adam's step is per parameter; ΔΘ = s·r with
 //! r the optimised variable), which keeps it a correction of the decoded net rather than a
-//! refit from scratch: from 0 and with Adam's bounded steps, 100 steps move it only as far as
-//! the data asks, so it helps even on sparse sets of 100 samples, far fewer than its 11,580
-//! values (docs/training.md measures it).
+//! refit from scratch: from 0 and with Adam's bounded steps it moves only as far as the data
+//! asks, so it helps even on sparse sets of 100 samples, far fewer than its 11,580 values
+//! (there 100 steps fit better than the default 300; docs/training.md measures both).
 
 use crate::checkpoint::Checkpoint;
 use crate::config::TrainConfig;
