@@ -301,11 +301,11 @@ impl Codec {
         };
         // Without fit_offset the offset stays a constant 0 (no gradient, Adam leaves it).
         let fit_residual = settings.fit_residual && settings.steps > 0;
-        let residual_sizes: Vec<usize> = if fit_residual {
-            let sizes = self.model.target_layers().iter().flat_map(|&(i, o)| [i * o, o]).collect::<Vec<_>>();
-            sizes[..sizes.len() - 1].to_vec()
-        } else {
-            Vec::new()
+        // One tensor per hypernetwork head (W0 b0 W1 b1 …) but the output bias's.
+        let heads = &self.model.heads;
+        let residual_sizes: Vec<usize> = match fit_residual {
+            true => heads[..heads.len() - 1].iter().map(Mlp::output_width).collect(),
+            false => Vec::new(),
         };
         let mut code = CodeParams {
             z: Param::from_tensor(Tensor::from_data(TensorData::new(z.to_vec(), [1, z.len()]), &device)),

@@ -144,11 +144,21 @@ impl LatentFile {
             residual.is_empty() || residual.len() == self.residual_len(),
             "residual size"
         );
-        let outputs: Vec<Vec<f32>> = self
+        let mut outputs: Vec<Vec<f32>> = self
             .hypernetwork
             .iter()
             .map(|head| head.forward(z))
             .collect();
+        if !residual.is_empty() {
+            // One slice per head in order, the output bias's head excepted (the offset's).
+            let mut rest = residual;
+            let last = outputs.len() - 1;
+            for out in &mut outputs[..last] {
+                let (head, tail) = rest.split_at(out.len());
+                out.iter_mut().zip(head).for_each(|(v, d)| *v += d);
+                rest = tail;
+            }
+        }
         let mut layers: Vec<DenseLayer> = self
             .target_layers()
             .into_iter()
@@ -160,18 +170,6 @@ impl LatentFile {
                 bias: outputs[2 * k + 1].clone(),
             })
             .collect();
-        if !residual.is_empty() {
-            let mut rest = residual;
-            for (k, layer) in layers.iter_mut().enumerate() {
-                let last = k + 1 == self.target_widths.len() - 1;
-                let tensors = [&mut layer.weight, &mut layer.bias];
-                for t in tensors.into_iter().take(if last { 1 } else { 2 }) {
-                    let (head, tail) = rest.split_at(t.len());
-                    t.iter_mut().zip(head).for_each(|(v, d)| *v += d);
-                    rest = tail;
-                }
-            }
-        }
         let last = layers.last_mut().expect("a target net has a layer");
         assert_eq!(last.bias.len(), offset.len(), "one offset per output");
         last.bias.iter_mut().zip(offset).for_each(|(b, d)| *b += d);
