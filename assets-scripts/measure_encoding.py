@@ -5,7 +5,7 @@ few measured samples) and the shipped latent.bin.
 
 For each material, the material-preview scene is rendered once with its MERL table (the
 reference) and once per setting with the code `encode --model MODEL --table T --count N
---refine-steps S` made; PSNR/SSIM come from `render --reference ... --error-log` (8-bit
+[--refine-steps S]` made; PSNR/SSIM come from `render --reference ... --error-log` (8-bit
 display values, as `material-nn eval`). Prints a markdown table per sweep.
 
 Usage (after `cargo build --release` and assets-scripts/make_merl_tables.sh):
@@ -77,17 +77,18 @@ def main():
     def measure(m, count, refine):
         lib = a.out / f"{m}-{count}-{refine}.bin"
         lib.unlink(missing_ok=True)
+        steps = [] if refine == "default" else ["--refine-steps", refine]
         info = json.loads(run([MATERIAL_NN, "encode", "--model", a.model, "--table",
-                               a.tables / f"{m}.binary", "--count", count, "--refine-steps",
-                               refine, "--name", m, "--add-to", lib]
+                               a.tables / f"{m}.binary", "--count", count, *steps,
+                               "--name", m, "--add-to", lib]
                               + a.encode_args.split()))
         psnr, ssim = render(a.out / f"{m}-{count}-{refine}.exr", f"preview={m}", a.spp,
                             material=lib, reference=references[m])
         return psnr, ssim, info["seconds"]
 
-    default_steps = 300
+    # encode's default steps depend on the sample count (fewer on sparse sets).
     for title, settings in [
-        (f"samples (refinement {default_steps} steps)", [(c, default_steps) for c in counts]),
+        ("samples (encode's default refinement steps)", [(c, "default") for c in counts]),
         ("refinement steps (65,536 samples)", [(65536, s) for s in steps]),
     ]:
         if not settings:

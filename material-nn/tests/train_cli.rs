@@ -260,6 +260,8 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     assert!(out.status.success(), "{out:?}");
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["z"].as_array().unwrap().len(), 8);
+    // 200 samples are a sparse set: refined for fewer steps than a table's code.
+    assert_eq!(json["refine_steps"], serde_json::json!(material_nn::inference::SPARSE_REFINE_STEPS), "{json}");
     assert_eq!(LatentFile::read(&latent).unwrap().latents.len(), 3);
 
     // Encoding with the exported file alone (it carries the set encoder): a new library is

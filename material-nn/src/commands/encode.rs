@@ -73,7 +73,7 @@ pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
         )),
         None => None,
     };
-    let refine = args.refine.settings();
+    let refine = args.refine.settings(set.len());
     let refined = codec.encode_and_refine(&set, &refine)?;
     if let Some((path, mut file)) = library {
         file.latents.retain(|l| l.name != name);

@@ -111,7 +111,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         nbrdf_dir: args.nbrdf.clone(),
         images,
         encode: EncodeSettings {
-            refine: args.refine.settings(),
+            refine: args.refine.settings(material_nn::inference::ENCODE_SAMPLES),
             ..EncodeSettings::default()
         },
         albedo_samples: args.albedo_samples,

@@ -39,7 +39,7 @@ pub struct ExportArgs {
 
 pub fn run(args: ExportArgs) -> anyhow::Result<()> {
     let start = Instant::now();
-    let refine = args.refine.settings();
+    let refine = args.refine.settings(material_nn::inference::ENCODE_SAMPLES);
     let super::Model { codec, file: mut decoder, run } = super::load_model(args.model.as_deref(), args.run.as_deref())?;
     // Defaults: a run's data directory, materials and seed; a file's codes (--model requires
     // --data).

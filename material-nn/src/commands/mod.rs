@@ -20,9 +20,10 @@ pub mod train;
 /// How a material's code is refined after the set encoder (`encode`, `export`, `eval`).
 #[derive(clap::Args, Debug, Clone)]
 pub struct RefineArgs {
-    /// Refinement steps of each code, decoder frozen (0: the set encoder's code as it is).
-    #[arg(long, default_value_t = RefineSettings::default().steps)]
-    pub refine_steps: usize,
+    /// Refinement steps of each code, decoder frozen (0: the set encoder's code as it is);
+    /// default 600, or 100 on a sparse set (fewer than 16,384 samples).
+    #[arg(long)]
+    pub refine_steps: Option<usize>,
     /// Fit no output offset (the code's colour gain).
     #[arg(long)]
     pub no_offset: bool,
@@ -33,17 +34,23 @@ pub struct RefineArgs {
     /// Adam's step on the residual relative to its step on z.
     #[arg(long, default_value_t = RefineSettings::default().residual_step, value_parser = parse_positive)]
     pub residual_step: f32,
+    /// Power of cos θi on each sample's error while refining (1: the training objective's;
+    /// lower gives grazing light more say).
+    #[arg(long, default_value_t = RefineSettings::default().cos_power, value_parser = parse_non_negative)]
+    pub cos_power: f32,
 }
 
 impl RefineArgs {
-    /// The refinement these arguments ask for.
-    pub fn settings(&self) -> RefineSettings {
+    /// The refinement these arguments ask for, of a code encoded from `samples` samples.
+    pub fn settings(&self, samples: usize) -> RefineSettings {
+        let default = RefineSettings::for_samples(samples);
         RefineSettings {
-            steps: self.refine_steps,
+            steps: self.refine_steps.unwrap_or(default.steps),
             fit_offset: !self.no_offset,
             fit_residual: !self.no_residual,
             residual_step: self.residual_step,
-            ..RefineSettings::default()
+            cos_power: self.cos_power,
+            ..default
         }
     }
 }
