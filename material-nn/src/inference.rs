@@ -314,8 +314,8 @@ impl Codec {
         let tensor3 = |v: Vec<f32>, w: usize| Tensor::<3>::from_data(TensorData::new(v, [1, n, w]), &device);
         let x = tensor3(set.inputs[..6 * n].to_vec(), 6);
         let y = tensor3(set.values[..3 * n].to_vec(), 3);
-        let weight = set.cos_i[..n].iter().map(|c| c.powf(settings.cos_power)).collect();
-        let cos = tensor3(weight, 1);
+        // Each sample's error weight cos^k θi, where L_rec takes cos θi.
+        let weights = tensor3(set.cos_i[..n].iter().map(|c| c.powf(settings.cos_power)).collect(), 1);
         let step = settings.residual_step;
         let objective = |code: &CodeParams| {
             let z = code.z.val();
@@ -324,7 +324,7 @@ impl Codec {
                 *p = p.clone() + r.val() * step;
             }
             let pred = self.frozen.target_forward(&params, x.clone()) + code.offset.val().unsqueeze_dim::<3>(1);
-            self.rec_loss.forward(pred, y.clone(), cos.clone(), &params, z)
+            self.rec_loss.forward(pred, y.clone(), weights.clone(), &params, z)
         };
         // Without fit_offset the offset stays a constant 0 (no gradient, Adam leaves it).
         let fit_residual = settings.fit_residual && settings.steps > 0;
