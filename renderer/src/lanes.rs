@@ -10,7 +10,7 @@
 // Indexed fixed-length loops are the form LLVM vectorises most reliably here.
 #![allow(clippy::needless_range_loop)]
 
-use std::ops::{Add, BitAnd, Div, Mul, Neg, Not, Sub};
+use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
 /// Number of lanes: one AVX-512 register of `f32`.
 pub const LANES: usize = 16;
@@ -88,6 +88,13 @@ impl F32s {
         self.map(f32::sqrt)
     }
 
+    /// Rounding toward zero through `i32` per lane (`x as i32 as f32`: saturating, NaN
+    /// becomes 0).
+    #[inline(always)]
+    pub fn truncate(self) -> Self {
+        self.map(|x| x as i32 as f32)
+    }
+
     /// `f32::max` per lane (a NaN lane takes the other operand).
     #[inline(always)]
     pub fn max(self, o: Self) -> Self {
@@ -108,6 +115,11 @@ impl F32s {
     #[inline(always)]
     pub fn le(self, o: Self) -> Mask {
         self.test(o, |a, b| a <= b)
+    }
+
+    #[inline(always)]
+    pub fn ge(self, o: Self) -> Mask {
+        self.test(o, |a, b| a >= b)
     }
 
     #[inline(always)]
@@ -169,7 +181,7 @@ macro_rules! mask_ops {
     )*};
 }
 
-mask_ops!(BitAnd bitand &);
+mask_ops!(BitAnd bitand &, BitOr bitor |);
 
 impl Not for Mask {
     type Output = Mask;
@@ -265,6 +277,25 @@ impl Vec3s {
         self.x.0[i] = v.x;
         self.y.0[i] = v.y;
         self.z.0[i] = v.z;
+    }
+
+    /// `v` in every lane.
+    #[inline(always)]
+    pub fn splat(v: glam::Vec3) -> Vec3s {
+        Vec3s {
+            x: F32s::splat(v.x),
+            y: F32s::splat(v.y),
+            z: F32s::splat(v.z),
+        }
+    }
+
+    /// `glam::Vec3::try_normalize(v).unwrap_or(fallback)` per lane (the same operations: the
+    /// reciprocal of the length, kept where finite and positive).
+    #[inline(always)]
+    pub fn normalize_or(self, fallback: glam::Vec3) -> Vec3s {
+        let rcp = 1.0 / self.dot(self).sqrt();
+        let ok = rcp.is_finite() & rcp.gt(F32s::splat(0.0));
+        ok.select3(self * rcp, Vec3s::splat(fallback))
     }
 
     /// Dot product per lane, summed in `glam::Vec3::dot`'s order (x, y, then z).

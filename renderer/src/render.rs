@@ -394,6 +394,7 @@ mod tests {
             ("cornell-box", 6, Strategy::BsdfOnly, Sphere::Gltf),
             ("material-preview", 6, Strategy::Mis, Sphere::Gltf),
             ("material-preview", 4, Strategy::LightOnly, Sphere::Gltf),
+            ("material-preview", 5, Strategy::BsdfOnly, Sphere::Gltf),
             ("material-preview", 6, Strategy::Mis, Sphere::Neural),
             ("material-preview", 5, Strategy::LightOnly, Sphere::Neural),
             ("material-preview", 5, Strategy::BsdfOnly, Sphere::Neural),

@@ -95,7 +95,7 @@ const DIELECTRIC_MEAN_TRANSMITTANCE: f32 = (1.0 - DIELECTRIC_F0) * (20.0 / 21.0)
 /// Fraction of the transmitted energy the diffuse lobe returns (dimensionless). Below 1 to
 /// leave room for rough specular lobes, whose albedo exceeds F_d(μo) by up to 0.14 % of
 /// 1 − F_d(μo) (module documentation).
-const DIFFUSE_RETURN: f32 = 0.995;
+pub(crate) const DIFFUSE_RETURN: f32 = 0.995;
 
 /// The diffuse normalisation k = [`DIFFUSE_RETURN`] / T̄ ≈ 1.0883, so that a white diffuse
 /// base returns 0.995 T(μo) of the light arriving from `wo` (dimensionless).
@@ -103,7 +103,7 @@ const DIFFUSE_SCALE: f32 = DIFFUSE_RETURN / DIELECTRIC_MEAN_TRANSMITTANCE;
 
 /// Bounds of the probability of sampling the specular lobe when both lobes are non-zero,
 /// so neither lobe is starved (its variance would grow without bound).
-const MIN_LOBE_PROBABILITY: f32 = 0.1;
+pub(crate) const MIN_LOBE_PROBABILITY: f32 = 0.1;
 
 /// The glTF 2.0 metallic-roughness BRDF with an energy-conserving diffuse weighting (see
 /// the module documentation for the formula and how it departs from the specification).
@@ -184,7 +184,7 @@ impl MetallicRoughness {
 
     /// Reflectance at grazing incidence, F90 = mix(dielectric f90 (1), 1, metallic).
     #[inline]
-    fn f90(&self) -> f32 {
+    pub(crate) fn f90(&self) -> f32 {
         self.dielectric_f90 + (1.0 - self.dielectric_f90) * self.metallic
     }
 
@@ -202,7 +202,7 @@ impl MetallicRoughness {
     /// the cosine-weighted mean of the dielectric's transmittance (zero where nothing is
     /// transmitted).
     #[inline]
-    fn diffuse_scale(&self) -> Rgb {
+    pub(crate) fn diffuse_scale(&self) -> Rgb {
         if self.dielectric_f0 == Rgb::splat(DIELECTRIC_F0) && self.dielectric_f90 == 1.0 {
             return Rgb::splat(DIFFUSE_SCALE);
         }
@@ -213,7 +213,7 @@ impl MetallicRoughness {
 
     /// The diffuse albedo before Fresnel weighting, (1 − metallic) · base_color.
     #[inline]
-    fn diffuse_color(&self) -> Rgb {
+    pub(crate) fn diffuse_color(&self) -> Rgb {
         self.base_color * (1.0 - self.metallic)
     }
 

@@ -20,6 +20,7 @@
 //! }
 //! ```
 
+use crate::sampling::sin_cos_turns;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -37,7 +38,7 @@ pub const MAX_ALPHA: f32 = 1.0;
 
 /// Lower bound on the denominator of [`GgxDistribution::visibility`], so that it stays
 /// finite when both directions lie on (or within 10⁻³⁰ of) the horizon.
-const MIN_VISIBILITY_DENOMINATOR: f32 = 1e-30;
+pub(crate) const MIN_VISIBILITY_DENOMINATOR: f32 = 1e-30;
 
 /// The GGX (Trowbridge–Reitz) distribution of microfacet normals with its Smith
 /// masking-shadowing functions.
@@ -186,10 +187,10 @@ impl GgxDistribution {
             .try_normalize()
             .unwrap_or(Vec3::Z);
         // Uniform point on the spherical cap z ∈ [−wo_std.z, 1].
-        let phi = 2.0 * PI * u.x;
+        let (sin_phi, cos_phi) = sin_cos_turns(u.x);
         let z = (1.0 - u.y) * (1.0 + wo_std.z) - wo_std.z;
         let sin_theta = (1.0 - z * z).max(0.0).sqrt();
-        let cap = Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), z);
+        let cap = Vec3::new(sin_theta * cos_phi, sin_theta * sin_phi, z);
         // Halfway vector in the hemisphere configuration, warped back to the ellipsoid.
         let h_std = cap + wo_std;
         Vec3::new(

@@ -19,6 +19,7 @@ use glam::{Vec2, Vec3};
 pub mod lambert;
 pub mod merl;
 pub mod metallic_roughness;
+pub(crate) mod metallic_roughness_lanes;
 pub mod microfacet;
 pub mod nbrdf;
 pub mod neural;

@@ -1,12 +1,15 @@
 //! [`PathTracer::step`] for a batch of paths: the vertices are begun one by one, the common
 //! diffuse-surface-lit-by-a-triangle ones scattered [`LANES`] at a time
-//! ([`DiffuseLanes`]), those on decoded neural materials and MERL tables with their values
+//! ([`DiffuseLanes`]), so are the metallic-roughness ones under any light ([`GlossyLanes`]),
+//! those on decoded neural materials and MERL tables with their values
 //! evaluated together after all were sampled ([`DeferredScatter`]: one batched forward pass
 //! per net, table entries prefetched), the others one by one, and all advanced in the
 //! batch's order.
 
 use super::deferred::DeferredScatter;
-use super::diffuse_lanes::{DiffuseLanes, DiffuseScattered};
+use super::diffuse_lanes::DiffuseLanes;
+use super::glossy_lanes::GlossyLanes;
+use super::scattered_lanes::ScatteredLanes;
 use super::{PathState, PathTracer, Scattered, ShadowTest, Strategy};
 use crate::accel::Hit;
 use crate::bsdf::merl::MerlBsdf;
@@ -26,8 +29,11 @@ enum Outcome {
     Ended,
     /// Scattered alone: index into [`BatchBuffers::scattered`].
     Alone(u32),
-    /// Scattered in lanes: group (index into [`BatchBuffers::groups`]) and lane.
+    /// Scattered in diffuse lanes: group (index into [`BatchBuffers::groups`]) and lane.
     Lane(u32, u32),
+    /// Scattered in glossy lanes: group (index into [`BatchBuffers::glossy_groups`]) and
+    /// lane.
+    Glossy(u32, u32),
     /// A neural vertex: index into [`BatchBuffers::neural_scattered`].
     Neural(u32),
     /// A MERL-table vertex: index into [`BatchBuffers::merl_scattered`].
@@ -44,7 +50,9 @@ pub struct BatchBuffers<'s> {
     positions: Vec<Vec3>,
     scattered: Vec<Scattered>,
     lanes: DiffuseLanes,
-    groups: Vec<DiffuseScattered>,
+    groups: Vec<ScatteredLanes>,
+    glossy: GlossyLanes,
+    glossy_groups: Vec<ScatteredLanes>,
     neural: DeferredScatter<'s, NeuralBsdf>,
     neural_scattered: Vec<Scattered>,
     merl: DeferredScatter<'s, MerlBsdf>,
@@ -82,20 +90,24 @@ impl PathTracer {
             scattered,
             lanes,
             groups,
+            glossy,
+            glossy_groups,
             neural,
             neural_scattered,
             merl,
             merl_scattered,
         } = buffers;
-        groups.resize_with(CHUNK.div_ceil(LANES), DiffuseScattered::default);
+        groups.resize_with(CHUNK.div_ceil(LANES), ScatteredLanes::default);
+        glossy_groups.resize_with(CHUNK.div_ceil(LANES), ScatteredLanes::default);
         for (chunk, chunk_hits) in active.chunks(CHUNK).zip(hits.chunks(CHUNK)) {
             outcomes.clear();
             positions.clear();
             scattered.clear();
             lanes.clear();
+            glossy.clear();
             neural.clear();
             merl.clear();
-            let mut group = 0;
+            let (mut group, mut glossy_group) = (0, 0);
             for (&i, &hit) in chunk.iter().zip(chunk_hits) {
                 let path = &mut paths[i as usize];
                 let Some(v) = self.begin(scene, path, hit) else {
@@ -118,6 +130,14 @@ impl PathTracer {
                         lanes.clear();
                         group += 1;
                     }
+                } else if let Bsdf::MetallicRoughness(bsdf) = &v.bsdf {
+                    outcomes.push(Outcome::Glossy(glossy_group, glossy.len() as u32));
+                    glossy.push(&v, bsdf, path.beta, self.light_sample(scene, &v));
+                    if glossy.is_full() {
+                        glossy.scatter(light_only, &mut glossy_groups[glossy_group as usize]);
+                        glossy.clear();
+                        glossy_group += 1;
+                    }
                 } else if let Bsdf::Neural(bsdf) = v.bsdf {
                     outcomes.push(Outcome::Neural(neural.len() as u32));
                     neural.push(self, scene, &v, bsdf, path.beta);
@@ -132,6 +152,9 @@ impl PathTracer {
             if lanes.len() > 0 {
                 lanes.scatter(light_only, &mut groups[group as usize]);
             }
+            if glossy.len() > 0 {
+                glossy.scatter(light_only, &mut glossy_groups[glossy_group as usize]);
+            }
             neural.scatter(self, neural_scattered);
             merl.scatter(self, merl_scattered);
             for ((&i, &outcome), &p) in chunk.iter().zip(outcomes.iter()).zip(positions.iter()) {
@@ -139,6 +162,7 @@ impl PathTracer {
                     Outcome::Ended => continue,
                     Outcome::Alone(k) => scattered[k as usize],
                     Outcome::Lane(g, lane) => groups[g as usize].get(lane as usize),
+                    Outcome::Glossy(g, lane) => glossy_groups[g as usize].get(lane as usize),
                     Outcome::Neural(k) => neural_scattered[k as usize],
                     Outcome::Merl(k) => merl_scattered[k as usize],
                 };

@@ -12,13 +12,14 @@
 //! [`Lambert`]: crate::bsdf::Lambert
 //! [`offset_ray_origin`]: crate::accel::offset_ray_origin
 
-use super::{Continuation, Scattered, ShadowTest, Vertex, SHADOW_EPSILON};
-use crate::accel::{gamma, Ray};
+use super::scattered_lanes::{offset_ray_origin, power_heuristic, ScatteredLanes};
+use super::{Vertex, SHADOW_EPSILON};
+use crate::accel::gamma;
 use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
-use crate::sampling::sin_cos_octant;
 use crate::lights::area::TriangleLight;
+use crate::sampling::sample_cosine_hemisphere_lanes;
 use crate::Rgb;
-use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
+use std::f32::consts::FRAC_1_PI;
 
 /// Up to [`LANES`] diffuse vertices lit by a triangle light, in structure-of-arrays form.
 #[derive(Clone, Debug, Default)]
@@ -41,20 +42,6 @@ pub(crate) struct DiffuseLanes {
     select_pdf: F32s,
     u_light: Vec2s,
     u: Vec2s,
-}
-
-/// What [`DiffuseLanes::scatter`] gives for each lane.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct DiffuseScattered {
-    shadow_ok: [bool; LANES],
-    shadow_origin: Vec3s,
-    shadow_direction: Vec3s,
-    contribution: Vec3s,
-    next_ok: [bool; LANES],
-    next_origin: Vec3s,
-    next_direction: Vec3s,
-    next_beta: Vec3s,
-    next_pdf: F32s,
 }
 
 impl DiffuseLanes {
@@ -106,7 +93,7 @@ impl DiffuseLanes {
     /// Scatters all lanes (the filled ones matter): next-event estimation toward the
     /// triangle light, weighted by the power heuristic or, with `light_only`, by 1; and a
     /// cosine-weighted continuation.
-    pub fn scatter(&self, light_only: bool, out: &mut DiffuseScattered) {
+    pub fn scatter(&self, light_only: bool, out: &mut ScatteredLanes) {
         #[cfg(target_arch = "x86_64")]
         {
             if crate::support::cpu::has_avx512f() {
@@ -123,18 +110,18 @@ impl DiffuseLanes {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    unsafe fn scatter_avx512(&self, light_only: bool, out: &mut DiffuseScattered) {
+    unsafe fn scatter_avx512(&self, light_only: bool, out: &mut ScatteredLanes) {
         self.scatter_lanes(light_only, out)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn scatter_avx2(&self, light_only: bool, out: &mut DiffuseScattered) {
+    unsafe fn scatter_avx2(&self, light_only: bool, out: &mut ScatteredLanes) {
         self.scatter_lanes(light_only, out)
     }
 
     #[inline(always)]
-    fn scatter_lanes(&self, light_only: bool, out: &mut DiffuseScattered) {
+    fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes) {
         let zero = F32s::splat(0.0);
         let (p, p_error, ng, beta) = (self.p, self.p_error, self.ng, self.beta);
 
@@ -172,19 +159,11 @@ impl DiffuseLanes {
         out.shadow_ok = shadow_ok.0;
         out.shadow_origin = origin;
         out.shadow_direction = shadow_target - origin;
+        out.shadow_t_max = F32s::splat(1.0 - SHADOW_EPSILON);
         out.contribution = beta * f * self.light_radiance * (wi_z * w / light_pdf);
 
         // BSDF sampling (Lambert::sample: cosine-weighted, concentric disk).
-        let ox = 2.0 * self.u.x - 1.0;
-        let oy = 2.0 * self.u.y - 1.0;
-        let x_major = ox.abs().gt(oy.abs());
-        let r = x_major.select(ox, oy);
-        let minor = x_major.select(oy, ox);
-        let ratio = r.eq(zero).select(zero, minor / r);
-        let (sin, cos) = sin_cos_octant(FRAC_PI_4 * ratio);
-        let dx = x_major.select(cos, sin) * r;
-        let dy = x_major.select(sin, cos) * r;
-        let dz = (1.0 - (dx * dx + dy * dy)).max(zero).sqrt();
+        let Vec3s { x: dx, y: dy, z: dz } = sample_cosine_hemisphere_lanes(self.u);
         let pdf = dz.max(zero) * FRAC_1_PI;
         // continuation(): world direction, throughput, offset origin.
         let wi_world = self.s * dx + self.t * dy + self.n * dz;
@@ -199,56 +178,10 @@ impl DiffuseLanes {
     }
 }
 
-impl DiffuseScattered {
-    /// The result of lane `i`.
-    #[inline]
-    pub fn get(&self, i: usize) -> Scattered {
-        Scattered {
-            shadow: self.shadow_ok[i].then(|| ShadowTest {
-                ray: Ray {
-                    origin: self.shadow_origin.get(i),
-                    direction: self.shadow_direction.get(i),
-                    t_max: 1.0 - SHADOW_EPSILON,
-                },
-                contribution: self.contribution.get(i),
-            }),
-            next: self.next_ok[i].then(|| Continuation {
-                ray: Ray::new(self.next_origin.get(i), self.next_direction.get(i)),
-                beta: self.next_beta.get(i),
-                pdf: self.next_pdf.0[i],
-            }),
-        }
-    }
-}
-
-/// [`crate::accel::offset_ray_origin`] per lane.
-#[inline(always)]
-fn offset_ray_origin(p: Vec3s, p_error: Vec3s, n: Vec3s, w: Vec3s) -> Vec3s {
-    let zero = F32s::splat(0.0);
-    let d = n.abs().dot(p_error);
-    let offset = w.dot(n).lt(zero).select3(-n * d, n * d);
-    let po = p + offset;
-    let away = |o: F32s| o.eq(zero).select(zero, o.signum());
-    let away = Vec3s {
-        x: away(offset.x),
-        y: away(offset.y),
-        z: away(offset.z),
-    };
-    po + away * (po.abs() * f32::EPSILON + f32::MIN_POSITIVE)
-}
-
-/// [`crate::sampling::power_heuristic`] per lane.
-#[inline(always)]
-fn power_heuristic(f: F32s, g: F32s) -> F32s {
-    let (f2, g2) = (f * f, g * g);
-    let sum = f2 + g2;
-    let ratio = sum.eq(F32s::splat(0.0)).select(F32s::splat(0.0), f2 / sum);
-    f2.is_infinite().select(F32s::splat(1.0), ratio)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::Ray;
     use crate::bsdf::Bsdf;
     use crate::integrator::{PathTracer, Strategy};
     use crate::render_scene::RenderScene;
@@ -283,7 +216,7 @@ mod tests {
                     cases.push((vertex, b.albedo, state.beta, triangle, select_pdf));
                 }
             }
-            let (mut lanes, mut out) = (DiffuseLanes::default(), DiffuseScattered::default());
+            let (mut lanes, mut out) = (DiffuseLanes::default(), ScatteredLanes::default());
             let (mut shadows, mut ended) = (0, 0);
             for group in cases.chunks(LANES) {
                 lanes.clear();

@@ -8,6 +8,8 @@
 mod batch;
 mod deferred;
 mod diffuse_lanes;
+mod glossy_lanes;
+mod scattered_lanes;
 
 pub use batch::{BatchBuffers, StepResults};
 

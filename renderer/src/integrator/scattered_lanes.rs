@@ -1,0 +1,69 @@
+//! What the lane kernels ([`super::diffuse_lanes`], [`super::glossy_lanes`]) give per lane,
+//! and the integrator's helpers they share, per lane with the scalar code's operations (so
+//! the same bits).
+
+use super::{Continuation, Scattered, ShadowTest};
+use crate::accel::Ray;
+use crate::lanes::{F32s, Vec3s, LANES};
+
+/// [`Scattered`] for [`LANES`] vertices, structure of arrays.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct ScatteredLanes {
+    pub shadow_ok: [bool; LANES],
+    pub shadow_origin: Vec3s,
+    pub shadow_direction: Vec3s,
+    pub shadow_t_max: F32s,
+    pub contribution: Vec3s,
+    pub next_ok: [bool; LANES],
+    pub next_origin: Vec3s,
+    pub next_direction: Vec3s,
+    pub next_beta: Vec3s,
+    pub next_pdf: F32s,
+}
+
+impl ScatteredLanes {
+    /// The result of lane `i`.
+    #[inline]
+    pub fn get(&self, i: usize) -> Scattered {
+        Scattered {
+            shadow: self.shadow_ok[i].then(|| ShadowTest {
+                ray: Ray {
+                    origin: self.shadow_origin.get(i),
+                    direction: self.shadow_direction.get(i),
+                    t_max: self.shadow_t_max.0[i],
+                },
+                contribution: self.contribution.get(i),
+            }),
+            next: self.next_ok[i].then(|| Continuation {
+                ray: Ray::new(self.next_origin.get(i), self.next_direction.get(i)),
+                beta: self.next_beta.get(i),
+                pdf: self.next_pdf.0[i],
+            }),
+        }
+    }
+}
+
+/// [`crate::accel::offset_ray_origin`] per lane.
+#[inline(always)]
+pub(crate) fn offset_ray_origin(p: Vec3s, p_error: Vec3s, n: Vec3s, w: Vec3s) -> Vec3s {
+    let zero = F32s::splat(0.0);
+    let d = n.abs().dot(p_error);
+    let offset = w.dot(n).lt(zero).select3(-n * d, n * d);
+    let po = p + offset;
+    let away = |o: F32s| o.eq(zero).select(zero, o.signum());
+    let away = Vec3s {
+        x: away(offset.x),
+        y: away(offset.y),
+        z: away(offset.z),
+    };
+    po + away * (po.abs() * f32::EPSILON + f32::MIN_POSITIVE)
+}
+
+/// [`crate::sampling::power_heuristic`] per lane.
+#[inline(always)]
+pub(crate) fn power_heuristic(f: F32s, g: F32s) -> F32s {
+    let (f2, g2) = (f * f, g * g);
+    let sum = f2 + g2;
+    let ratio = sum.eq(F32s::splat(0.0)).select(F32s::splat(0.0), f2 / sum);
+    f2.is_infinite().select(F32s::splat(1.0), ratio)
+}
