@@ -30,10 +30,15 @@ fn bench(c: &mut Criterion) {
             ("slow", BvhBuildParams::slow_build()),
             ("very slow", BvhBuildParams::very_slow_build()),
         ];
-        // Sixteen-ray packets (AVX-512) against single rays, on the default build.
+        // Packets (16 rays with AVX-512, 8 with AVX2) against single rays, on the default
+        // build.
         let bvh = Bvh::build(corners());
         let (mut hits, mut blocked) = (Vec::new(), Vec::new());
-        for (mode, packets) in [("single rays", false), ("packets of 16", true)] {
+        let packets_label = match Bvh::packet_width() {
+            Some(width) => format!("packets of {width}"),
+            None => "packets (none on this CPU: single rays)".to_string(),
+        };
+        for (mode, packets) in [("single rays".to_string(), false), (packets_label, true)] {
             group.bench_function(format!("closest hit, {} nodes, {mode}", bvh.node_count()), |b| {
                 b.iter(|| bvh.intersect_all_with(&rays, &mut hits, packets))
             });

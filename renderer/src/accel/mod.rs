@@ -12,7 +12,7 @@ mod triangle_pack;
 pub use instances::InstanceBvh;
 pub use policy::TracePolicy;
 
-use crate::support::cpu::{has_avx2_fma, has_avx512f};
+use crate::support::cpu::has_avx2_fma;
 use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::cwbvh::node::CwBvhNode;
 use triangle_pack::{PackHit, TrianglePack, LANES};
@@ -126,7 +126,7 @@ impl<T: Copy> Stack<T> {
     }
 }
 
-/// A packet query: answers for 1 to 16 rays (AVX-512F, AVX2 and FMA required).
+/// A packet query: answers for 1 to [`packet::width`] rays (AVX2 and FMA required).
 type PacketFn<T> = unsafe fn(&Bvh, &[Ray], &mut [T]);
 
 /// A closest hit found in traversal: distance, primitive slot, barycentrics.
@@ -237,8 +237,9 @@ impl Bvh {
         self.closest_policy.trace(|packets| self.intersect_all_with(rays, out, packets));
     }
 
-    /// As [`Bvh::intersect_all`], in packets whenever the CPU has AVX-512 (`packets`) or
-    /// one ray at a time: for benchmarks comparing the two.
+    /// As [`Bvh::intersect_all`], in packets whenever the CPU has a packet kernel
+    /// (`packets`; see [`Bvh::packet_width`]) or one ray at a time: for benchmarks comparing
+    /// the two.
     pub fn intersect_all_with(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, packets: bool) {
         #[cfg(target_arch = "x86_64")]
         let packet = packets.then_some(Self::closest_packet as PacketFn<Option<Hit>>);
@@ -250,16 +251,18 @@ impl Bvh {
         self.trace_all(rays, out, packet, |r| self.intersect(r));
     }
 
-    /// Fills `out[i]` with the answer for `rays[i]`: through `packet` in packets of 16 where
-    /// given and the CPU has AVX-512, else through `single` one ray at a time.
+    /// Fills `out[i]` with the answer for `rays[i]`: through `packet` in packets of
+    /// [`packet::width`] where given and the CPU has a packet kernel, else through `single`
+    /// one ray at a time.
     #[inline]
     fn trace_all<T: Clone + Default>(&self, rays: &[Ray], out: &mut Vec<T>, packet: Option<PacketFn<T>>, single: impl Fn(&Ray) -> T) {
         out.clear();
         out.resize(rays.len(), T::default());
         #[cfg(target_arch = "x86_64")]
         if let Some(packet) = packet.filter(|_| !self.is_empty() && packets_available()) {
-            for (r, o) in rays.chunks(packet::PACKET).zip(out.chunks_mut(packet::PACKET)) {
-                // SAFETY: AVX-512F, AVX2 and FMA are present; chunks hold 1 to 16 rays.
+            let width = packet::width();
+            for (r, o) in rays.chunks(width).zip(out.chunks_mut(width)) {
+                // SAFETY: AVX2 and FMA are present; chunks hold 1 to `width` rays.
                 unsafe { packet(self, r, o) };
             }
             return;
@@ -283,8 +286,8 @@ impl Bvh {
         (self.closest_policy.choice(), self.occluded_policy.choice())
     }
 
-    /// As [`Bvh::occluded_all`], in packets whenever the CPU has AVX-512 (`packets`) or one
-    /// ray at a time.
+    /// As [`Bvh::occluded_all`], in packets whenever the CPU has a packet kernel (`packets`)
+    /// or one ray at a time.
     pub fn occluded_all_with(&self, rays: &[Ray], out: &mut Vec<bool>, packets: bool) {
         #[cfg(target_arch = "x86_64")]
         let packet = packets.then_some(Self::occluded_packet as PacketFn<bool>);
@@ -294,6 +297,16 @@ impl Bvh {
             None
         };
         self.trace_all(rays, out, packet, |r| self.occluded(r));
+    }
+
+    /// Rays per packet of [`Bvh::intersect_all`] and [`Bvh::occluded_all`] on this CPU:
+    /// 16 with AVX-512F, 8 with AVX2 and FMA, `None` without packet kernels.
+    pub fn packet_width() -> Option<usize> {
+        #[cfg(target_arch = "x86_64")]
+        if packets_available() {
+            return Some(packet::width());
+        }
+        None
     }
 
     /// Number of CWBVH nodes.
@@ -591,10 +604,11 @@ fn traverse_nodes(
     }
 }
 
-/// Whether this CPU traces packets (AVX-512F; their single-ray subtrees take AVX2 and FMA).
+/// Whether this CPU traces packets: of 16 rays with AVX-512F, else of 8 with AVX2 and FMA
+/// (which single-ray subtrees take in both).
 #[inline]
 fn packets_available() -> bool {
-    has_avx512f() && has_avx2_fma()
+    has_avx2_fma()
 }
 
 
@@ -793,45 +807,110 @@ mod tests {
         assert!(hits > 200 && hits < 1000, "a mix of hits and misses: {hits}");
     }
 
+    /// A packet kernel under test: name, rays per packet, closest hits, occlusion.
+    #[cfg(target_arch = "x86_64")]
+    type Kernel = (&'static str, usize, PacketFn<Option<Hit>>, PacketFn<bool>);
+
+    /// The packet kernels this CPU runs: the 8-ray AVX2 kernel, the 16-ray AVX-512 one
+    /// where the CPU has AVX-512F, and the entry points that choose between them.
+    #[cfg(target_arch = "x86_64")]
+    fn packet_kernels() -> Vec<Kernel> {
+        let mut kernels: Vec<Kernel> = Vec::new();
+        if !packets_available() {
+            return kernels;
+        }
+        kernels.push(("8 rays, AVX2", 8, Bvh::closest_packet8, Bvh::occluded_packet8));
+        if crate::support::cpu::has_avx512f() {
+            kernels.push(("16 rays, AVX-512", 16, Bvh::closest_packet16, Bvh::occluded_packet16));
+        }
+        kernels.push(("chosen for this CPU", packet::width(), Bvh::closest_packet, Bvh::occluded_packet));
+        kernels
+    }
+
+    /// `n` rays from points in [−scale/2, scale/2]³, every third bounded to scale/5.
+    /// Incoherent rays go in random directions; coherent ones share an origin and point
+    /// within a narrow cone, or (one packet in four) go along the coordinate axes from nearby
+    /// origins (directions with negative zeros).
+    fn packet_rays(s: &mut crate::sampler::Sampler, n: usize, scale: f32, coherent: bool) -> Vec<Ray> {
+        let point = |s: &mut crate::sampler::Sampler| (Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) - Vec3::splat(0.5)) * scale;
+        let (origin, axis) = (point(s), (s.next_1d() * 4.0) as usize);
+        let centre = crate::sampling::sample_uniform_sphere(s.next_2d());
+        (0..n)
+            .map(|i| {
+                let (o, d) = match (coherent, axis) {
+                    (false, _) => (point(s), crate::sampling::sample_uniform_sphere(s.next_2d())),
+                    (true, 0) => {
+                        let d = [-Vec3::Y, Vec3::X, -Vec3::Z][i % 3];
+                        (origin + Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) * 0.1 * scale, d)
+                    }
+                    (true, _) => (origin, (centre + (Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) - Vec3::splat(0.5)) * 0.1).normalize()),
+                };
+                let t_max = if i % 3 == 0 { scale * 0.2 } else { f32::MAX };
+                Ray { t_max, ..Ray::new(o, d) }
+            })
+            .collect()
+    }
+
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn packets_find_the_single_ray_hits_bit_for_bit() {
-        if !packets_available() {
-            return;
-        }
-        // A deep random tree and a closed box with rays from inside.
+        // A deep random tree with incoherent and coherent rays, and a closed box with rays
+        // from inside; full packets and every partial size, through each kernel.
         let (random, boxed) = (random_soup(3, 2000, 2.0), closed_box());
-        let mut s = crate::sampler::Sampler::new(8, 8, 8);
-        for (tris, scale) in [(random, 24.0), (boxed, 1.8)] {
-            let bvh = Bvh::build(tris.into_iter());
-            let mut hits = 0;
-            for chunk in 0..200 {
-                let n = if chunk % 5 == 0 { 1 + chunk % 16 } else { 16 };
-                let rays: Vec<Ray> = (0..n)
-                    .map(|i| {
-                        let o = (Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) - Vec3::splat(0.5)) * scale;
-                        let d = crate::sampling::sample_uniform_sphere(s.next_2d());
-                        let t_max = if i % 3 == 0 { scale * 0.2 } else { f32::MAX };
-                        Ray { t_max, ..Ray::new(o, d) }
-                    })
-                    .collect();
-                let mut closest = vec![None; n];
-                let mut blocked = vec![false; n];
-                // SAFETY: AVX-512F, AVX2 and FMA checked above; 1 to 16 rays.
-                unsafe {
-                    bvh.closest_packet(&rays, &mut closest);
-                    bvh.occluded_packet(&rays, &mut blocked);
+        let scenes = [("random", Bvh::build(random.into_iter()), 24.0), ("box", Bvh::build(boxed.into_iter()), 1.8)];
+        let bits = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.triangle, h.barycentric.x.to_bits(), h.barycentric.y.to_bits()));
+        for (kernel, width, closest_packet, occluded_packet) in packet_kernels() {
+            let mut s = crate::sampler::Sampler::new(8, 8, 8);
+            for ((scene, bvh, scale), coherent) in scenes.iter().flat_map(|scene| [(scene, false), (scene, true)]) {
+                let (mut rays_traced, mut hits, mut blocked_rays) = (0, 0, 0);
+                for chunk in 0..200 {
+                    let n = if chunk % 5 == 0 { 1 + chunk % width } else { width };
+                    let rays = packet_rays(&mut s, n, *scale, coherent);
+                    let mut closest = vec![None; n];
+                    let mut blocked = vec![false; n];
+                    // SAFETY: the kernels are those this CPU runs; 1 to `width` rays.
+                    unsafe {
+                        closest_packet(bvh, &rays, &mut closest);
+                        occluded_packet(bvh, &rays, &mut blocked);
+                    }
+                    for (i, ray) in rays.iter().enumerate() {
+                        let single = bvh.intersect(ray);
+                        let at = || format!("{kernel}, {scene}, coherent: {coherent}, chunk {chunk}, ray {i}");
+                        assert_eq!(bits(closest[i]), bits(single), "{}", at());
+                        assert_eq!(blocked[i], bvh.occluded(ray), "{}", at());
+                        hits += single.is_some() as u32;
+                        blocked_rays += blocked[i] as u32;
+                    }
+                    rays_traced += n as u32;
                 }
-                for (i, ray) in rays.iter().enumerate() {
-                    let single = bvh.intersect(ray);
-                    let bits = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.triangle, h.barycentric.x.to_bits(), h.barycentric.y.to_bits()));
-                    assert_eq!(bits(closest[i]), bits(single), "chunk {chunk} ray {i}");
-                    assert_eq!(blocked[i], bvh.occluded(ray), "chunk {chunk} ray {i}");
-                    hits += single.is_some() as u32;
-                }
+                let context = format!("{kernel}, {scene}, coherent: {coherent}");
+                assert!(hits * 10 > rays_traced, "the rays hit something: {hits} of {rays_traced}, {context}");
+                assert!(blocked_rays < rays_traced, "and some are not blocked: {context}");
             }
-            assert!(hits > 300, "the rays hit something: {hits}");
         }
+    }
+
+    #[test]
+    fn batches_traced_in_packets_match_single_rays() {
+        // Batch sizes that leave a partial packet at the end, for either width.
+        let bvh = Bvh::build(random_soup(5, 1500, 2.0).into_iter());
+        let mut s = crate::sampler::Sampler::new(2, 7, 1);
+        let (mut packet_hits, mut single_hits, mut packet_blocked, mut single_blocked) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (batch, n) in [1, 7, 9, 17, 203].into_iter().enumerate() {
+            let rays = packet_rays(&mut s, n, 24.0, batch % 2 == 1);
+            bvh.intersect_all_with(&rays, &mut packet_hits, true);
+            bvh.intersect_all_with(&rays, &mut single_hits, false);
+            bvh.occluded_all_with(&rays, &mut packet_blocked, true);
+            bvh.occluded_all_with(&rays, &mut single_blocked, false);
+            assert_eq!(packet_hits, single_hits, "batch of {n}");
+            assert_eq!(packet_blocked, single_blocked, "batch of {n}");
+            bvh.intersect_all(&rays, &mut packet_hits);
+            bvh.occluded_all(&rays, &mut packet_blocked);
+            assert_eq!(packet_hits, single_hits, "batch of {n}, as the policy traces it");
+            assert_eq!(packet_blocked, single_blocked, "batch of {n}, as the policy traces it");
+        }
+        #[cfg(target_arch = "x86_64")]
+        assert_eq!(Bvh::packet_width().is_some(), has_avx2_fma());
     }
 
     #[test]

@@ -1,45 +1,269 @@
-//! Packets of up to 16 rays traced together through the CWBVH with AVX-512: each child box
-//! and each leaf triangle is tested against all rays of the packet in one SIMD step, the
-//! way Embree's packet kernels do. In a small scene every ray of a packet visits nearly the
-//! same nodes, so a node or triangle costs a sixteenth of a single-ray test per ray. Where
-//! rays diverge, subtrees entered by few of them are walked one ray at a time.
+//! Packets of rays traced together through the CWBVH: each child box and each leaf triangle
+//! is tested against all rays of the packet in one SIMD step, the way Embree's packet
+//! kernels do. In a small scene every ray of a packet visits nearly the same nodes, so a
+//! node or triangle costs a fraction of a single-ray test per ray. Where rays diverge,
+//! subtrees entered by few of them are walked one ray at a time.
+//!
+//! Two kernels share one walk, generic over the handful of vector operations it uses
+//! ([`Simd`]): packets of 16 rays with AVX-512F ([`Avx512`]) and, on CPUs without AVX-512,
+//! packets of 8 rays with AVX2 and FMA ([`Avx2`]).
 //!
 //! The per-ray arithmetic is that of the single-ray kernels (box distances by the same
 //! fused multiply-adds, triangles by the same Möller–Trumbore sequence without fused
-//! operations), so a packet finds the same hits, bit for bit.
+//! operations), so a packet of either width finds the same hits, bit for bit.
 
 use super::{to_bvh_ray, Bvh, Hit, Ray, Stack, LANES};
+use crate::support::cpu::has_avx512f;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray as BvhRay;
 use std::arch::x86_64::*;
 
-/// Rays per packet.
-pub const PACKET: usize = 16;
+/// Rays per packet of the widest kernel: per-lane buffers hold this many.
+const MAX_WIDTH: usize = 16;
+
+/// Rays per packet of the kernel that [`Bvh::closest_packet`] and [`Bvh::occluded_packet`]
+/// run on this CPU: 16 with AVX-512F, else 8.
+pub(super) fn width() -> usize {
+    if has_avx512f() {
+        Avx512::WIDTH
+    } else {
+        Avx2::WIDTH
+    }
+}
+
+/// The vector operations of a packet walk at one width, one lane per ray. Implemented by
+/// zero-sized tokens made only where the CPU has the instructions (and AVX2 and FMA, which
+/// single-ray subtrees take), so the operations are safe to call.
+trait Simd: Copy {
+    /// Rays per packet (at most [`MAX_WIDTH`]).
+    const WIDTH: usize;
+    /// One float per lane.
+    type F: Copy;
+    /// One flag per lane, as comparisons give it.
+    type M: Copy;
+
+    /// `x` in every lane.
+    fn splat(self, x: f32) -> Self::F;
+    fn add(self, a: Self::F, b: Self::F) -> Self::F;
+    fn sub(self, a: Self::F, b: Self::F) -> Self::F;
+    fn mul(self, a: Self::F, b: Self::F) -> Self::F;
+    fn div(self, a: Self::F, b: Self::F) -> Self::F;
+    /// x86's `min_ps` per lane: `b` where either is NaN.
+    fn min(self, a: Self::F, b: Self::F) -> Self::F;
+    /// x86's `max_ps` per lane: `b` where either is NaN.
+    fn max(self, a: Self::F, b: Self::F) -> Self::F;
+    /// a · b + c, rounded once.
+    fn fmadd(self, a: Self::F, b: Self::F, c: Self::F) -> Self::F;
+    /// The lanes where `a` and `b` satisfy comparison predicate `P` (`_CMP_LT_OQ`, …).
+    fn cmp<const P: i32>(self, a: Self::F, b: Self::F) -> Self::M;
+    /// The lanes in both `a` and `b`.
+    fn and(self, a: Self::M, b: Self::M) -> Self::M;
+    /// `b` in the lanes of `m`, `a` in the others, bit for bit.
+    fn blend(self, m: Self::M, a: Self::F, b: Self::F) -> Self::F;
+    /// The lanes of `m` as bits (lane i: bit i).
+    fn bits(self, m: Self::M) -> u32;
+    /// The lanes of `bits` (lane i: bit i).
+    fn mask(self, bits: u32) -> Self::M;
+    /// The first [`Simd::WIDTH`] floats of `a`.
+    fn load(self, a: &[f32; MAX_WIDTH]) -> Self::F;
+    /// `v` into the first [`Simd::WIDTH`] floats of `a`.
+    fn store(self, v: Self::F, a: &mut [f32; MAX_WIDTH]);
+}
+
+// The walk below is generic and has no target features of its own: it is inlined, with
+// every operation of [`Simd`], into the entry points at the end, which enable the features,
+// and only there can the intrinsics themselves be inlined. Hence `#[inline(always)]`
+// throughout, and no closures or `array::map` on the vector paths: a closure that is not
+// inlined would call each intrinsic as a function.
+
+/// Forwards binary float operations of [`Simd`] to intrinsics.
+macro_rules! binary_ops {
+    ($($op:ident => $intrinsic:ident),* $(,)?) => {$(
+        #[inline(always)]
+        fn $op(self, a: Self::F, b: Self::F) -> Self::F {
+            // SAFETY: the token exists only where the CPU has the instructions (its `new`).
+            unsafe { $intrinsic(a, b) }
+        }
+    )*};
+}
+
+/// 16 rays per packet with AVX-512F.
+#[derive(Clone, Copy)]
+struct Avx512(());
+
+impl Avx512 {
+    /// # Safety
+    /// The CPU must support AVX-512F, AVX2 and FMA.
+    #[inline(always)]
+    unsafe fn new() -> Self {
+        Avx512(())
+    }
+}
+
+impl Simd for Avx512 {
+    const WIDTH: usize = 16;
+    type F = __m512;
+    type M = __mmask16;
+
+    binary_ops!(add => _mm512_add_ps, sub => _mm512_sub_ps, mul => _mm512_mul_ps, div => _mm512_div_ps, min => _mm512_min_ps, max => _mm512_max_ps);
+
+    #[inline(always)]
+    fn splat(self, x: f32) -> __m512 {
+        // SAFETY: an `Avx512` exists only where the CPU has AVX-512F.
+        unsafe { _mm512_set1_ps(x) }
+    }
+
+    #[inline(always)]
+    fn fmadd(self, a: __m512, b: __m512, c: __m512) -> __m512 {
+        // SAFETY: as in `splat`.
+        unsafe { _mm512_fmadd_ps(a, b, c) }
+    }
+
+    #[inline(always)]
+    fn cmp<const P: i32>(self, a: __m512, b: __m512) -> __mmask16 {
+        // SAFETY: as in `splat`.
+        unsafe { _mm512_cmp_ps_mask::<P>(a, b) }
+    }
+
+    #[inline(always)]
+    fn and(self, a: __mmask16, b: __mmask16) -> __mmask16 {
+        a & b
+    }
+
+    #[inline(always)]
+    fn blend(self, m: __mmask16, a: __m512, b: __m512) -> __m512 {
+        // SAFETY: as in `splat`.
+        unsafe { _mm512_mask_blend_ps(m, a, b) }
+    }
+
+    #[inline(always)]
+    fn bits(self, m: __mmask16) -> u32 {
+        m as u32
+    }
+
+    #[inline(always)]
+    fn mask(self, bits: u32) -> __mmask16 {
+        bits as __mmask16
+    }
+
+    #[inline(always)]
+    fn load(self, a: &[f32; MAX_WIDTH]) -> __m512 {
+        // SAFETY: as in `splat`; reads the 16 floats of `a`.
+        unsafe { _mm512_loadu_ps(a.as_ptr()) }
+    }
+
+    #[inline(always)]
+    fn store(self, v: __m512, a: &mut [f32; MAX_WIDTH]) {
+        // SAFETY: as in `splat`; writes the 16 floats of `a`.
+        unsafe { _mm512_storeu_ps(a.as_mut_ptr(), v) }
+    }
+}
+
+/// 8 rays per packet with AVX2 and FMA. Masks are vectors of all-ones or all-zero lanes.
+#[derive(Clone, Copy)]
+struct Avx2(());
+
+impl Avx2 {
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[inline(always)]
+    unsafe fn new() -> Self {
+        Avx2(())
+    }
+}
+
+impl Simd for Avx2 {
+    const WIDTH: usize = 8;
+    type F = __m256;
+    type M = __m256;
+
+    binary_ops!(add => _mm256_add_ps, sub => _mm256_sub_ps, mul => _mm256_mul_ps, div => _mm256_div_ps, min => _mm256_min_ps, max => _mm256_max_ps);
+
+    #[inline(always)]
+    fn splat(self, x: f32) -> __m256 {
+        // SAFETY: an `Avx2` exists only where the CPU has AVX2 and FMA.
+        unsafe { _mm256_set1_ps(x) }
+    }
+
+    #[inline(always)]
+    fn fmadd(self, a: __m256, b: __m256, c: __m256) -> __m256 {
+        // SAFETY: as in `splat`.
+        unsafe { _mm256_fmadd_ps(a, b, c) }
+    }
+
+    #[inline(always)]
+    fn cmp<const P: i32>(self, a: __m256, b: __m256) -> __m256 {
+        // SAFETY: as in `splat`.
+        unsafe { _mm256_cmp_ps::<P>(a, b) }
+    }
+
+    #[inline(always)]
+    fn and(self, a: __m256, b: __m256) -> __m256 {
+        // SAFETY: as in `splat`.
+        unsafe { _mm256_and_ps(a, b) }
+    }
+
+    #[inline(always)]
+    fn blend(self, m: __m256, a: __m256, b: __m256) -> __m256 {
+        // SAFETY: as in `splat`.
+        unsafe { _mm256_blendv_ps(a, b, m) }
+    }
+
+    #[inline(always)]
+    fn bits(self, m: __m256) -> u32 {
+        // SAFETY: as in `splat`.
+        unsafe { _mm256_movemask_ps(m) as u32 }
+    }
+
+    #[inline(always)]
+    fn mask(self, bits: u32) -> __m256 {
+        // SAFETY: as in `splat`.
+        unsafe {
+            let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+            let set = _mm256_and_si256(_mm256_set1_epi32(bits as i32), lane_bits);
+            _mm256_castsi256_ps(_mm256_cmpeq_epi32(set, lane_bits))
+        }
+    }
+
+    #[inline(always)]
+    fn load(self, a: &[f32; MAX_WIDTH]) -> __m256 {
+        // SAFETY: as in `splat`; reads the first 8 of the 16 floats of `a`.
+        unsafe { _mm256_loadu_ps(a.as_ptr()) }
+    }
+
+    #[inline(always)]
+    fn store(self, v: __m256, a: &mut [f32; MAX_WIDTH]) {
+        // SAFETY: as in `splat`; writes the first 8 of the 16 floats of `a`.
+        unsafe { _mm256_storeu_ps(a.as_mut_ptr(), v) }
+    }
+}
 
 /// A packet's rays, structure of arrays.
-struct Rays {
-    o: [__m512; 3],
-    d: [__m512; 3],
-    inv: [__m512; 3],
+struct Rays<S: Simd> {
+    o: [S::F; 3],
+    d: [S::F; 3],
+    inv: [S::F; 3],
     /// Lanes whose direction component is negative, per axis.
-    negative: [__mmask16; 3],
+    negative: [S::M; 3],
 }
 
-/// Per-lane closest hit so far.
-struct Closest {
-    t: __m512,
-    slot: __m512i,
-    b1: __m512,
-    b2: __m512,
+/// Per-lane closest hit so far. Primitive slots are kept as the bits of floats (blends and
+/// stores move them unchanged); `u32::MAX` where nothing is hit yet.
+struct Closest<S: Simd> {
+    t: S::F,
+    slot: S::F,
+    b1: S::F,
+    b2: S::F,
 }
 
-/// Lanes of `rays` (the first lane repeated into unused lanes, which are masked off), their
-/// bounds, and the rays as single-ray traversal takes them.
-#[target_feature(enable = "avx512f")]
-fn load(rays: &[Ray]) -> (Rays, __m512, [BvhRay; PACKET]) {
-    let mut a = [[0.0f32; PACKET]; 10];
-    let singles = std::array::from_fn(|lane| to_bvh_ray(&rays[lane.min(rays.len() - 1)]));
-    for (lane, r) in singles.iter().enumerate() {
+/// The rays that lanes `0..S::WIDTH` hold (the first ray repeated into unused lanes, which
+/// are masked off): as a packet, their bounds, and the rays as single-ray traversal takes
+/// them.
+#[inline(always)]
+fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F, [BvhRay; MAX_WIDTH]) {
+    let mut a = [[0.0f32; MAX_WIDTH]; 10];
+    let singles = std::array::from_fn(|lane| to_bvh_ray(&rays[if lane < rays.len() { lane } else { 0 }]));
+    for (lane, r) in singles.iter().enumerate().take(S::WIDTH) {
         for axis in 0..3 {
             a[axis][lane] = r.origin[axis];
             a[3 + axis][lane] = r.direction[axis];
@@ -47,80 +271,96 @@ fn load(rays: &[Ray]) -> (Rays, __m512, [BvhRay; PACKET]) {
         }
         a[9][lane] = r.tmax;
     }
-    // SAFETY: each load reads the 16 floats of one array.
-    let v = a.map(|x| unsafe { _mm512_loadu_ps(x.as_ptr()) });
-    let zero = _mm512_setzero_ps();
+    let zero = s.splat(0.0);
+    let mut v = [zero; 10];
+    for (v, a) in v.iter_mut().zip(&a) {
+        *v = s.load(a);
+    }
     let rays = Rays {
         o: [v[0], v[1], v[2]],
         d: [v[3], v[4], v[5]],
         inv: [v[6], v[7], v[8]],
-        negative: [3, 4, 5].map(|i| _mm512_cmp_ps_mask::<_CMP_LT_OQ>(v[i], zero)),
+        negative: [
+            s.cmp::<_CMP_LT_OQ>(v[3], zero),
+            s.cmp::<_CMP_LT_OQ>(v[4], zero),
+            s.cmp::<_CMP_LT_OQ>(v[5], zero),
+        ],
     };
     (rays, v[9], singles)
 }
 
-/// The lanes in `active` whose ray crosses child `c` of `node` within (T_MIN, t_max):
+/// The lanes whose ray crosses child `c` of `node` within (T_MIN, t_max) (bit i: lane i):
 /// the arithmetic of [`super::node::intersect_avx2`] per lane.
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn child_hits(node: &CwBvhNode, c: usize, rays: &Rays, adj_dir_inv: &[__m512; 3], adj_orig: &[__m512; 3], t_max: __m512, active: __mmask16) -> __mmask16 {
+#[inline(always)]
+fn child_hits<S: Simd>(s: S, node: &CwBvhNode, c: usize, rays: &Rays<S>, adj_dir_inv: &[S::F; 3], adj_orig: &[S::F; 3], t_max: S::F) -> u32 {
     const T_MIN: f32 = 1e-4;
-    let bounds = [
-        (node.child_min_x[c], node.child_max_x[c]),
-        (node.child_min_y[c], node.child_max_y[c]),
-        (node.child_min_z[c], node.child_max_z[c]),
-    ];
-    let mut near = [_mm512_setzero_ps(); 3];
-    let mut far = [_mm512_setzero_ps(); 3];
-    for axis in 0..3 {
-        let (lo, hi) = bounds[axis];
-        let t_lo = _mm512_fmadd_ps(_mm512_set1_ps(lo as f32), adj_dir_inv[axis], adj_orig[axis]);
-        let t_hi = _mm512_fmadd_ps(_mm512_set1_ps(hi as f32), adj_dir_inv[axis], adj_orig[axis]);
-        near[axis] = _mm512_mask_blend_ps(rays.negative[axis], t_lo, t_hi);
-        far[axis] = _mm512_mask_blend_ps(rays.negative[axis], t_hi, t_lo);
-    }
-    let t0 = _mm512_max_ps(_mm512_max_ps(near[0], near[1]), _mm512_max_ps(near[2], _mm512_set1_ps(T_MIN)));
-    let t1 = _mm512_min_ps(_mm512_min_ps(far[0], far[1]), _mm512_min_ps(far[2], t_max));
-    _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(active, t0, t1)
+    let (near_x, far_x) = slab(s, node.child_min_x[c], node.child_max_x[c], rays.negative[0], adj_dir_inv[0], adj_orig[0]);
+    let (near_y, far_y) = slab(s, node.child_min_y[c], node.child_max_y[c], rays.negative[1], adj_dir_inv[1], adj_orig[1]);
+    let (near_z, far_z) = slab(s, node.child_min_z[c], node.child_max_z[c], rays.negative[2], adj_dir_inv[2], adj_orig[2]);
+    let t0 = s.max(s.max(near_x, near_y), s.max(near_z, s.splat(T_MIN)));
+    let t1 = s.min(s.min(far_x, far_y), s.min(far_z, t_max));
+    s.bits(s.cmp::<_CMP_LE_OQ>(t0, t1))
 }
 
-/// Möller–Trumbore of one triangle against every lane, as [`super::triangle_pack`] computes
-/// it: (t, b1, b2, lanes hit with t ∈ (0, t_max)).
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn triangle_hits(bvh: &Bvh, pack: usize, lane: usize, rays: &Rays, t_max: __m512, active: __mmask16) -> (__m512, __m512, __m512, __mmask16) {
-    let p = &bvh.packs[pack];
-    let s3 = |a: &[[f32; LANES]; 3]| [0, 1, 2].map(|axis| _mm512_set1_ps(a[axis][lane]));
-    let (v0, e1, e2) = (s3(&p.v0), s3(&p.e1), s3(&p.e2));
-    let (mul, sub, add) = (|a, b| _mm512_mul_ps(a, b), |a, b| _mm512_sub_ps(a, b), |a, b| _mm512_add_ps(a, b));
-    let dot = |a: [__m512; 3], b: [__m512; 3]| add(add(mul(a[0], b[0]), mul(a[1], b[1])), mul(a[2], b[2]));
-    let cross = |a: [__m512; 3], b: [__m512; 3]| {
-        [
-            sub(mul(a[1], b[2]), mul(a[2], b[1])),
-            sub(mul(a[2], b[0]), mul(a[0], b[2])),
-            sub(mul(a[0], b[1]), mul(a[1], b[0])),
-        ]
-    };
+/// The (near, far) distances of a child's quantised slab `lo`..`hi` along one axis, per
+/// lane.
+#[inline(always)]
+fn slab<S: Simd>(s: S, lo: u8, hi: u8, negative: S::M, adj_dir_inv: S::F, adj_orig: S::F) -> (S::F, S::F) {
+    let t_lo = s.fmadd(s.splat(lo as f32), adj_dir_inv, adj_orig);
+    let t_hi = s.fmadd(s.splat(hi as f32), adj_dir_inv, adj_orig);
+    (s.blend(negative, t_lo, t_hi), s.blend(negative, t_hi, t_lo))
+}
+
+/// a · b per lane, summed left to right without fused operations.
+#[inline(always)]
+fn dot<S: Simd>(s: S, a: [S::F; 3], b: [S::F; 3]) -> S::F {
+    s.add(s.add(s.mul(a[0], b[0]), s.mul(a[1], b[1])), s.mul(a[2], b[2]))
+}
+
+/// a × b per lane, without fused operations.
+#[inline(always)]
+fn cross<S: Simd>(s: S, a: [S::F; 3], b: [S::F; 3]) -> [S::F; 3] {
+    [
+        s.sub(s.mul(a[1], b[2]), s.mul(a[2], b[1])),
+        s.sub(s.mul(a[2], b[0]), s.mul(a[0], b[2])),
+        s.sub(s.mul(a[0], b[1]), s.mul(a[1], b[0])),
+    ]
+}
+
+/// Lane `lane` of a pack's per-axis arrays, in every lane.
+#[inline(always)]
+fn splat3<S: Simd>(s: S, a: &[[f32; LANES]; 3], lane: usize) -> [S::F; 3] {
+    [s.splat(a[0][lane]), s.splat(a[1][lane]), s.splat(a[2][lane])]
+}
+
+/// Möller–Trumbore of one leaf triangle against every lane, as [`super::triangle_pack`] computes
+/// it: (t, b1, b2, the lanes of `active` hit with t ∈ (0, t_max)).
+#[inline(always)]
+fn triangle_hits<S: Simd>(s: S, bvh: &Bvh, triangle: LeafTriangle, rays: &Rays<S>, t_max: S::F, active: u32) -> (S::F, S::F, S::F, u32) {
+    let (p, lane) = (&bvh.packs[triangle.pack], triangle.lane);
+    let (v0, e1, e2) = (splat3(s, &p.v0, lane), splat3(s, &p.e1, lane), splat3(s, &p.e2, lane));
     let d = rays.d;
-    let pv = cross(d, e2);
-    let inv_det = _mm512_div_ps(_mm512_set1_ps(1.0), dot(e1, pv));
-    let s = [sub(rays.o[0], v0[0]), sub(rays.o[1], v0[1]), sub(rays.o[2], v0[2])];
-    let b1 = mul(dot(s, pv), inv_det);
-    let q = cross(s, e1);
-    let b2 = mul(dot(d, q), inv_det);
-    let t = mul(dot(e2, q), inv_det);
-    let zero = _mm512_setzero_ps();
-    let mut hit = _mm512_mask_cmp_ps_mask::<_CMP_GE_OQ>(active, b1, zero);
-    hit = _mm512_mask_cmp_ps_mask::<_CMP_GE_OQ>(hit, b2, zero);
-    hit = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(hit, add(b1, b2), _mm512_set1_ps(1.0));
-    hit = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(hit, t, zero);
-    hit = _mm512_mask_cmp_ps_mask::<_CMP_LT_OQ>(hit, t, t_max);
-    (t, b1, b2, hit)
+    let pv = cross(s, d, e2);
+    let inv_det = s.div(s.splat(1.0), dot(s, e1, pv));
+    let o_v0 = [s.sub(rays.o[0], v0[0]), s.sub(rays.o[1], v0[1]), s.sub(rays.o[2], v0[2])];
+    let b1 = s.mul(dot(s, o_v0, pv), inv_det);
+    let q = cross(s, o_v0, e1);
+    let b2 = s.mul(dot(s, d, q), inv_det);
+    let t = s.mul(dot(s, e2, q), inv_det);
+    let zero = s.splat(0.0);
+    let inside = s.and(
+        s.and(s.cmp::<_CMP_GE_OQ>(b1, zero), s.cmp::<_CMP_GE_OQ>(b2, zero)),
+        s.cmp::<_CMP_LE_OQ>(s.add(b1, b2), s.splat(1.0)),
+    );
+    let in_range = s.and(s.cmp::<_CMP_GT_OQ>(t, zero), s.cmp::<_CMP_LT_OQ>(t, t_max));
+    (t, b1, b2, s.bits(s.and(inside, in_range)) & active)
 }
 
 /// Subtrees entered by fewer rays of a packet than this are traced one ray at a time
-/// (Embree's hybrid traversal): a sixteen-wide test that serves a single ray costs more than
-/// its single-ray walk. 2 measured best of 1, 2 and 4 on the shipped scenes.
+/// (Embree's hybrid traversal): a packet-wide test that serves a single ray costs more than
+/// its single-ray walk. 2 measured best of 1, 2 and 4 on the shipped scenes with 16 rays
+/// (AVX-512). With 8 rays (AVX2), 3 was no faster than 2, and 1 (packets only) faster on
+/// rays from inside the scenes but about 40% slower on rays scattered from surfaces.
 const SINGLE_BELOW: u32 = 2;
 
 /// A leaf triangle: lane `lane` of pack `pack`, obvhs primitive slot `slot`.
@@ -132,22 +372,37 @@ struct LeafTriangle {
 }
 
 /// What a packet walk looks for: closest hits or occlusion.
-trait PacketQuery {
+trait PacketQuery<S: Simd> {
     /// Tests one triangle for the rays in `lanes`, may lower their bounds `t_max`, and
     /// returns which of `lanes` still need tracing.
-    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, triangle: LeafTriangle, lanes: __mmask16, t_max: &mut __m512) -> __mmask16;
+    fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32;
 
     /// Walks the subtree of `node` for ray `lane` alone; returns whether that ray is done.
-    fn single(&mut self, bvh: &Bvh, node: u32, lane: usize, t_max: &mut __m512) -> bool;
+    fn single(&mut self, s: S, bvh: &Bvh, node: u32, lane: usize, t_max: &mut S::F) -> bool;
 }
 
-/// Walks the tree for the lanes in `active`, whose bounds are `t_max`.
-#[inline]
-#[target_feature(enable = "avx512f")]
-fn walk(bvh: &Bvh, rays: &Rays, mut active: __mmask16, t_max: &mut __m512, query: &mut impl PacketQuery) {
+/// Per lane and axis, the node's quantisation step over the ray direction and its origin
+/// relative to the ray's over the ray direction, as [`super::node::intersect_avx2`] has
+/// them: box distances are then single fused multiply-adds.
+#[inline(always)]
+fn node_frame<S: Simd>(s: S, node: &CwBvhNode, rays: &Rays<S>) -> ([S::F; 3], [S::F; 3]) {
+    let (e, p, o, inv) = (node.compute_extent(), node.p, &rays.o, &rays.inv);
+    (
+        [s.mul(s.splat(e.x), inv[0]), s.mul(s.splat(e.y), inv[1]), s.mul(s.splat(e.z), inv[2])],
+        [
+            s.mul(s.sub(s.splat(p[0]), o[0]), inv[0]),
+            s.mul(s.sub(s.splat(p[1]), o[1]), inv[1]),
+            s.mul(s.sub(s.splat(p[2]), o[2]), inv[2]),
+        ],
+    )
+}
+
+/// Walks the tree for the lanes in `active` (bit i: lane i), whose bounds are `t_max`.
+#[inline(always)]
+fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S::F, query: &mut impl PacketQuery<S>) {
     let nodes = &bvh.bvh.nodes;
     let mut stack = Stack::new();
-    stack.push((0, active));
+    stack.push((0u32, active));
     while let Some((index, mask)) = stack.pop() {
         let lanes = mask & active;
         if lanes == 0 {
@@ -158,7 +413,7 @@ fn walk(bvh: &Bvh, rays: &Rays, mut active: __mmask16, t_max: &mut __m512, query
             while rest != 0 {
                 let lane = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
-                if query.single(bvh, index, lane, t_max) {
+                if query.single(s, bvh, index, lane, t_max) {
                     active &= !(1 << lane);
                 }
             }
@@ -168,15 +423,13 @@ fn walk(bvh: &Bvh, rays: &Rays, mut active: __mmask16, t_max: &mut __m512, query
             continue;
         }
         let node = &nodes[index as usize];
-        let e = node.compute_extent();
-        let adj_dir_inv = [0, 1, 2].map(|a| _mm512_mul_ps(_mm512_set1_ps(e[a]), rays.inv[a]));
-        let adj_orig = [0, 1, 2].map(|a| _mm512_mul_ps(_mm512_sub_ps(_mm512_set1_ps(node.p[a]), rays.o[a]), rays.inv[a]));
+        let (adj_dir_inv, adj_orig) = node_frame(s, node, rays);
         for c in 0..8 {
             let meta = node.child_meta[c];
             if meta == 0 {
                 continue;
             }
-            let hits = child_hits(node, c, rays, &adj_dir_inv, &adj_orig, *t_max, lanes & active);
+            let hits = child_hits(s, node, c, rays, &adj_dir_inv, &adj_orig, *t_max) & lanes & active;
             if hits == 0 {
                 continue;
             }
@@ -188,7 +441,7 @@ fn walk(bvh: &Bvh, rays: &Rays, mut active: __mmask16, t_max: &mut __m512, query
                         lane: local % LANES,
                         slot: node.primitive_base_idx + local as u32,
                     };
-                    active = query.leaf(bvh, rays, triangle, hits & active, t_max) | (active & !hits);
+                    active = query.leaf(s, bvh, rays, triangle, hits & active, t_max) | (active & !hits);
                 }
             } else {
                 stack.push((node.child_node_index(c), hits));
@@ -201,136 +454,196 @@ fn walk(bvh: &Bvh, rays: &Rays, mut active: __mmask16, t_max: &mut __m512, query
 }
 
 /// Closest hits: the per-lane best so far, and the rays for single-ray subtrees.
-struct ClosestQuery {
-    best: Closest,
-    singles: [BvhRay; PACKET],
+struct ClosestQuery<S: Simd> {
+    best: Closest<S>,
+    singles: [BvhRay; MAX_WIDTH],
 }
 
-impl PacketQuery for ClosestQuery {
+impl<S: Simd> PacketQuery<S> for ClosestQuery<S> {
     #[inline(always)]
-    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, triangle: LeafTriangle, lanes: __mmask16, t_max: &mut __m512) -> __mmask16 {
-        // SAFETY: only called from `walk`, which runs where AVX-512F exists.
-        unsafe {
-            let (t, b1, b2, hit) = triangle_hits(bvh, triangle.pack, triangle.lane, rays, *t_max, lanes);
-            self.best.take(hit, t, b1, b2, triangle.slot);
+    fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32 {
+        let (t, b1, b2, hit) = triangle_hits(s, bvh, triangle, rays, *t_max, lanes);
+        if hit != 0 {
+            self.best.take(s, hit, t, b1, b2, triangle.slot);
+            *t_max = self.best.t;
         }
-        *t_max = self.best.t;
         lanes
     }
 
     #[inline(always)]
-    fn single(&mut self, bvh: &Bvh, node: u32, lane: usize, t_max: &mut __m512) -> bool {
-        let mut bounds = [0.0f32; PACKET];
-        // SAFETY: only called from `walk`, which runs where AVX-512F (and, as checked by
-        // `packets_available`, AVX2 and FMA) exist; the store writes 16 lanes into 16.
-        unsafe {
-            _mm512_storeu_ps(bounds.as_mut_ptr(), *t_max);
-            let ray = BvhRay { tmax: bounds[lane], ..self.singles[lane] };
-            if let Some((t, slot, b)) = bvh.closest_below_avx2(node, &ray) {
-                let splat = |x| _mm512_set1_ps(x);
-                self.best.take(1 << lane, splat(t), splat(b.x), splat(b.y), slot);
-            }
+    fn single(&mut self, s: S, bvh: &Bvh, node: u32, lane: usize, t_max: &mut S::F) -> bool {
+        let mut bounds = [0.0f32; MAX_WIDTH];
+        s.store(*t_max, &mut bounds);
+        let ray = BvhRay { tmax: bounds[lane], ..self.singles[lane] };
+        // SAFETY: the token `s` exists only where AVX2 and FMA exist (see `Simd`).
+        if let Some((t, slot, b)) = unsafe { bvh.closest_below_avx2(node, &ray) } {
+            self.best.take(s, 1 << lane, s.splat(t), s.splat(b.x), s.splat(b.y), slot);
+            *t_max = self.best.t;
         }
-        *t_max = self.best.t;
         false
     }
 }
 
-impl Closest {
-    /// Takes the hits of `lanes`.
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    fn take(&mut self, lanes: __mmask16, t: __m512, b1: __m512, b2: __m512, slot: u32) {
-        self.t = _mm512_mask_mov_ps(self.t, lanes, t);
-        self.b1 = _mm512_mask_mov_ps(self.b1, lanes, b1);
-        self.b2 = _mm512_mask_mov_ps(self.b2, lanes, b2);
-        self.slot = _mm512_mask_mov_epi32(self.slot, lanes, _mm512_set1_epi32(slot as i32));
+impl<S: Simd> Closest<S> {
+    /// Takes the hits of `lanes` (bit i: lane i).
+    #[inline(always)]
+    fn take(&mut self, s: S, lanes: u32, t: S::F, b1: S::F, b2: S::F, slot: u32) {
+        let m = s.mask(lanes);
+        self.t = s.blend(m, self.t, t);
+        self.b1 = s.blend(m, self.b1, b1);
+        self.b2 = s.blend(m, self.b2, b2);
+        self.slot = s.blend(m, self.slot, s.splat(f32::from_bits(slot)));
     }
 }
 
 /// Occlusion: the lanes found blocked, and the rays for single-ray subtrees.
 struct OcclusionQuery {
-    blocked: __mmask16,
-    singles: [BvhRay; PACKET],
+    blocked: u32,
+    singles: [BvhRay; MAX_WIDTH],
 }
 
-impl PacketQuery for OcclusionQuery {
+impl<S: Simd> PacketQuery<S> for OcclusionQuery {
     #[inline(always)]
-    fn leaf(&mut self, bvh: &Bvh, rays: &Rays, triangle: LeafTriangle, lanes: __mmask16, t_max: &mut __m512) -> __mmask16 {
-        // SAFETY: only called from `walk`, which runs where AVX-512F exists.
-        let hit = unsafe { triangle_hits(bvh, triangle.pack, triangle.lane, rays, *t_max, lanes) }.3;
+    fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32 {
+        let hit = triangle_hits(s, bvh, triangle, rays, *t_max, lanes).3;
         self.blocked |= hit;
         lanes & !hit
     }
 
     #[inline(always)]
-    fn single(&mut self, bvh: &Bvh, node: u32, lane: usize, _t_max: &mut __m512) -> bool {
-        // SAFETY: only called from `walk`, which runs where AVX2 and FMA exist
-        // (`packets_available`).
+    fn single(&mut self, _s: S, bvh: &Bvh, node: u32, lane: usize, _t_max: &mut S::F) -> bool {
+        // SAFETY: the token `_s` exists only where AVX2 and FMA exist (see `Simd`).
         let hit = unsafe { bvh.any_below_avx2(node, &self.singles[lane]) };
-        self.blocked |= (hit as __mmask16) << lane;
+        self.blocked |= (hit as u32) << lane;
         hit
     }
 }
 
+/// The lanes of a packet of `n` rays (1 to `S::WIDTH`).
+#[inline(always)]
+fn lanes<S: Simd>(n: usize) -> u32 {
+    assert!((1..=S::WIDTH).contains(&n), "{n} rays in a packet of {}", S::WIDTH);
+    u32::MAX >> (32 - n)
+}
+
+/// [`Bvh::closest_packet`] with the kernel of token `s`.
+#[inline(always)]
+fn closest<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Option<Hit>]) {
+    let active = lanes::<S>(rays.len());
+    let (r, mut t_max, singles) = load(s, rays);
+    let mut query = ClosestQuery {
+        best: Closest {
+            t: t_max,
+            slot: s.splat(f32::from_bits(u32::MAX)),
+            b1: s.splat(0.0),
+            b2: s.splat(0.0),
+        },
+        singles,
+    };
+    walk(s, bvh, &r, active, &mut t_max, &mut query);
+    let best = query.best;
+    let [mut t, mut b1, mut b2, mut slot] = [[0.0f32; MAX_WIDTH]; 4];
+    s.store(best.t, &mut t);
+    s.store(best.b1, &mut b1);
+    s.store(best.b2, &mut b2);
+    s.store(best.slot, &mut slot);
+    for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
+        let slot = slot[i].to_bits();
+        *o = (slot != u32::MAX).then(|| Hit {
+            t: t[i],
+            triangle: bvh.scene_triangle(slot),
+            barycentric: glam::Vec2::new(b1[i], b2[i]),
+            instance: super::NO_INSTANCE,
+        });
+    }
+}
+
+/// [`Bvh::occluded_packet`] with the kernel of token `s`.
+#[inline(always)]
+fn occluded<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [bool]) {
+    let active = lanes::<S>(rays.len());
+    let (r, mut t_max, singles) = load(s, rays);
+    let mut query = OcclusionQuery { blocked: 0, singles };
+    walk(s, bvh, &r, active, &mut t_max, &mut query);
+    for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
+        *o = query.blocked & (1 << i) != 0;
+    }
+}
+
 impl Bvh {
-    /// Closest hits of up to [`PACKET`] rays traced as one packet; `out[i]` as
-    /// [`Bvh::intersect`] of `rays[i]`.
+    /// Closest hits of up to [`width`] rays traced as one packet, with the 16-ray kernel where
+    /// the CPU has AVX-512F, else the 8-ray one; `out[i]` as [`Bvh::intersect`] of `rays[i]`.
+    ///
+    /// `rays` must hold 1 to [`width`] rays (else this panics), `out` as many entries.
     ///
     /// # Safety
-    /// The CPU must support AVX-512F, AVX2 and FMA; `rays` holds 1 to [`PACKET`] rays and
-    /// `out` as many.
-    #[target_feature(enable = "avx512f")]
+    /// The CPU must support AVX2 and FMA.
     pub(super) unsafe fn closest_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        let (r, mut t_max, singles) = load(rays);
-        let active = (((1u32 << rays.len()) - 1) & 0xffff) as __mmask16;
-        let mut query = ClosestQuery {
-            best: Closest {
-                t: t_max,
-                slot: _mm512_set1_epi32(-1),
-                b1: _mm512_setzero_ps(),
-                b2: _mm512_setzero_ps(),
-            },
-            singles,
-        };
-        walk(self, &r, active, &mut t_max, &mut query);
-        let best = query.best;
-        let mut t = [0.0f32; PACKET];
-        let mut b1 = [0.0f32; PACKET];
-        let mut b2 = [0.0f32; PACKET];
-        let mut slot = [0i32; PACKET];
-        // SAFETY: each store writes 16 lanes into a 16-lane array.
+        // SAFETY: the caller guarantees AVX2 and FMA; AVX-512F is checked.
         unsafe {
-            _mm512_storeu_ps(t.as_mut_ptr(), best.t);
-            _mm512_storeu_ps(b1.as_mut_ptr(), best.b1);
-            _mm512_storeu_ps(b2.as_mut_ptr(), best.b2);
-            _mm512_storeu_si512(slot.as_mut_ptr().cast(), best.slot);
-        }
-        for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
-            *o = (slot[i] >= 0).then(|| Hit {
-                t: t[i],
-                triangle: self.scene_triangle(slot[i] as u32),
-                barycentric: glam::Vec2::new(b1[i], b2[i]),
-                instance: super::NO_INSTANCE,
-            });
+            if has_avx512f() {
+                self.closest_packet16(rays, out)
+            } else {
+                self.closest_packet8(rays, out)
+            }
         }
     }
 
-    /// Occlusion of up to [`PACKET`] rays traced as one packet; `out[i]` as
-    /// [`Bvh::occluded`] of `rays[i]`.
+    /// Occlusion of up to [`width`] rays traced as one packet, as [`Bvh::closest_packet`]
+    /// chooses the kernel; `out[i]` as [`Bvh::occluded`] of `rays[i]`.
+    ///
+    /// `rays` must hold 1 to [`width`] rays (else this panics), `out` as many entries.
     ///
     /// # Safety
-    /// The CPU must support AVX-512F, AVX2 and FMA; `rays` holds 1 to [`PACKET`] rays and
-    /// `out` as many.
-    #[target_feature(enable = "avx512f")]
+    /// The CPU must support AVX2 and FMA.
     pub(super) unsafe fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
-        let (r, mut t_max, singles) = load(rays);
-        let active = (((1u32 << rays.len()) - 1) & 0xffff) as __mmask16;
-        let mut query = OcclusionQuery { blocked: 0, singles };
-        walk(self, &r, active, &mut t_max, &mut query);
-        let blocked = query.blocked;
-        for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
-            *o = blocked & (1 << i) != 0;
+        // SAFETY: the caller guarantees AVX2 and FMA; AVX-512F is checked.
+        unsafe {
+            if has_avx512f() {
+                self.occluded_packet16(rays, out)
+            } else {
+                self.occluded_packet8(rays, out)
+            }
         }
+    }
+
+    /// [`Bvh::closest_packet`] of 1 to 16 rays with AVX-512F.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F, AVX2 and FMA.
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    pub(super) unsafe fn closest_packet16(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        // SAFETY: this function runs only where AVX-512F, AVX2 and FMA exist.
+        closest(unsafe { Avx512::new() }, self, rays, out)
+    }
+
+    /// [`Bvh::occluded_packet`] of 1 to 16 rays with AVX-512F.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F, AVX2 and FMA.
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    pub(super) unsafe fn occluded_packet16(&self, rays: &[Ray], out: &mut [bool]) {
+        // SAFETY: this function runs only where AVX-512F, AVX2 and FMA exist.
+        occluded(unsafe { Avx512::new() }, self, rays, out)
+    }
+
+    /// [`Bvh::closest_packet`] of 1 to 8 rays with AVX2 and FMA.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn closest_packet8(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        // SAFETY: this function runs only where AVX2 and FMA exist.
+        closest(unsafe { Avx2::new() }, self, rays, out)
+    }
+
+    /// [`Bvh::occluded_packet`] of 1 to 8 rays with AVX2 and FMA.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn occluded_packet8(&self, rays: &[Ray], out: &mut [bool]) {
+        // SAFETY: this function runs only where AVX2 and FMA exist.
+        occluded(unsafe { Avx2::new() }, self, rays, out)
     }
 }
