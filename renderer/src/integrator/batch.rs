@@ -9,7 +9,7 @@
 use super::deferred::DeferredScatter;
 use super::diffuse_lanes::DiffuseLanes;
 use super::glossy_lanes::GlossyLanes;
-use super::scattered_lanes::ScatteredLanes;
+use super::scattered_lanes::{self, ScatteredLanes};
 use super::{PathState, PathTracer, Scattered, ShadowTest, Strategy};
 use crate::accel::Hit;
 use crate::bsdf::merl::MerlBsdf;
@@ -126,7 +126,7 @@ impl PathTracer {
                     outcomes.push(Outcome::Lane(group, lanes.len() as u32));
                     lanes.push(&v, albedo, path.beta, light, select_pdf);
                     if lanes.is_full() {
-                        lanes.scatter(light_only, &mut groups[group as usize]);
+                        scattered_lanes::scatter(lanes, light_only, &mut groups[group as usize]);
                         lanes.clear();
                         group += 1;
                     }
@@ -134,7 +134,7 @@ impl PathTracer {
                     outcomes.push(Outcome::Glossy(glossy_group, glossy.len() as u32));
                     glossy.push(&v, bsdf, path.beta, self.light_sample(scene, &v));
                     if glossy.is_full() {
-                        glossy.scatter(light_only, &mut glossy_groups[glossy_group as usize]);
+                        scattered_lanes::scatter(glossy, light_only, &mut glossy_groups[glossy_group as usize]);
                         glossy.clear();
                         glossy_group += 1;
                     }
@@ -150,10 +150,10 @@ impl PathTracer {
                 }
             }
             if lanes.len() > 0 {
-                lanes.scatter(light_only, &mut groups[group as usize]);
+                scattered_lanes::scatter(lanes, light_only, &mut groups[group as usize]);
             }
             if glossy.len() > 0 {
-                glossy.scatter(light_only, &mut glossy_groups[glossy_group as usize]);
+                scattered_lanes::scatter(glossy, light_only, &mut glossy_groups[glossy_group as usize]);
             }
             neural.scatter(self, neural_scattered);
             merl.scatter(self, merl_scattered);

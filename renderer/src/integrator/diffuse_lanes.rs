@@ -5,14 +5,15 @@
 //! [`Lambert`]'s `eval_pdf` and `sample`, the power heuristic, [`offset_ray_origin`], the
 //! frame conversions — in the same order, with masks where the scalar code returns early,
 //! so each lane's result is bit for bit what `scatter` gives (the batched render test checks
-//! this against paths traced one by one). Compiled for AVX-512 or AVX2 where the CPU has them.
+//! this against paths traced one by one). Compiled for AVX-512 or AVX2 where the CPU has them
+//! ([`super::scattered_lanes::scatter`]).
 //!
 //! [`PathTracer::scatter`]: super::PathTracer
 //! [`TriangleLight::sample`]: crate::lights::area::TriangleLight::sample
 //! [`Lambert`]: crate::bsdf::Lambert
 //! [`offset_ray_origin`]: crate::accel::offset_ray_origin
 
-use super::scattered_lanes::{offset_ray_origin, power_heuristic, ScatteredLanes};
+use super::scattered_lanes::{offset_ray_origin, power_heuristic, LaneKernel, ScatteredLanes};
 use super::{Vertex, SHADOW_EPSILON};
 use crate::accel::gamma;
 use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
@@ -89,37 +90,12 @@ impl DiffuseLanes {
         self.u.set(i, vertex.u);
         self.len += 1;
     }
+}
 
+impl LaneKernel for DiffuseLanes {
     /// Scatters all lanes (the filled ones matter): next-event estimation toward the
     /// triangle light, weighted by the power heuristic or, with `light_only`, by 1; and a
     /// cosine-weighted continuation.
-    pub fn scatter(&self, light_only: bool, out: &mut ScatteredLanes) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if crate::support::cpu::has_avx512f() {
-                // SAFETY: the CPU has AVX-512F.
-                return unsafe { self.scatter_avx512(light_only, out) };
-            }
-            if crate::support::cpu::has_avx2() {
-                // SAFETY: the CPU has AVX2.
-                return unsafe { self.scatter_avx2(light_only, out) };
-            }
-        }
-        self.scatter_lanes(light_only, out)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn scatter_avx512(&self, light_only: bool, out: &mut ScatteredLanes) {
-        self.scatter_lanes(light_only, out)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn scatter_avx2(&self, light_only: bool, out: &mut ScatteredLanes) {
-        self.scatter_lanes(light_only, out)
-    }
-
     #[inline(always)]
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes) {
         let zero = F32s::splat(0.0);
@@ -223,7 +199,7 @@ mod tests {
                 for (vertex, albedo, beta, light, select_pdf) in group {
                     lanes.push(vertex, *albedo, *beta, light, *select_pdf);
                 }
-                lanes.scatter(strategy == Strategy::LightOnly, &mut out);
+                crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
                 for (lane, (vertex, _, beta, _, _)) in group.iter().enumerate() {
                     let expected = tracer.scatter(&scene, vertex, *beta);
                     assert_eq!(format!("{:?}", out.get(lane)), format!("{expected:?}"), "{strategy:?}, lane {lane}");

@@ -8,11 +8,11 @@
 //! importance weight, the shadow ray, the BSDF sample with its value and density, and the
 //! continuation — with [`MetallicRoughnessLanes`], the scalar formulas per lane. Each lane's
 //! result is bit for bit what `scatter` gives (tested below and by the batched render test).
-//! Compiled for AVX-512 or AVX2 where the CPU has them.
+//! Compiled for AVX-512 or AVX2 where the CPU has them ([`super::scattered_lanes::scatter`]).
 //!
 //! [`PathTracer::scatter`]: super::PathTracer
 
-use super::scattered_lanes::{offset_ray_origin, power_heuristic, ScatteredLanes};
+use super::scattered_lanes::{offset_ray_origin, power_heuristic, LaneKernel, ScatteredLanes};
 use super::{Vertex, SHADOW_EPSILON};
 use crate::bsdf::metallic_roughness_lanes::MetallicRoughnessLanes;
 use crate::bsdf::MetallicRoughness;
@@ -98,37 +98,12 @@ impl GlossyLanes {
         }
         self.len += 1;
     }
+}
 
+impl LaneKernel for GlossyLanes {
     /// Scatters all lanes (the filled ones matter): next-event estimation weighted by the
     /// power heuristic (by 1 for punctual lights and with `light_only`), and a continuation
     /// drawn from the BSDF.
-    pub fn scatter(&self, light_only: bool, out: &mut ScatteredLanes) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if crate::support::cpu::has_avx512f() {
-                // SAFETY: the CPU has AVX-512F.
-                return unsafe { self.scatter_avx512(light_only, out) };
-            }
-            if crate::support::cpu::has_avx2() {
-                // SAFETY: the CPU has AVX2.
-                return unsafe { self.scatter_avx2(light_only, out) };
-            }
-        }
-        self.scatter_lanes(light_only, out)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn scatter_avx512(&self, light_only: bool, out: &mut ScatteredLanes) {
-        self.scatter_lanes(light_only, out)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn scatter_avx2(&self, light_only: bool, out: &mut ScatteredLanes) {
-        self.scatter_lanes(light_only, out)
-    }
-
     #[inline(always)]
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes) {
         let zero = F32s::splat(0.0);
@@ -216,7 +191,7 @@ mod tests {
                     delta += light.is_some_and(|l| l.is_delta) as usize;
                     lanes.push(vertex, bsdf, *beta, light);
                 }
-                lanes.scatter(strategy == Strategy::LightOnly, &mut out);
+                crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
                 for (lane, (vertex, _, beta)) in group.iter().enumerate() {
                     let expected = tracer.scatter(&scene, vertex, *beta);
                     assert_eq!(format!("{:?}", out.get(lane)), format!("{expected:?}"), "{strategy:?}, lane {lane}");

@@ -43,6 +43,44 @@ impl ScatteredLanes {
     }
 }
 
+/// A kernel over [`LANES`] vertices, run by [`scatter`] compiled for the widest vector
+/// instructions the CPU has.
+pub(crate) trait LaneKernel {
+    /// Scatters every lane (the filled ones matter) into `out`; `light_only` weighs light
+    /// samples by 1 instead of the power heuristic. Written with [`crate::lanes`] types and
+    /// `#[inline(always)]`, so that it is compiled into each of [`scatter`]'s copies.
+    fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes);
+}
+
+/// Runs `kernel` compiled for AVX-512 or AVX2 where the CPU has them, portable code
+/// elsewhere (the same values: the lane operations are the scalar ones).
+pub(crate) fn scatter<K: LaneKernel>(kernel: &K, light_only: bool, out: &mut ScatteredLanes) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::support::cpu::has_avx512f() {
+            // SAFETY: the CPU has AVX-512F.
+            return unsafe { scatter_avx512(kernel, light_only, out) };
+        }
+        if crate::support::cpu::has_avx2() {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { scatter_avx2(kernel, light_only, out) };
+        }
+    }
+    kernel.scatter_lanes(light_only, out)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn scatter_avx512<K: LaneKernel>(kernel: &K, light_only: bool, out: &mut ScatteredLanes) {
+    kernel.scatter_lanes(light_only, out)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn scatter_avx2<K: LaneKernel>(kernel: &K, light_only: bool, out: &mut ScatteredLanes) {
+    kernel.scatter_lanes(light_only, out)
+}
+
 /// [`crate::accel::offset_ray_origin`] per lane.
 #[inline(always)]
 pub(crate) fn offset_ray_origin(p: Vec3s, p_error: Vec3s, n: Vec3s, w: Vec3s) -> Vec3s {
