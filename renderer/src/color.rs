@@ -4,10 +4,14 @@
 /// dimensionless reflectance, depending on context.
 pub type Rgb = glam::Vec3;
 
+/// Weights of R, G and B in Rec. 709 luminance.
+pub const LUMINANCE_WEIGHTS: [f32; 3] = [0.212_671, 0.715_160, 0.072_169];
+
 /// Rec. 709 luminance of a linear RGB value.
 #[inline]
 pub fn luminance(c: Rgb) -> f32 {
-    0.212_671 * c.x + 0.715_160 * c.y + 0.072_169 * c.z
+    let [r, g, b] = LUMINANCE_WEIGHTS;
+    r * c.x + g * c.y + b * c.z
 }
 
 /// True when every channel is finite.

@@ -289,13 +289,20 @@ impl Vec3s {
         }
     }
 
-    /// `glam::Vec3::try_normalize(v).unwrap_or(fallback)` per lane (the same operations: the
-    /// reciprocal of the length, kept where finite and positive).
+    /// `glam::Vec3::try_normalize` per lane (the same operations: the vector times the
+    /// reciprocal of its length), with the lanes where that is `Some` (the reciprocal finite
+    /// and positive); the other lanes' vectors are meaningless.
+    #[inline(always)]
+    pub fn try_normalize(self) -> (Vec3s, Mask) {
+        let rcp = 1.0 / self.dot(self).sqrt();
+        (self * rcp, rcp.is_finite() & rcp.gt(F32s::splat(0.0)))
+    }
+
+    /// `glam::Vec3::try_normalize(v).unwrap_or(fallback)` per lane.
     #[inline(always)]
     pub fn normalize_or(self, fallback: glam::Vec3) -> Vec3s {
-        let rcp = 1.0 / self.dot(self).sqrt();
-        let ok = rcp.is_finite() & rcp.gt(F32s::splat(0.0));
-        ok.select3(self * rcp, Vec3s::splat(fallback))
+        let (v, ok) = self.try_normalize();
+        ok.select3(v, Vec3s::splat(fallback))
     }
 
     /// Dot product per lane, summed in `glam::Vec3::dot`'s order (x, y, then z).

@@ -40,8 +40,8 @@ where
     (sin, cos)
 }
 
-/// (sin 2πu, cos 2πu) for u ≥ 0, an angle given in turns: reduced to the nearest quarter turn q
-/// (exactly: 4u − q needs no rounding for |u| < 2²¹), [`sin_cos_octant`] on the remaining
+/// (sin 2πu, cos 2πu) for 0 ≤ u < 2²¹, an angle given in turns: reduced to the nearest
+/// quarter turn q (exactly: 4u − q needs no rounding there), [`sin_cos_octant`] on the remaining
 /// |x| ≤ π/4, and the quarter turn applied by swapping and negating. About one ulp from the
 /// exact values in [0, 1), several times faster than libm's `sinf`/`cosf`, and computed with
 /// the same operations per lane by [`sin_cos_turns_lanes`], so the two agree bit for bit.

@@ -9,6 +9,7 @@
 //! densities in 1/sr.
 
 use super::metallic_roughness::{MetallicRoughness, MIN_LOBE_PROBABILITY};
+use crate::color::LUMINANCE_WEIGHTS;
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::sampling::{sample_cosine_hemisphere_lanes, sin_cos_turns_lanes};
 use glam::Vec3;
@@ -67,9 +68,10 @@ impl MetallicRoughnessLanes {
         self.t_base - self.t_slope * schlick_weight(cos_theta)
     }
 
-    /// [`MetallicRoughness::specular_probability`].
+    /// [`MetallicRoughness::specular_probability`]: depends on `wo` only, so a vertex's light
+    /// evaluation and BSDF sample share it.
     #[inline(always)]
-    fn specular_probability(&self, wo: Vec3s) -> F32s {
+    pub fn specular_probability(&self, wo: Vec3s) -> F32s {
         let zero = F32s::splat(0.0);
         let cos_o = clamp(wo.z, 0.0, 1.0);
         let specular = luminance(self.fresnel(cos_o));
@@ -89,36 +91,37 @@ impl MetallicRoughnessLanes {
     }
 
     /// The mixture density for directions above the horizon, with the specular probability
-    /// `p_specular`.
+    /// `p_specular` and the half vector `h` (where `has_half`: [`half_vector`]).
     #[inline(always)]
-    fn density(&self, p_specular: F32s, wo: Vec3s, wi: Vec3s) -> F32s {
+    fn density(&self, p_specular: F32s, wo: Vec3s, wi: Vec3s, h: Vec3s, has_half: Mask) -> F32s {
         let cosine_pdf = wi.z.max(F32s::splat(0.0)) * FRAC_1_PI;
-        p_specular * self.reflection_pdf(wo, wi) + (1.0 - p_specular) * cosine_pdf
+        p_specular * self.reflection_pdf(wo, wi, h, has_half) + (1.0 - p_specular) * cosine_pdf
     }
 
-    /// [`super::Bxdf::eval_pdf`]: value and density.
+    /// [`super::Bxdf::eval_pdf`]: value and density, with `p_specular` =
+    /// [`Self::specular_probability`] of `wo`.
     #[inline(always)]
-    pub fn eval_pdf(&self, wo: Vec3s, wi: Vec3s) -> (Vec3s, F32s) {
+    pub fn eval_pdf(&self, p_specular: F32s, wo: Vec3s, wi: Vec3s) -> (Vec3s, F32s) {
         let zero = F32s::splat(0.0);
         let above = wo.z.gt(zero) & wi.z.gt(zero);
-        let h = (wo + wi).normalize_or(Vec3::Z);
+        let (h, has_half) = half_vector(wo, wi);
         let f = self.value(wo, wi, h);
-        let pdf = self.density(self.specular_probability(wo), wo, wi);
+        let pdf = self.density(p_specular, wo, wi, h, has_half);
         (above.select3(f, Vec3s::default()), above.select(pdf, zero))
     }
 
-    /// [`super::Bxdf::sample`]: the specular lobe (visible normals) where `uc` is below the
-    /// specular probability, the cosine-weighted diffuse lobe elsewhere.
+    /// [`super::Bxdf::sample`]: the specular lobe (visible normals) where `uc` is below
+    /// `p_specular` ([`Self::specular_probability`] of `wo`), the cosine-weighted diffuse
+    /// lobe elsewhere.
     #[inline(always)]
-    pub fn sample(&self, wo: Vec3s, u: Vec2s, uc: F32s) -> SampleLanes {
+    pub fn sample(&self, p_specular: F32s, wo: Vec3s, u: Vec2s, uc: F32s) -> SampleLanes {
         let zero = F32s::splat(0.0);
-        let p_specular = self.specular_probability(wo);
         let specular = uc.lt(p_specular) | p_specular.ge(F32s::splat(1.0));
         let reflected = reflect(wo, self.sample_visible_normal(wo, u));
         let diffuse = sample_cosine_hemisphere_lanes(u);
         let wi = specular.select3(reflected, diffuse);
-        let h = (wo + wi).normalize_or(Vec3::Z);
-        let pdf = self.density(p_specular, wo, wi);
+        let (h, has_half) = half_vector(wo, wi);
+        let pdf = self.density(p_specular, wo, wi, h, has_half);
         let ok = wo.z.gt(zero) & wi.z.gt(zero) & pdf.gt(zero) & pdf.is_finite();
         SampleLanes {
             ok,
@@ -154,14 +157,12 @@ impl MetallicRoughnessLanes {
         0.5 / denominator.max(F32s::splat(super::microfacet::MIN_VISIBILITY_DENOMINATOR))
     }
 
-    /// [`super::microfacet::GgxDistribution::reflection_pdf`].
+    /// [`super::microfacet::GgxDistribution::reflection_pdf`], given the half vector `h`
+    /// (where `has_half`).
     #[inline(always)]
-    fn reflection_pdf(&self, wo: Vec3s, wi: Vec3s) -> F32s {
+    fn reflection_pdf(&self, wo: Vec3s, wi: Vec3s, h: Vec3s, has_half: Mask) -> F32s {
         let zero = F32s::splat(0.0);
-        let sum = wo + wi;
-        let rcp = 1.0 / sum.dot(sum).sqrt();
-        let has_half = rcp.is_finite() & rcp.gt(zero);
-        let pdf = self.d(sum * rcp) / (2.0 * (wo.z + self.projected_length(wo)));
+        let pdf = self.d(h) / (2.0 * (wo.z + self.projected_length(wo)));
         (has_half & !wo.z.lt(zero) & wi.z.gt(zero)).select(pdf, zero)
     }
 
@@ -177,6 +178,14 @@ impl MetallicRoughnessLanes {
         let h_std = Vec3s { x: sin_theta * cos_phi, y: sin_theta * sin_phi, z } + wo_std;
         Vec3s { x: h_std.x * a, y: h_std.y * a, z: h_std.z.max(zero) }.normalize_or(Vec3::Z)
     }
+}
+
+/// [`super::microfacet::half_vector`] per lane: normalize(wo + wi) where it exists (the
+/// mask), +z elsewhere, as the scalar code's `unwrap_or(Vec3::Z)`.
+#[inline(always)]
+fn half_vector(wo: Vec3s, wi: Vec3s) -> (Vec3s, Mask) {
+    let (h, has_half) = (wo + wi).try_normalize();
+    (has_half.select3(h, Vec3s::splat(Vec3::Z)), has_half)
 }
 
 /// [`super::microfacet::schlick_weight`] per lane.
@@ -196,7 +205,8 @@ fn reflect(w: Vec3s, n: Vec3s) -> Vec3s {
 /// [`crate::color::luminance`] per lane.
 #[inline(always)]
 fn luminance(c: Vec3s) -> F32s {
-    0.212_671 * c.x + 0.715_160 * c.y + 0.072_169 * c.z
+    let [r, g, b] = LUMINANCE_WEIGHTS;
+    r * c.x + g * c.y + b * c.z
 }
 
 /// `f32::clamp` per lane (NaN stays NaN).
@@ -264,8 +274,9 @@ mod tests {
                 uc.0[i] = c;
                 cases.push((bsdf, o, l, s, c));
             }
-            let (f, pdf) = lanes.eval_pdf(wo, wi);
-            let sample = lanes.sample(wo, u, uc);
+            let p_specular = lanes.specular_probability(wo);
+            let (f, pdf) = lanes.eval_pdf(p_specular, wo, wi);
+            let sample = lanes.sample(p_specular, wo, u, uc);
             for (i, &(bsdf, o, l, s, c)) in cases.iter().enumerate() {
                 let (ef, epdf) = bsdf.eval_pdf(o, l);
                 assert_eq!((bits(f.get(i)), pdf.0[i].to_bits()), (bits(ef), epdf.to_bits()), "eval_pdf, lane {i}: {bsdf:?}");

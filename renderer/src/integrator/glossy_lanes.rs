@@ -117,7 +117,8 @@ impl LaneKernel for GlossyLanes {
         // Next-event estimation (PathTracer::light_term and light_contribution).
         let direction = self.light_direction;
         let wi = to_local(direction);
-        let (f, bsdf_pdf) = self.bsdf.eval_pdf(wo, wi);
+        let p_specular = self.bsdf.specular_probability(wo);
+        let (f, bsdf_pdf) = self.bsdf.eval_pdf(p_specular, wo, wi);
         let shadow_ok =
             Mask(self.light_ok) & direction.dot(ng).gt(zero) & wi.z.gt(zero) & f.max_element().gt(zero);
         let origin = offset_ray_origin(p, p_error, ng, direction);
@@ -131,7 +132,7 @@ impl LaneKernel for GlossyLanes {
         out.contribution = beta * f * self.light_radiance * (wi.z * w / self.light_pdf);
 
         // BSDF sampling and continuation().
-        let sample = self.bsdf.sample(wo, self.u, self.uc);
+        let sample = self.bsdf.sample(p_specular, wo, self.u, self.uc);
         let wi_world = self.s * sample.wi.x + self.t * sample.wi.y + self.n * sample.wi.z;
         let next_beta = beta * (sample.f * (sample.wi.z / sample.pdf));
         let next_ok =
