@@ -124,6 +124,24 @@ fn target_net(c: &mut Criterion) {
     group.finish();
 }
 
+/// The NBRDF network alone: one point at a time against batches (which share each weight
+/// load among several points).
+fn nbrdf_network(c: &mut Criterion) {
+    let network = NbrdfNetwork::load(repo().join("../shared/data/nbrdf/merl").join(MATERIAL)).expect("NBRDF network");
+    let xs = inputs();
+    let mut ys = vec![[0.0; OUTPUTS]; xs.len()];
+    let mut group = c.benchmark_group("nbrdf network");
+    group.throughput(Throughput::Elements(xs.len() as u64));
+    group.bench_function("one point", |b| b.iter(|| xs.iter().fold(0.0, |acc, x| acc + network.forward(*x)[0])));
+    group.bench_function("batch", |b| {
+        b.iter(|| {
+            network.forward_batch(&xs, &mut ys);
+            black_box(&ys);
+        })
+    });
+    group.finish();
+}
+
 /// Measured f32 FLOP/s of one core: independent FMA chains, 32 (AVX-512) or 16 (AVX2)
 /// registers wide, long enough to hide the latency.
 fn peak_flops() -> Option<(f64, &'static str)> {
@@ -215,5 +233,5 @@ fn flop_utilisation(_: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, flop_utilisation, target_net, bsdfs, decode);
+criterion_group!(benches, flop_utilisation, target_net, nbrdf_network, bsdfs, decode);
 criterion_main!(benches);

@@ -379,13 +379,14 @@ mod tests {
     fn batched_tiles_equal_paths_traced_one_by_one() {
         let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/");
         // The material-preview's sphere: metallic-roughness without a latent file, the decoded
-        // neural material with the shipped one, or its slot given a MERL table (both of which
-        // are scattered with their values evaluated together).
+        // neural material with the shipped one, or its slot given a MERL table or an NBRDF
+        // network (all three scattered with their values evaluated together).
         #[derive(Clone, Copy, Debug, PartialEq)]
         enum Sphere {
             Gltf,
             Neural,
             Merl,
+            Nbrdf,
         }
         let cases = [
             ("cornell-box", 8, Strategy::Mis, Sphere::Gltf),
@@ -400,6 +401,8 @@ mod tests {
             ("material-preview", 5, Strategy::BsdfOnly, Sphere::Neural),
             ("material-preview", 6, Strategy::Mis, Sphere::Merl),
             ("material-preview", 5, Strategy::BsdfOnly, Sphere::Merl),
+            ("material-preview", 6, Strategy::Mis, Sphere::Nbrdf),
+            ("material-preview", 5, Strategy::LightOnly, Sphere::Nbrdf),
         ];
         for (name, max_depth, strategy, sphere) in cases {
             let description = SceneDescription::load(format!("{root}{name}/scene.gltf").as_ref()).expect("shipped scene");
@@ -415,6 +418,10 @@ mod tests {
                 let table = crate::testing::bsdfs::merl_fitted_table("alum-bronze");
                 let merl = crate::bsdf::merl::MerlBsdf::new(&table, Default::default(), &Default::default());
                 scene.materials.set_shared(slots[0], crate::material::SharedBsdf::Merl(merl));
+            }
+            if sphere == Sphere::Nbrdf {
+                let nbrdf = crate::testing::bsdfs::nbrdf_bsdf("alum-bronze");
+                scene.materials.set_shared(slots[0], crate::material::SharedBsdf::Nbrdf(nbrdf));
             }
             // 20 × 18: partial tiles at the right and bottom edges.
             let (w, h, spp) = (20, 18, 3);

@@ -1,7 +1,7 @@
 //! [`PathTracer::step`] for a batch of paths: the vertices are begun one by one, the common
-//! diffuse-surface-lit-by-a-triangle ones scattered [`LANES`] at a time
+//! diffuse-surface-lit-by-a-triangle ones scattered [`LANES`](crate::lanes::LANES) at a time
 //! ([`DiffuseLanes`]), so are the metallic-roughness ones under any light ([`GlossyLanes`]),
-//! those on decoded neural materials and MERL tables with their values
+//! those on decoded neural materials, NBRDF networks and MERL tables with their values
 //! evaluated together after all were sampled ([`DeferredScatter`]: one batched forward pass
 //! per net, table entries prefetched), the others one by one, and all advanced in the
 //! batch's order.
@@ -9,13 +9,13 @@
 use super::deferred::DeferredScatter;
 use super::diffuse_lanes::DiffuseLanes;
 use super::glossy_lanes::GlossyLanes;
-use super::scattered_lanes::{self, ScatteredLanes};
+use super::scattered_lanes::LaneGroups;
 use super::{PathState, PathTracer, Scattered, ShadowTest, Strategy};
 use crate::accel::Hit;
 use crate::bsdf::merl::MerlBsdf;
+use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::Bsdf;
-use crate::lanes::LANES;
 use crate::render_scene::RenderScene;
 use glam::Vec3;
 
@@ -29,14 +29,15 @@ enum Outcome {
     Ended,
     /// Scattered alone: index into [`BatchBuffers::scattered`].
     Alone(u32),
-    /// Scattered in diffuse lanes: group (index into [`BatchBuffers::groups`]) and lane.
-    Lane(u32, u32),
-    /// Scattered in glossy lanes: group (index into [`BatchBuffers::glossy_groups`]) and
-    /// lane.
-    Glossy(u32, u32),
-    /// A neural vertex: index into [`BatchBuffers::neural_scattered`].
+    /// Scattered in diffuse lanes: group and lane in [`BatchBuffers::diffuse`].
+    Diffuse((u32, u32)),
+    /// Scattered in glossy lanes: group and lane in [`BatchBuffers::glossy`].
+    Glossy((u32, u32)),
+    /// A decoded neural vertex: index into [`BatchBuffers::neural`].
     Neural(u32),
-    /// A MERL-table vertex: index into [`BatchBuffers::merl_scattered`].
+    /// An NBRDF vertex: index into [`BatchBuffers::nbrdf`].
+    Nbrdf(u32),
+    /// A MERL-table vertex: index into [`BatchBuffers::merl`].
     Merl(u32),
 }
 
@@ -49,14 +50,11 @@ pub struct BatchBuffers<'s> {
     outcomes: Vec<Outcome>,
     positions: Vec<Vec3>,
     scattered: Vec<Scattered>,
-    lanes: DiffuseLanes,
-    groups: Vec<ScatteredLanes>,
-    glossy: GlossyLanes,
-    glossy_groups: Vec<ScatteredLanes>,
+    diffuse: LaneGroups<DiffuseLanes>,
+    glossy: LaneGroups<GlossyLanes>,
     neural: DeferredScatter<'s, NeuralBsdf>,
-    neural_scattered: Vec<Scattered>,
+    nbrdf: DeferredScatter<'s, NbrdfBsdf>,
     merl: DeferredScatter<'s, MerlBsdf>,
-    merl_scattered: Vec<Scattered>,
 }
 
 /// What one batch step produces, both in the order of the active paths: the shadow tests
@@ -88,26 +86,21 @@ impl PathTracer {
             outcomes,
             positions,
             scattered,
-            lanes,
-            groups,
+            diffuse,
             glossy,
-            glossy_groups,
             neural,
-            neural_scattered,
+            nbrdf,
             merl,
-            merl_scattered,
         } = buffers;
-        groups.resize_with(CHUNK.div_ceil(LANES), ScatteredLanes::default);
-        glossy_groups.resize_with(CHUNK.div_ceil(LANES), ScatteredLanes::default);
         for (chunk, chunk_hits) in active.chunks(CHUNK).zip(hits.chunks(CHUNK)) {
             outcomes.clear();
             positions.clear();
             scattered.clear();
-            lanes.clear();
+            diffuse.clear();
             glossy.clear();
             neural.clear();
+            nbrdf.clear();
             merl.clear();
-            let (mut group, mut glossy_group) = (0, 0);
             for (&i, &hit) in chunk.iter().zip(chunk_hits) {
                 let path = &mut paths[i as usize];
                 let Some(v) = self.begin(scene, path, hit) else {
@@ -123,24 +116,19 @@ impl PathTracer {
                     _ => None,
                 };
                 if let Some((albedo, light, select_pdf)) = diffuse_triangle {
-                    outcomes.push(Outcome::Lane(group, lanes.len() as u32));
-                    lanes.push(&v, albedo, path.beta, light, select_pdf);
-                    if lanes.is_full() {
-                        scattered_lanes::scatter(lanes, light_only, &mut groups[group as usize]);
-                        lanes.clear();
-                        group += 1;
-                    }
+                    outcomes.push(Outcome::Diffuse(diffuse.slot()));
+                    diffuse.lanes.push(&v, albedo, path.beta, light, select_pdf);
+                    diffuse.pushed(light_only);
                 } else if let Bsdf::MetallicRoughness(bsdf) = &v.bsdf {
-                    outcomes.push(Outcome::Glossy(glossy_group, glossy.len() as u32));
-                    glossy.push(&v, bsdf, path.beta, self.light_sample(scene, &v));
-                    if glossy.is_full() {
-                        scattered_lanes::scatter(glossy, light_only, &mut glossy_groups[glossy_group as usize]);
-                        glossy.clear();
-                        glossy_group += 1;
-                    }
+                    outcomes.push(Outcome::Glossy(glossy.slot()));
+                    glossy.lanes.push(&v, bsdf, path.beta, self.light_sample(scene, &v));
+                    glossy.pushed(light_only);
                 } else if let Bsdf::Neural(bsdf) = v.bsdf {
                     outcomes.push(Outcome::Neural(neural.len() as u32));
                     neural.push(self, scene, &v, bsdf, path.beta);
+                } else if let Bsdf::Nbrdf(bsdf) = v.bsdf {
+                    outcomes.push(Outcome::Nbrdf(nbrdf.len() as u32));
+                    nbrdf.push(self, scene, &v, bsdf, path.beta);
                 } else if let Bsdf::Merl(bsdf) = v.bsdf {
                     outcomes.push(Outcome::Merl(merl.len() as u32));
                     merl.push(self, scene, &v, bsdf, path.beta);
@@ -149,22 +137,20 @@ impl PathTracer {
                     scattered.push(self.scatter(scene, &v, path.beta));
                 }
             }
-            if lanes.len() > 0 {
-                scattered_lanes::scatter(lanes, light_only, &mut groups[group as usize]);
-            }
-            if glossy.len() > 0 {
-                scattered_lanes::scatter(glossy, light_only, &mut glossy_groups[glossy_group as usize]);
-            }
-            neural.scatter(self, neural_scattered);
-            merl.scatter(self, merl_scattered);
+            diffuse.finish(light_only);
+            glossy.finish(light_only);
+            neural.scatter(self);
+            nbrdf.scatter(self);
+            merl.scatter(self);
             for ((&i, &outcome), &p) in chunk.iter().zip(outcomes.iter()).zip(positions.iter()) {
                 let s = match outcome {
                     Outcome::Ended => continue,
                     Outcome::Alone(k) => scattered[k as usize],
-                    Outcome::Lane(g, lane) => groups[g as usize].get(lane as usize),
-                    Outcome::Glossy(g, lane) => glossy_groups[g as usize].get(lane as usize),
-                    Outcome::Neural(k) => neural_scattered[k as usize],
-                    Outcome::Merl(k) => merl_scattered[k as usize],
+                    Outcome::Diffuse(slot) => diffuse.get(slot),
+                    Outcome::Glossy(slot) => glossy.get(slot),
+                    Outcome::Neural(k) => neural.get(k),
+                    Outcome::Nbrdf(k) => nbrdf.get(k),
+                    Outcome::Merl(k) => merl.get(k),
                 };
                 if let Some(test) = s.shadow {
                     shadows.push((i, test));

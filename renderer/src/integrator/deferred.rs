@@ -1,5 +1,5 @@
 //! Vertices on BSDFs whose values are evaluated in batches ([`BatchEval`]: the decoded
-//! neural materials and the MERL tables), scattered together. Each vertex's light sample and
+//! neural materials, the NBRDF networks and the MERL tables), scattered together. Each vertex's light sample and
 //! BSDF sample are drawn one by one exactly as [`PathTracer::scatter`] draws them, and the two
 //! values they need are prepared (a net's input or a table's corners, the table entries
 //! prefetched); then every value of a material in the batch is evaluated in one call (one
@@ -46,6 +46,8 @@ pub(super) struct DeferredScatter<'s, B: BatchEval> {
     vertices: Vec<Pending>,
     /// The distinct materials of the batch (usually one or two: a linear search finds them).
     materials: Vec<Material<'s, B>>,
+    /// The scattered vertices, in the order they were pushed (after [`Self::scatter`]).
+    scattered: Vec<Scattered>,
 }
 
 impl<B: BatchEval> Default for DeferredScatter<'_, B> {
@@ -53,6 +55,7 @@ impl<B: BatchEval> Default for DeferredScatter<'_, B> {
         DeferredScatter {
             vertices: Vec::new(),
             materials: Vec::new(),
+            scattered: Vec::new(),
         }
     }
 }
@@ -110,17 +113,17 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         });
     }
 
-    /// Evaluates every prepared value, one call per material, and scatters the vertices in
-    /// the order they were pushed into `out` (replaced).
-    pub fn scatter(&mut self, tracer: &PathTracer, out: &mut Vec<Scattered>) {
+    /// Evaluates every prepared value, one call per material, and scatters the vertices
+    /// ([`Self::get`] then returns them).
+    pub fn scatter(&mut self, tracer: &PathTracer) {
         for m in &mut self.materials {
             m.values.clear();
             m.values.resize(m.points.len(), Rgb::ZERO);
             m.bsdf.eval_prepared(&m.points, &mut m.values);
         }
         let value = |slot: Slot| self.materials[slot.material as usize].values[slot.point as usize];
-        out.clear();
-        out.extend(self.vertices.iter().map(|p| Scattered {
+        self.scattered.clear();
+        self.scattered.extend(self.vertices.iter().map(|p| Scattered {
             shadow: p
                 .light
                 .and_then(|(ls, wi, pdf, slot)| tracer.light_contribution(&p.sp, p.beta, &ls, wi, value(slot), pdf)),
@@ -128,5 +131,11 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
                 .sample
                 .and_then(|(wi, pdf, slot)| continuation(&p.sp, &BsdfSample { wi, f: value(slot), pdf }, p.beta)),
         }));
+    }
+
+    /// What the `k`-th vertex pushed scattered into (after [`Self::scatter`]).
+    #[inline]
+    pub fn get(&self, k: u32) -> Scattered {
+        self.scattered[k as usize]
     }
 }

@@ -46,21 +46,6 @@ pub(crate) struct DiffuseLanes {
 }
 
 impl DiffuseLanes {
-    /// Number of lanes filled.
-    pub fn len(&self) -> usize {
-        self.len
-    }
-
-    /// True when all lanes are filled.
-    pub fn is_full(&self) -> bool {
-        self.len == LANES
-    }
-
-    /// Empties the lanes (their old values stay, unused).
-    pub fn clear(&mut self) {
-        self.len = 0;
-    }
-
     /// Appends a vertex with Lambertian albedo `albedo`, throughput `beta`, whose chosen
     /// light is `light` (selected with probability `select_pdf`).
     ///
@@ -93,6 +78,14 @@ impl DiffuseLanes {
 }
 
 impl LaneKernel for DiffuseLanes {
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn clear(&mut self) {
+        self.len = 0;
+    }
+
     /// Scatters all lanes (the filled ones matter): next-event estimation toward the
     /// triangle light, weighted by the power heuristic or, with `light_only`, by 1; and a
     /// cosine-weighted continuation.

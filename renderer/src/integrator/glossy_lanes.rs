@@ -51,21 +51,6 @@ pub(crate) struct GlossyLanes {
 }
 
 impl GlossyLanes {
-    /// Number of lanes filled.
-    pub fn len(&self) -> usize {
-        self.len
-    }
-
-    /// True when all lanes are filled.
-    pub fn is_full(&self) -> bool {
-        self.len == LANES
-    }
-
-    /// Empties the lanes (their old values stay, unused).
-    pub fn clear(&mut self) {
-        self.len = 0;
-    }
-
     /// Appends a vertex on `bsdf` with throughput `beta` and its light sample (`None` where
     /// none contributes: no light, or one `scatter` would not sample).
     ///
@@ -101,6 +86,14 @@ impl GlossyLanes {
 }
 
 impl LaneKernel for GlossyLanes {
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn clear(&mut self) {
+        self.len = 0;
+    }
+
     /// Scatters all lanes (the filled ones matter): next-event estimation weighted by the
     /// power heuristic (by 1 for punctual lights and with `light_only`), and a continuation
     /// drawn from the BSDF.

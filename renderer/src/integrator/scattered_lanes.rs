@@ -50,6 +50,69 @@ pub(crate) trait LaneKernel {
     /// samples by 1 instead of the power heuristic. Written with [`crate::lanes`] types and
     /// `#[inline(always)]`, so that it is compiled into each of [`scatter`]'s copies.
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes);
+
+    /// Number of lanes filled.
+    fn len(&self) -> usize;
+
+    /// Empties the lanes (their old values stay, unused).
+    fn clear(&mut self);
+}
+
+/// The vertices of one lane kernel in a batch, gathered [`LANES`] at a time: the kernel's
+/// lanes being filled and the results of the groups scattered so far. Each vertex is pushed
+/// at [`LaneGroups::slot`] (where its result will be), then [`LaneGroups::pushed`] scatters
+/// full groups; [`LaneGroups::finish`] scatters the last, partial one.
+#[derive(Default)]
+pub(crate) struct LaneGroups<K> {
+    pub lanes: K,
+    groups: Vec<ScatteredLanes>,
+    /// Groups scattered since the last [`LaneGroups::clear`].
+    scattered: u32,
+}
+
+impl<K: LaneKernel> LaneGroups<K> {
+    /// Starts a new batch.
+    pub fn clear(&mut self) {
+        self.lanes.clear();
+        self.scattered = 0;
+    }
+
+    /// Group and lane of the next vertex pushed into [`LaneGroups::lanes`].
+    #[inline]
+    pub fn slot(&self) -> (u32, u32) {
+        (self.scattered, self.lanes.len() as u32)
+    }
+
+    /// Scatters the lanes once all are filled (call after each push).
+    #[inline]
+    pub fn pushed(&mut self, light_only: bool) {
+        if self.lanes.len() == LANES {
+            self.flush(light_only);
+        }
+    }
+
+    /// Scatters the lanes filled since the last full group, if any.
+    pub fn finish(&mut self, light_only: bool) {
+        if self.lanes.len() > 0 {
+            self.flush(light_only);
+        }
+    }
+
+    fn flush(&mut self, light_only: bool) {
+        let group = self.scattered as usize;
+        if self.groups.len() <= group {
+            self.groups.resize_with(group + 1, ScatteredLanes::default);
+        }
+        scatter(&self.lanes, light_only, &mut self.groups[group]);
+        self.lanes.clear();
+        self.scattered += 1;
+    }
+
+    /// The result of the vertex pushed at `slot` (after it was scattered).
+    #[inline]
+    pub fn get(&self, (group, lane): (u32, u32)) -> Scattered {
+        self.groups[group as usize].get(lane as usize)
+    }
 }
 
 /// Runs `kernel` compiled for AVX-512 or AVX2 where the CPU has them, portable code

@@ -175,24 +175,38 @@ impl NbrdfNetwork {
         #[cfg(target_arch = "x86_64")]
         if self.fma {
             // SAFETY: `fma` is true only when the CPU reported AVX2 and FMA at construction.
-            return unsafe { forward_avx2_fma(self, x) };
+            return unsafe { forward_avx2_fma(self, &[x]) }[0];
         }
         forward_portable(self, x)
+    }
+
+    /// The raw outputs for many inputs (`outputs.len()` must equal `inputs.len()`), each bit
+    /// for bit what [`NbrdfNetwork::forward`] gives for its input. With AVX2 and FMA,
+    /// [`BATCH`] points share each pass over the weights.
+    pub fn forward_batch(&self, inputs: &[[f32; INPUTS]], outputs: &mut [[f32; OUTPUTS]]) {
+        assert_eq!(inputs.len(), outputs.len(), "one output per input");
+        #[cfg(target_arch = "x86_64")]
+        if self.fma {
+            let mut ins = inputs.chunks_exact(BATCH);
+            let mut outs = outputs.chunks_exact_mut(BATCH);
+            for (x, y) in (&mut ins).zip(&mut outs) {
+                // SAFETY: as in `forward`.
+                y.copy_from_slice(&unsafe { forward_avx2_fma::<BATCH>(self, x.try_into().expect("a full batch")) });
+            }
+            for (x, y) in ins.remainder().iter().zip(outs.into_remainder()) {
+                *y = self.forward(*x);
+            }
+            return;
+        }
+        for (x, y) in inputs.iter().zip(outputs) {
+            *y = forward_portable(self, *x);
+        }
     }
 
     /// f_r in 1/sr for a 6D input: max(exp(y) − 1, 0), finite.
     #[inline]
     pub fn eval_input(&self, x: [f32; INPUTS]) -> Rgb {
-        let y = self.forward(x);
-        let f = |v: f32| {
-            let r = v.min(MAX_LOG_VALUE).exp_m1();
-            if r > 0.0 {
-                r
-            } else {
-                0.0
-            }
-        };
-        Vec3::new(f(y[0]), f(y[1]), f(y[2]))
+        output_value(self.forward(x))
     }
 
     /// f_r in 1/sr at the isotropic angles (θh, θd, φd), radians, φd as given.
@@ -204,20 +218,41 @@ impl NbrdfNetwork {
     }
 }
 
+/// f_r in 1/sr of a raw network output y: max(exp(y) − 1, 0) per channel, finite (y is
+/// capped at [`MAX_LOG_VALUE`]).
+#[inline]
+pub fn output_value(y: [f32; OUTPUTS]) -> Rgb {
+    let f = |v: f32| {
+        let r = v.min(MAX_LOG_VALUE).exp_m1();
+        if r > 0.0 {
+            r
+        } else {
+            0.0
+        }
+    };
+    Vec3::new(f(y[0]), f(y[1]), f(y[2]))
+}
 
-/// The forward pass with AVX2 + FMA: each 24-wide layer is three 256-bit registers; the
-/// second layer accumulates even and odd inputs separately to halve the FMA dependency chain.
+/// Points per pass of the AVX2 kernel in [`NbrdfNetwork::forward_batch`]: two points'
+/// twelve second-layer accumulators and the three weight registers they share fill the
+/// sixteen vector registers.
+pub const BATCH: usize = 2;
+
+/// The forward pass with AVX2 + FMA for `P` points at once, each weight row loaded once for
+/// all of them: each 24-wide layer is three 256-bit registers per point; the second layer
+/// accumulates even and odd inputs separately to halve the FMA dependency chain. Every point
+/// goes through the same operations in the same order whatever `P` is, so its output is the
+/// same bits alone and in a batch.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn forward_avx2_fma(net: &NbrdfNetwork, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
+fn forward_avx2_fma<const P: usize>(net: &NbrdfNetwork, x: &[[f32; INPUTS]; P]) -> [[f32; OUTPUTS]; P] {
     use std::arch::x86_64::*;
     const GROUPS: usize = PADDED / 8;
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    fn load(a: &[f32; PADDED], group: usize) -> __m256 {
-        debug_assert!(group < GROUPS);
-        // SAFETY: group < PADDED / 8, so the 8 floats from 8 · group lie inside `a`.
-        unsafe { _mm256_loadu_ps(a.as_ptr().add(8 * group)) }
+    fn load(a: &[f32; PADDED]) -> [__m256; GROUPS] {
+        // SAFETY: g < PADDED / 8, so the 8 floats from 8 · g lie inside `a`.
+        [0, 1, 2].map(|g| unsafe { _mm256_loadu_ps(a.as_ptr().add(8 * g)) })
     }
     #[inline]
     #[target_feature(enable = "avx2,fma")]
@@ -229,41 +264,53 @@ fn forward_avx2_fma(net: &NbrdfNetwork, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
         }
         out
     }
-    let zero = _mm256_setzero_ps();
-    let mut h1 = [0, 1, 2].map(|g| load(&net.b1, g));
-    for (xi, row) in x.iter().zip(&net.w1) {
-        let xv = _mm256_set1_ps(*xi);
-        for (g, h) in h1.iter_mut().enumerate() {
-            *h = _mm256_fmadd_ps(xv, load(row, g), *h);
+    /// acc[g] += a · w[g] for each register group.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn fmadd(a: f32, w: &[__m256; GROUPS], acc: &mut [__m256; GROUPS]) {
+        let av = _mm256_set1_ps(a);
+        for (h, w) in acc.iter_mut().zip(w) {
+            *h = _mm256_fmadd_ps(av, *w, *h);
         }
     }
-    let a1 = store(h1.map(|v| _mm256_max_ps(v, zero)));
-    let mut even = [0, 1, 2].map(|g| load(&net.b2, g));
-    let mut odd = [zero; GROUPS];
+    let zero = _mm256_setzero_ps();
+    let mut h1 = [load(&net.b1); P];
+    for (i, row) in net.w1.iter().enumerate() {
+        let w = load(row);
+        for (h, x) in h1.iter_mut().zip(x) {
+            fmadd(x[i], &w, h);
+        }
+    }
+    let a1 = h1.map(|h| store(h.map(|v| _mm256_max_ps(v, zero))));
+    let mut even = [load(&net.b2); P];
+    let mut odd = [[zero; GROUPS]; P];
     for k in (0..HIDDEN).step_by(2) {
-        let av = _mm256_set1_ps(a1[k]);
-        for (g, e) in even.iter_mut().enumerate() {
-            *e = _mm256_fmadd_ps(av, load(&net.w2[k], g), *e);
+        let w = load(&net.w2[k]);
+        for (e, a) in even.iter_mut().zip(&a1) {
+            fmadd(a[k], &w, e);
         }
         if k + 1 < HIDDEN {
-            let av = _mm256_set1_ps(a1[k + 1]);
-            for (g, o) in odd.iter_mut().enumerate() {
-                *o = _mm256_fmadd_ps(av, load(&net.w2[k + 1], g), *o);
+            let w = load(&net.w2[k + 1]);
+            for (o, a) in odd.iter_mut().zip(&a1) {
+                fmadd(a[k + 1], &w, o);
             }
         }
     }
-    let h2 = [0, 1, 2].map(|g| _mm256_max_ps(_mm256_add_ps(even[g], odd[g]), zero));
-    let mut y = [0f32; OUTPUTS];
-    for (c, yc) in y.iter_mut().enumerate() {
-        let mut acc = _mm256_mul_ps(h2[0], load(&net.w3[c], 0));
-        for (g, h) in h2.iter().enumerate().skip(1) {
-            acc = _mm256_fmadd_ps(*h, load(&net.w3[c], g), acc);
+    let mut y = [[0f32; OUTPUTS]; P];
+    for p in 0..P {
+        let h2 = [0, 1, 2].map(|g| _mm256_max_ps(_mm256_add_ps(even[p][g], odd[p][g]), zero));
+        for (c, yc) in y[p].iter_mut().enumerate() {
+            let w = load(&net.w3[c]);
+            let mut acc = _mm256_mul_ps(h2[0], w[0]);
+            for g in 1..GROUPS {
+                acc = _mm256_fmadd_ps(h2[g], w[g], acc);
+            }
+            // Horizontal sum of the 8 lanes.
+            let quad = _mm_add_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps(acc, 1));
+            let pair = _mm_add_ps(quad, _mm_movehl_ps(quad, quad));
+            let single = _mm_add_ss(pair, _mm_shuffle_ps(pair, pair, 1));
+            *yc = net.b3[c] + _mm_cvtss_f32(single);
         }
-        // Horizontal sum of the 8 lanes.
-        let quad = _mm_add_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps(acc, 1));
-        let pair = _mm_add_ps(quad, _mm_movehl_ps(quad, quad));
-        let single = _mm_add_ss(pair, _mm_shuffle_ps(pair, pair, 1));
-        *yc = net.b3[c] + _mm_cvtss_f32(single);
     }
     y
 }
@@ -340,6 +387,26 @@ mod tests {
             }
         }
         println!("golden vectors: worst relative error {worst:.2e}");
+    }
+
+    /// A batch's outputs are each input's single forward pass, bit for bit, whatever the
+    /// batch's length (full passes and a remainder).
+    #[test]
+    fn batched_forward_equals_single_bit_for_bit() {
+        let net = merl_network("alum-bronze");
+        let inputs: Vec<[f32; INPUTS]> = (0..37)
+            .map(|k| {
+                let t = k as f32 / 37.0;
+                crate::brdf_coords::network_input_from_angles(1.5 * t, 1.5 * (1.0 - t), 3.0 * t)
+            })
+            .collect();
+        for n in [37, 36, 1, 0] {
+            let mut outputs = vec![[0.0; OUTPUTS]; n];
+            net.forward_batch(&inputs[..n], &mut outputs);
+            for (x, y) in inputs.iter().zip(&outputs) {
+                assert_eq!(y.map(f32::to_bits), net.forward(*x).map(f32::to_bits), "{x:?}");
+            }
+        }
     }
 
     #[test]
