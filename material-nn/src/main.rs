@@ -75,6 +75,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    renderer::support::exit_quietly_on_broken_pipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Tabulate(args) => tabulate::run(args),

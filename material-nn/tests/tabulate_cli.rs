@@ -102,3 +102,28 @@ fn errors_are_one_line_with_exit_code_2() {
     let out = material_nn(&["tabulate", "--analytic", "phong", "--out", "x.binary"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// With its standard output closed early (`material-nn … | head -c 0`), the command still
+/// writes its table and ends quietly (killed by SIGPIPE, as Unix tools are), without the
+/// panic of `println!` on a broken pipe.
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_ends_the_command_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ggx.binary");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_material-nn"))
+        .args(["tabulate", "--analytic", "ggx", "--albedo", "0.5,0.3,0.1", "--out", path_str(&path)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("material-nn runs");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("material-nn ends");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    const SIGPIPE: i32 = 13;
+    assert!(out.status.success() || out.status.signal() == Some(SIGPIPE), "{out:?}");
+    assert_eq!(std::fs::metadata(&path).unwrap().len(), renderer::formats::merl::FILE_BYTES);
+}

@@ -495,6 +495,7 @@ fn run_report(args: ReportArgs) -> Result<()> {
 }
 
 fn main() -> ExitCode {
+    renderer::support::exit_quietly_on_broken_pipe();
     let subcommand = std::env::args_os().nth(1);
     let outcome = if subcommand.as_ref().is_some_and(|a| a == "report") {
         match ReportArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit) {

@@ -1,6 +1,6 @@
 //! Small utilities both crates use, each defined once: atomic file writes, the FNV-1a
-//! checksum of the binary formats, CPU-feature detection for the vectorised kernels, and the
-//! `WIDTHxHEIGHT` resolution argument.
+//! checksum of the binary formats, CPU-feature detection for the vectorised kernels, the
+//! `WIDTHxHEIGHT` resolution argument, and the command lines' handling of a closed stdout.
 
 use crate::{Error, Result};
 use std::fs::File;
@@ -93,6 +93,19 @@ pub mod cpu {
 
 /// The largest image width or height the renderer makes or reads as a render's part.
 pub const MAX_RESOLUTION: u32 = 16384;
+
+/// Makes a command-line program end quietly when the reader of its standard output goes away
+/// (`material-nn … | head -n 1`), as Unix tools do: the default action of SIGPIPE, which
+/// Rust's runtime ignores, so that `println!` would panic on the broken pipe instead. Call
+/// first thing in `main`; files the program has finished writing stay as they are (they are
+/// written atomically), and none is left half-written.
+pub fn exit_quietly_on_broken_pipe() {
+    #[cfg(unix)]
+    // SAFETY: restores the default disposition of one signal before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
 
 /// Parses an image size `WIDTHxHEIGHT` (or `WIDTHXHEIGHT`), both in 1..=[`MAX_RESOLUTION`] pixels: the
 /// `--resolution` argument of both command lines.

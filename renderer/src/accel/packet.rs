@@ -257,13 +257,12 @@ struct Closest<S: Simd> {
 }
 
 /// The rays that lanes `0..S::WIDTH` hold (the first ray repeated into unused lanes, which
-/// are masked off): as a packet, their bounds, and the rays as single-ray traversal takes
-/// them.
+/// are masked off) as a packet, and their bounds.
 #[inline(always)]
-fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F, [BvhRay; MAX_WIDTH]) {
+fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F) {
     let mut a = [[0.0f32; MAX_WIDTH]; 10];
-    let singles = std::array::from_fn(|lane| to_bvh_ray(&rays[if lane < rays.len() { lane } else { 0 }]));
-    for (lane, r) in singles.iter().enumerate().take(S::WIDTH) {
+    for lane in 0..S::WIDTH {
+        let r = single(rays, lane);
         for axis in 0..3 {
             a[axis][lane] = r.origin[axis];
             a[3 + axis][lane] = r.direction[axis];
@@ -286,7 +285,14 @@ fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F, [BvhRay; MAX_WIDTH]) {
             s.cmp::<_CMP_LT_OQ>(v[5], zero),
         ],
     };
-    (rays, v[9], singles)
+    (rays, v[9])
+}
+
+/// The ray of `lane` as single-ray traversal takes it (lanes beyond the packet's rays hold
+/// the first ray).
+#[inline(always)]
+fn single(rays: &[Ray], lane: usize) -> BvhRay {
+    to_bvh_ray(&rays[if lane < rays.len() { lane } else { 0 }])
 }
 
 /// The lanes whose ray crosses child `c` of `node` within (T_MIN, t_max) (bit i: lane i):
@@ -453,13 +459,13 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
     }
 }
 
-/// Closest hits: the per-lane best so far, and the rays for single-ray subtrees.
-struct ClosestQuery<S: Simd> {
+/// Closest hits: the per-lane best so far, and the packet's rays (for single-ray subtrees).
+struct ClosestQuery<'r, S: Simd> {
     best: Closest<S>,
-    singles: [BvhRay; MAX_WIDTH],
+    rays: &'r [Ray],
 }
 
-impl<S: Simd> PacketQuery<S> for ClosestQuery<S> {
+impl<S: Simd> PacketQuery<S> for ClosestQuery<'_, S> {
     #[inline(always)]
     fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32 {
         let (t, b1, b2, hit) = triangle_hits(s, bvh, triangle, rays, *t_max, lanes);
@@ -474,7 +480,7 @@ impl<S: Simd> PacketQuery<S> for ClosestQuery<S> {
     fn single(&mut self, s: S, bvh: &Bvh, node: u32, lane: usize, t_max: &mut S::F) -> bool {
         let mut bounds = [0.0f32; MAX_WIDTH];
         s.store(*t_max, &mut bounds);
-        let ray = BvhRay { tmax: bounds[lane], ..self.singles[lane] };
+        let ray = BvhRay { tmax: bounds[lane], ..single(self.rays, lane) };
         // SAFETY: the token `s` exists only where AVX2 and FMA exist (see `Simd`).
         if let Some((t, slot, b)) = unsafe { bvh.closest_below_avx2(node, &ray) } {
             self.best.take(s, 1 << lane, s.splat(t), s.splat(b.x), s.splat(b.y), slot);
@@ -496,13 +502,13 @@ impl<S: Simd> Closest<S> {
     }
 }
 
-/// Occlusion: the lanes found blocked, and the rays for single-ray subtrees.
-struct OcclusionQuery {
+/// Occlusion: the lanes found blocked, and the packet's rays (for single-ray subtrees).
+struct OcclusionQuery<'r> {
     blocked: u32,
-    singles: [BvhRay; MAX_WIDTH],
+    rays: &'r [Ray],
 }
 
-impl<S: Simd> PacketQuery<S> for OcclusionQuery {
+impl<S: Simd> PacketQuery<S> for OcclusionQuery<'_> {
     #[inline(always)]
     fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32 {
         let hit = triangle_hits(s, bvh, triangle, rays, *t_max, lanes).3;
@@ -513,7 +519,7 @@ impl<S: Simd> PacketQuery<S> for OcclusionQuery {
     #[inline(always)]
     fn single(&mut self, _s: S, bvh: &Bvh, node: u32, lane: usize, _t_max: &mut S::F) -> bool {
         // SAFETY: the token `_s` exists only where AVX2 and FMA exist (see `Simd`).
-        let hit = unsafe { bvh.any_below_avx2(node, &self.singles[lane]) };
+        let hit = unsafe { bvh.any_below_avx2(node, &single(self.rays, lane)) };
         self.blocked |= (hit as u32) << lane;
         hit
     }
@@ -530,7 +536,7 @@ fn lanes<S: Simd>(n: usize) -> u32 {
 #[inline(always)]
 fn closest<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Option<Hit>]) {
     let active = lanes::<S>(rays.len());
-    let (r, mut t_max, singles) = load(s, rays);
+    let (r, mut t_max) = load(s, rays);
     let mut query = ClosestQuery {
         best: Closest {
             t: t_max,
@@ -538,7 +544,7 @@ fn closest<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Option<Hit>]) {
             b1: s.splat(0.0),
             b2: s.splat(0.0),
         },
-        singles,
+        rays,
     };
     walk(s, bvh, &r, active, &mut t_max, &mut query);
     let best = query.best;
@@ -562,8 +568,8 @@ fn closest<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Option<Hit>]) {
 #[inline(always)]
 fn occluded<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [bool]) {
     let active = lanes::<S>(rays.len());
-    let (r, mut t_max, singles) = load(s, rays);
-    let mut query = OcclusionQuery { blocked: 0, singles };
+    let (r, mut t_max) = load(s, rays);
+    let mut query = OcclusionQuery { blocked: 0, rays };
     walk(s, bvh, &r, active, &mut t_max, &mut query);
     for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
         *o = query.blocked & (1 << i) != 0;
