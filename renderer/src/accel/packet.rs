@@ -257,35 +257,43 @@ struct Closest<S: Simd> {
 }
 
 /// The rays that lanes `0..S::WIDTH` hold (the first ray repeated into unused lanes, which
-/// are masked off) as a packet, and their bounds.
+/// are masked off) as a packet, and their bounds: [`to_bvh_ray`]'s arithmetic per lane (the
+/// direction with −0 turned into +0, its reciprocal with components within ε of zero
+/// replaced by ±1/ε), so that the packet's rays are the single-ray walk's bit for bit.
 #[inline(always)]
 fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F) {
-    let mut a = [[0.0f32; MAX_WIDTH]; 10];
+    let mut a = [[0.0f32; MAX_WIDTH]; 7];
     for lane in 0..S::WIDTH {
-        let r = single(rays, lane);
+        let r = &rays[if lane < rays.len() { lane } else { 0 }];
         for axis in 0..3 {
             a[axis][lane] = r.origin[axis];
             a[3 + axis][lane] = r.direction[axis];
-            a[6 + axis][lane] = r.inv_direction[axis];
         }
-        a[9][lane] = r.tmax;
+        a[6][lane] = r.t_max;
     }
     let zero = s.splat(0.0);
-    let mut v = [zero; 10];
+    let mut v = [zero; 7];
     for (v, a) in v.iter_mut().zip(&a) {
         *v = s.load(a);
     }
+    let (tiny, huge) = (s.splat(f32::EPSILON), s.splat(1.0 / f32::EPSILON));
+    let mut d = [zero; 3];
+    let mut inv = [zero; 3];
+    let mut negative = [s.cmp::<_CMP_LT_OQ>(zero, zero); 3];
+    for axis in 0..3 {
+        d[axis] = s.add(v[3 + axis], zero);
+        negative[axis] = s.cmp::<_CMP_LT_OQ>(d[axis], zero);
+        let near_zero = s.and(s.cmp::<_CMP_LE_OQ>(d[axis], tiny), s.cmp::<_CMP_GE_OQ>(d[axis], s.sub(zero, tiny)));
+        let signed_huge = s.blend(negative[axis], huge, s.sub(zero, huge));
+        inv[axis] = s.blend(near_zero, s.div(s.splat(1.0), d[axis]), signed_huge);
+    }
     let rays = Rays {
         o: [v[0], v[1], v[2]],
-        d: [v[3], v[4], v[5]],
-        inv: [v[6], v[7], v[8]],
-        negative: [
-            s.cmp::<_CMP_LT_OQ>(v[3], zero),
-            s.cmp::<_CMP_LT_OQ>(v[4], zero),
-            s.cmp::<_CMP_LT_OQ>(v[5], zero),
-        ],
+        d,
+        inv,
+        negative,
     };
-    (rays, v[9])
+    (rays, v[6])
 }
 
 /// The ray of `lane` as single-ray traversal takes it (lanes beyond the packet's rays hold
