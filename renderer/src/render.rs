@@ -158,7 +158,7 @@ impl<'a> Renderer<'a> {
     /// alone is a chain of dependent latencies. Each path consumes its random stream exactly
     /// as [`PathTracer::radiance`] does, so the image is the same.
     fn render_tile(&self, scratch: &mut TileScratch<'a>, tiles: Tiles, tile: u32, samples: Range<u32>) -> (Vec<PixelAccumulator>, PassCounters) {
-        let (first_sample, count) = (samples.start, samples.len() as u32);
+        let count = samples.len() as u32;
         let w = tiles.full_width;
         let (x0, y0, x1, y1) = tiles.bounds(tile);
         let tile_w = x1 - x0;
@@ -182,14 +182,19 @@ impl<'a> Renderer<'a> {
         owners.clear();
         active.clear();
         let scene = self.scene;
-        for j in 0..batch as u32 {
-            let (s, k) = (first_sample + j / n as u32, j % n as u32);
-            let (x, y) = (x0 + k % tile_w, y0 + k / tile_w);
-            let mut sampler = Sampler::new(self.seed, (x + y * w) as u64, s as u64);
-            let film_pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-            if let Some(path) = self.integrator.start(self.camera.generate_ray(film_pos), sampler) {
-                paths.push(path);
-                owners.push(j);
+        // j: the sample's index in the batch, sample-major then row by row.
+        let mut j = 0u32;
+        for s in samples {
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let mut sampler = Sampler::new(self.seed, (x + y * w) as u64, s as u64);
+                    let film_pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                    if let Some(path) = self.integrator.start(self.camera.generate_ray(film_pos), sampler) {
+                        paths.push(path);
+                        owners.push(j);
+                    }
+                    j += 1;
+                }
             }
         }
         active.extend(0..paths.len() as u32);
