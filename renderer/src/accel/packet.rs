@@ -263,8 +263,7 @@ struct Closest<S: Simd> {
 #[inline(always)]
 fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F) {
     let mut a = [[0.0f32; MAX_WIDTH]; 7];
-    for lane in 0..S::WIDTH {
-        let r = &rays[if lane < rays.len() { lane } else { 0 }];
+    for (lane, r) in (0..S::WIDTH).map(|lane| lane_ray(rays, lane)).enumerate() {
         for axis in 0..3 {
             a[axis][lane] = r.origin[axis];
             a[3 + axis][lane] = r.direction[axis];
@@ -296,11 +295,17 @@ fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F) {
     (rays, v[6])
 }
 
-/// The ray of `lane` as single-ray traversal takes it (lanes beyond the packet's rays hold
-/// the first ray).
+/// The ray lane `lane` of a packet of `rays` holds: its own, or the first ray in lanes beyond
+/// the packet's rays.
+#[inline(always)]
+fn lane_ray(rays: &[Ray], lane: usize) -> &Ray {
+    &rays[if lane < rays.len() { lane } else { 0 }]
+}
+
+/// The ray of `lane` as single-ray traversal takes it.
 #[inline(always)]
 fn single(rays: &[Ray], lane: usize) -> BvhRay {
-    to_bvh_ray(&rays[if lane < rays.len() { lane } else { 0 }])
+    to_bvh_ray(lane_ray(rays, lane))
 }
 
 /// The lanes whose ray crosses child `c` of `node` within (T_MIN, t_max) (bit i: lane i):

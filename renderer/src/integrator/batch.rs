@@ -116,13 +116,11 @@ impl PathTracer {
                     _ => None,
                 };
                 if let Some((albedo, light, select_pdf)) = diffuse_triangle {
-                    outcomes.push(Outcome::Diffuse(diffuse.slot()));
-                    diffuse.lanes.push(&v, albedo, path.beta, light, select_pdf);
-                    diffuse.pushed(light_only);
+                    let slot = diffuse.push(light_only, |lanes| lanes.push(&v, albedo, path.beta, light, select_pdf));
+                    outcomes.push(Outcome::Diffuse(slot));
                 } else if let Bsdf::MetallicRoughness(bsdf) = &v.bsdf {
-                    outcomes.push(Outcome::Glossy(glossy.slot()));
-                    glossy.lanes.push(&v, bsdf, path.beta, self.light_sample(scene, &v));
-                    glossy.pushed(light_only);
+                    let slot = glossy.push(light_only, |lanes| lanes.push(&v, bsdf, path.beta, self.light_sample(scene, &v)));
+                    outcomes.push(Outcome::Glossy(slot));
                 } else if let Bsdf::Neural(bsdf) = v.bsdf {
                     outcomes.push(Outcome::Neural(neural.len() as u32));
                     neural.push(self, scene, &v, bsdf, path.beta);

@@ -59,12 +59,12 @@ pub(crate) trait LaneKernel {
 }
 
 /// The vertices of one lane kernel in a batch, gathered [`LANES`] at a time: the kernel's
-/// lanes being filled and the results of the groups scattered so far. Each vertex is pushed
-/// at [`LaneGroups::slot`] (where its result will be), then [`LaneGroups::pushed`] scatters
-/// full groups; [`LaneGroups::finish`] scatters the last, partial one.
+/// lanes being filled and the results of the groups scattered so far. [`LaneGroups::push`]
+/// fills a lane and scatters full groups; [`LaneGroups::finish`] scatters the last, partial
+/// one.
 #[derive(Default)]
 pub(crate) struct LaneGroups<K> {
-    pub lanes: K,
+    lanes: K,
     groups: Vec<ScatteredLanes>,
     /// Groups scattered since the last [`LaneGroups::clear`].
     scattered: u32,
@@ -77,18 +77,17 @@ impl<K: LaneKernel> LaneGroups<K> {
         self.scattered = 0;
     }
 
-    /// Group and lane of the next vertex pushed into [`LaneGroups::lanes`].
+    /// Fills the next lane with `fill` (one push into the kernel's lanes), scatters the lanes
+    /// once all are filled, and returns the group and lane where the vertex's result will be.
     #[inline]
-    pub fn slot(&self) -> (u32, u32) {
-        (self.scattered, self.lanes.len() as u32)
-    }
-
-    /// Scatters the lanes once all are filled (call after each push).
-    #[inline]
-    pub fn pushed(&mut self, light_only: bool) {
+    pub fn push(&mut self, light_only: bool, fill: impl FnOnce(&mut K)) -> (u32, u32) {
+        let slot = (self.scattered, self.lanes.len() as u32);
+        fill(&mut self.lanes);
+        debug_assert_eq!(self.lanes.len() as u32, slot.1 + 1, "one vertex per push");
         if self.lanes.len() == LANES {
             self.flush(light_only);
         }
+        slot
     }
 
     /// Scatters the lanes filled since the last full group, if any.
