@@ -9,6 +9,7 @@ use crate::camera::PinholeCamera;
 use crate::film::{Film, PixelAccumulator, Region};
 use crate::accel::{Hit, Ray};
 use crate::integrator::{BatchBuffers, PathState, PathTracer, StepResults};
+use crate::lanes::{Vec2s, LANES};
 use crate::render_scene::RenderScene;
 use crate::sampler::Sampler;
 use crate::Rgb;
@@ -182,18 +183,29 @@ impl<'a> Renderer<'a> {
         owners.clear();
         active.clear();
         let scene = self.scene;
-        // j: the sample's index in the batch, sample-major then row by row.
+        // j: the sample's index in the batch, sample-major then row by row. A row's camera
+        // rays are made LANES at a time (the same rays as one by one).
         let mut j = 0u32;
+        let origin = self.camera.origin();
+        let mut film = Vec2s::default();
+        let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| Sampler::new(0, 0, 0));
         for s in samples {
             for y in y0..y1 {
-                for x in x0..x1 {
-                    let mut sampler = Sampler::new(self.seed, (x + y * w) as u64, s as u64);
-                    let film_pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                    if let Some(path) = self.integrator.start(self.camera.generate_ray(film_pos), sampler) {
-                        paths.push(path);
-                        owners.push(j);
+                for xs in (x0..x1).step_by(LANES) {
+                    let group = xs..(xs + LANES as u32).min(x1);
+                    for (lane, x) in group.clone().enumerate() {
+                        let mut sampler = Sampler::new(self.seed, (x + y * w) as u64, s as u64);
+                        film.set(lane, Vec2::new(x as f32, y as f32) + sampler.next_2d());
+                        samplers[lane] = sampler;
                     }
-                    j += 1;
+                    let directions = self.camera.generate_directions(&film);
+                    for (lane, sampler) in samplers[..group.len()].iter().enumerate() {
+                        if let Some(path) = self.integrator.start(Ray::new(origin, directions.get(lane)), sampler.clone()) {
+                            paths.push(path);
+                            owners.push(j);
+                        }
+                        j += 1;
+                    }
                 }
             }
         }
@@ -394,23 +406,31 @@ mod tests {
             Nbrdf,
         }
         let cases = [
-            ("cornell-box", 8, Strategy::Mis, Sphere::Gltf),
-            ("cornell-box", 1, Strategy::Mis, Sphere::Gltf),
-            ("cornell-box", 6, Strategy::LightOnly, Sphere::Gltf),
-            ("cornell-box", 6, Strategy::BsdfOnly, Sphere::Gltf),
-            ("material-preview", 6, Strategy::Mis, Sphere::Gltf),
-            ("material-preview", 4, Strategy::LightOnly, Sphere::Gltf),
-            ("material-preview", 5, Strategy::BsdfOnly, Sphere::Gltf),
-            ("material-preview", 6, Strategy::Mis, Sphere::Neural),
-            ("material-preview", 5, Strategy::LightOnly, Sphere::Neural),
-            ("material-preview", 5, Strategy::BsdfOnly, Sphere::Neural),
-            ("material-preview", 6, Strategy::Mis, Sphere::Merl),
-            ("material-preview", 5, Strategy::BsdfOnly, Sphere::Merl),
-            ("material-preview", 6, Strategy::Mis, Sphere::Nbrdf),
-            ("material-preview", 5, Strategy::LightOnly, Sphere::Nbrdf),
+            ("cornell-box", 8, Strategy::Mis, Sphere::Gltf, false),
+            ("cornell-box", 1, Strategy::Mis, Sphere::Gltf, false),
+            ("cornell-box", 6, Strategy::LightOnly, Sphere::Gltf, false),
+            ("cornell-box", 6, Strategy::BsdfOnly, Sphere::Gltf, false),
+            ("material-preview", 6, Strategy::Mis, Sphere::Gltf, false),
+            ("material-preview", 4, Strategy::LightOnly, Sphere::Gltf, false),
+            ("material-preview", 5, Strategy::BsdfOnly, Sphere::Gltf, false),
+            ("material-preview", 6, Strategy::Mis, Sphere::Neural, false),
+            ("material-preview", 5, Strategy::LightOnly, Sphere::Neural, false),
+            ("material-preview", 5, Strategy::BsdfOnly, Sphere::Neural, false),
+            ("material-preview", 6, Strategy::Mis, Sphere::Merl, false),
+            ("material-preview", 5, Strategy::BsdfOnly, Sphere::Merl, false),
+            ("material-preview", 6, Strategy::Mis, Sphere::Nbrdf, false),
+            ("material-preview", 5, Strategy::LightOnly, Sphere::Nbrdf, false),
+            // The preview's environment map replaced by a constant one, which the glossy lanes
+            // sample themselves.
+            ("material-preview", 6, Strategy::Mis, Sphere::Gltf, true),
+            ("material-preview", 5, Strategy::LightOnly, Sphere::Gltf, true),
         ];
-        for (name, max_depth, strategy, sphere) in cases {
-            let description = SceneDescription::load(format!("{root}{name}/scene.gltf").as_ref()).expect("shipped scene");
+        for (name, max_depth, strategy, sphere, constant_environment) in cases {
+            let mut description = SceneDescription::load(format!("{root}{name}/scene.gltf").as_ref()).expect("shipped scene");
+            if constant_environment {
+                let spec = description.environment.as_mut().expect("the scene has an environment");
+                spec.source = crate::scene::EnvironmentSource::Constant(Rgb::new(0.9, 1.0, 1.2));
+            }
             let camera = description.camera(None).expect("camera").clone();
             let latents = match sphere {
                 Sphere::Gltf => &crate::neural::latent_library::LatentLibrary::default(),
@@ -456,7 +476,7 @@ mod tests {
                     expected.push(Rgb::new((acc.sum[0] * k) as f32, (acc.sum[1] * k) as f32, (acc.sum[2] * k) as f32));
                 }
             }
-            assert_eq!(film.mean(), expected, "{name}, depth {max_depth}, {strategy:?}, {sphere:?}");
+            assert_eq!(film.mean(), expected, "{name}, depth {max_depth}, {strategy:?}, {sphere:?}, constant {constant_environment}");
             assert_eq!(stats.rays, counters.rays + counters.shadow_rays, "{name}");
             assert!(expected.iter().any(|l| l.max_element() > 0.0), "{name}: the image is not black");
         }

@@ -143,6 +143,19 @@ pub fn sample_uniform_sphere(u: Vec2) -> Vec3 {
     Vec3::new(r * cos_phi, r * sin_phi, z)
 }
 
+/// [`sample_uniform_sphere`] per lane, with the same operations (the same bits).
+#[inline(always)]
+pub fn sample_uniform_sphere_lanes(u: Vec2s) -> Vec3s {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(F32s::splat(0.0)).sqrt();
+    let (sin_phi, cos_phi) = sin_cos_turns_lanes(u.y);
+    Vec3s {
+        x: r * cos_phi,
+        y: r * sin_phi,
+        z,
+    }
+}
+
 /// Density of [`sample_uniform_sphere`] in 1/sr.
 #[inline]
 pub fn uniform_sphere_pdf() -> f32 {
@@ -552,6 +565,24 @@ mod tests {
             for (i, &x) in u.0.iter().enumerate() {
                 let (es, ec) = sin_cos_turns(x);
                 assert_eq!((s.0[i].to_bits(), c.0[i].to_bits()), (es.to_bits(), ec.to_bits()), "u = {x}");
+            }
+        }
+    }
+
+    /// Uniform sphere directions per lane are the scalar ones bit for bit, poles included.
+    #[test]
+    fn uniform_sphere_lanes_equal_scalar_samples() {
+        let mut rng = crate::sampler::Sampler::new(5, 2, 9);
+        let mut u = Vec2s::default();
+        for group in 0..64 {
+            for lane in 0..crate::lanes::LANES {
+                let v = if group == 0 { Vec2::new([0.0, 0.5, 0.999_999_94][lane % 3], 0.25) } else { rng.next_2d() };
+                u.set(lane, v);
+            }
+            let d = sample_uniform_sphere_lanes(u);
+            for lane in 0..crate::lanes::LANES {
+                let expected = sample_uniform_sphere(Vec2::new(u.x.0[lane], u.y.0[lane]));
+                assert_eq!(d.get(lane).to_array().map(f32::to_bits), expected.to_array().map(f32::to_bits));
             }
         }
     }

@@ -119,7 +119,7 @@ impl PathTracer {
                     let slot = diffuse.push(light_only, |lanes| lanes.push(&v, albedo, path.beta, light, select_pdf));
                     outcomes.push(Outcome::Diffuse(slot));
                 } else if let Bsdf::MetallicRoughness(bsdf) = &v.bsdf {
-                    let slot = glossy.push(light_only, |lanes| lanes.push(&v, bsdf, path.beta, self.light_sample(scene, &v)));
+                    let slot = glossy.push(light_only, |lanes| lanes.push(&v, bsdf, path.beta, self.lane_light(scene, &v)));
                     outcomes.push(Outcome::Glossy(slot));
                 } else if let Bsdf::Neural(bsdf) = v.bsdf {
                     outcomes.push(Outcome::Neural(neural.len() as u32));

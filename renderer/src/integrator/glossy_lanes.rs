@@ -3,7 +3,9 @@
 //!
 //! Each vertex's light sample is drawn one by one as `scatter` draws it (an environment
 //! map's CDF walk, a punctual light, a triangle: memory-bound or cheap work that lanes would
-//! not speed up) and pushed with the vertex; the kernel then does the rest of `scatter` for
+//! not speed up) and pushed with the vertex, except a constant environment's: its uniform
+//! direction on the sphere (a sine and cosine) is drawn in the kernel, all lanes at once
+//! ([`LaneLight`]). The kernel then does the rest of `scatter` for
 //! all lanes together — the BSDF's value and density toward the light, the multiple
 //! importance weight, the shadow ray, the BSDF sample with its value and density, and the
 //! continuation — with [`MetallicRoughnessLanes`], the scalar formulas per lane. Each lane's
@@ -13,13 +15,43 @@
 //! [`PathTracer::scatter`]: super::PathTracer
 
 use super::scattered_lanes::{offset_ray_origin, power_heuristic, LaneKernel, ScatteredLanes};
-use super::{Vertex, SHADOW_EPSILON};
+use super::{PathTracer, Strategy, Vertex, SHADOW_EPSILON};
 use crate::bsdf::metallic_roughness_lanes::MetallicRoughnessLanes;
 use crate::bsdf::MetallicRoughness;
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::lights::LightSample;
+use crate::render_scene::RenderScene;
+use crate::sampling::{sample_uniform_sphere_lanes, uniform_sphere_pdf};
 use crate::Rgb;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
+
+/// The light sample of a glossy vertex as it is pushed.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum LaneLight {
+    /// No light sample contributes (no light, or one `scatter` would not sample).
+    None,
+    /// Drawn one by one, as `scatter` draws it.
+    Sampled(LightSample),
+    /// A constant environment's uniform sample, drawn by the kernel from `u`: the sample
+    /// `scatter` would draw, with radiance `radiance` and density `pdf` (selection included).
+    UniformSphere { u: Vec2, radiance: Rgb, pdf: f32 },
+}
+
+impl PathTracer {
+    /// What vertex `v` pushes into [`GlossyLanes`] as its light: a constant environment's
+    /// sample left to the kernel, any other drawn now ([`PathTracer::light_sample`]).
+    #[inline]
+    pub(crate) fn lane_light(&self, scene: &RenderScene, v: &Vertex) -> LaneLight {
+        if let Some((index, select_pdf)) = v.light.filter(|_| self.strategy != Strategy::BsdfOnly) {
+            if let Some(radiance) = scene.lights.constant_environment(index) {
+                // As LightSet::sample_chosen: the environment's density times the selection's.
+                let pdf = uniform_sphere_pdf() * select_pdf;
+                return LaneLight::UniformSphere { u: v.u_light, radiance, pdf };
+            }
+        }
+        self.light_sample(scene, v).map_or(LaneLight::None, LaneLight::Sampled)
+    }
+}
 
 /// Up to [`LANES`] metallic-roughness vertices with their light samples, in
 /// structure-of-arrays form.
@@ -39,8 +71,11 @@ pub(crate) struct GlossyLanes {
     beta: Vec3s,
     u: Vec2s,
     uc: F32s,
-    /// The light sample where there is one (`light_ok`).
+    /// The light sample where there is one (`light_ok`), its direction drawn by the kernel
+    /// from `light_u` where `light_uniform`.
     light_ok: [bool; LANES],
+    light_uniform: [bool; LANES],
+    light_u: Vec2s,
     light_direction: Vec3s,
     light_radiance: Vec3s,
     light_pdf: F32s,
@@ -51,13 +86,13 @@ pub(crate) struct GlossyLanes {
 }
 
 impl GlossyLanes {
-    /// Appends a vertex on `bsdf` with throughput `beta` and its light sample (`None` where
-    /// none contributes: no light, or one `scatter` would not sample).
+    /// Appends a vertex on `bsdf` with throughput `beta` and its light sample
+    /// ([`PathTracer::lane_light`]).
     ///
     /// # Panics
     /// When all lanes are filled.
     #[inline]
-    pub fn push(&mut self, vertex: &Vertex, bsdf: &MetallicRoughness, beta: Rgb, light: Option<LightSample>) {
+    pub fn push(&mut self, vertex: &Vertex, bsdf: &MetallicRoughness, beta: Rgb, light: LaneLight) {
         let i = self.len;
         assert!(i < LANES, "glossy lanes are full");
         let sp = &vertex.sp;
@@ -72,14 +107,25 @@ impl GlossyLanes {
         self.beta.set(i, beta);
         self.u.set(i, vertex.u);
         self.uc.0[i] = vertex.uc;
-        self.light_ok[i] = light.is_some();
-        if let Some(ls) = light {
-            self.light_direction.set(i, ls.direction);
-            self.light_radiance.set(i, ls.radiance);
-            self.light_pdf.0[i] = ls.pdf;
-            self.light_delta[i] = ls.is_delta;
-            self.light_has_target[i] = ls.shadow_target.is_some();
-            self.light_target.set(i, ls.shadow_target.unwrap_or(Vec3::ZERO));
+        self.light_ok[i] = !matches!(light, LaneLight::None);
+        self.light_uniform[i] = matches!(light, LaneLight::UniformSphere { .. });
+        match light {
+            LaneLight::None => {}
+            LaneLight::Sampled(ls) => {
+                self.light_direction.set(i, ls.direction);
+                self.light_radiance.set(i, ls.radiance);
+                self.light_pdf.0[i] = ls.pdf;
+                self.light_delta[i] = ls.is_delta;
+                self.light_has_target[i] = ls.shadow_target.is_some();
+                self.light_target.set(i, ls.shadow_target.unwrap_or(Vec3::ZERO));
+            }
+            LaneLight::UniformSphere { u, radiance, pdf } => {
+                self.light_u.set(i, u);
+                self.light_radiance.set(i, radiance);
+                self.light_pdf.0[i] = pdf;
+                self.light_delta[i] = false;
+                self.light_has_target[i] = false;
+            }
         }
         self.len += 1;
     }
@@ -108,7 +154,12 @@ impl LaneKernel for GlossyLanes {
         };
 
         // Next-event estimation (PathTracer::light_term and light_contribution).
-        let direction = self.light_direction;
+        let uniform = Mask(self.light_uniform);
+        let direction = if uniform.0.iter().any(|&u| u) {
+            uniform.select3(sample_uniform_sphere_lanes(self.light_u), self.light_direction)
+        } else {
+            self.light_direction
+        };
         let wi = to_local(direction);
         let p_specular = self.bsdf.specular_probability(wo);
         let (f, bsdf_pdf) = self.bsdf.eval_pdf(p_specular, wo, wi);
@@ -147,15 +198,25 @@ mod tests {
     use crate::render_scene::RenderScene;
     use crate::sampler::Sampler;
     use crate::sampling::sample_uniform_sphere;
-    use crate::scene::SceneDescription;
+    use crate::scene::{EnvironmentSource, SceneDescription};
 
     /// Every lane gives what the scalar `scatter` gives for its vertex, bit for bit, on the
-    /// material-preview's metallic-roughness surfaces lit by its environment map and its
-    /// point light, for full and partial groups, every strategy and zero throughputs.
+    /// material-preview's metallic-roughness surfaces lit by its point light and by its
+    /// environment map or, in place of the map, a constant environment (whose samples the
+    /// kernel draws), for full and partial groups, every strategy and zero throughputs.
     #[test]
     fn lanes_equal_scalar_scatter_bit_for_bit() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/material-preview/scene.gltf");
-        let scene = RenderScene::new(SceneDescription::load(path.as_ref()).expect("shipped scene")).expect("scene");
+        let description = SceneDescription::load(path.as_ref()).expect("shipped scene");
+        let mut constant = description.clone();
+        let spec = constant.environment.as_mut().expect("the preview has an environment");
+        spec.source = EnvironmentSource::Constant(Rgb::new(0.8, 1.0, 1.3));
+        for (description, is_constant) in [(description, false), (constant, true)] {
+            lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"), is_constant);
+        }
+    }
+
+    fn lanes_equal_scalar_scatter_in(scene: &RenderScene, is_constant: bool) {
         let mut rng = Sampler::new(5, 2, 7);
         for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
             let tracer = PathTracer {
@@ -171,23 +232,24 @@ mod tests {
                 // Every eighth throughput is zero: the continuation must end there.
                 state.beta = if cases.len() % 8 == 0 { Rgb::ZERO } else { rng.next_2d().extend(rng.next_1d()) * 2.0 };
                 let hit = scene.intersect(&ray);
-                let Some(vertex) = tracer.begin(&scene, &mut state, hit) else { continue };
+                let Some(vertex) = tracer.begin(scene, &mut state, hit) else { continue };
                 if let Bsdf::MetallicRoughness(bsdf) = vertex.bsdf {
                     cases.push((vertex, bsdf, state.beta));
                 }
             }
             let (mut lanes, mut out) = (GlossyLanes::default(), ScatteredLanes::default());
-            let (mut shadows, mut continued, mut delta) = (0, 0, 0);
+            let (mut shadows, mut continued, mut delta, mut uniform) = (0, 0, 0, 0);
             for group in cases.chunks(LANES) {
                 lanes.clear();
                 for (vertex, bsdf, beta) in group {
-                    let light = tracer.light_sample(&scene, vertex);
-                    delta += light.is_some_and(|l| l.is_delta) as usize;
+                    let light = tracer.lane_light(scene, vertex);
+                    delta += matches!(light, LaneLight::Sampled(l) if l.is_delta) as usize;
+                    uniform += matches!(light, LaneLight::UniformSphere { .. }) as usize;
                     lanes.push(vertex, bsdf, *beta, light);
                 }
                 crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
                 for (lane, (vertex, _, beta)) in group.iter().enumerate() {
-                    let expected = tracer.scatter(&scene, vertex, *beta);
+                    let expected = tracer.scatter(scene, vertex, *beta);
                     assert_eq!(format!("{:?}", out.get(lane)), format!("{expected:?}"), "{strategy:?}, lane {lane}");
                     shadows += expected.shadow.is_some() as usize;
                     continued += expected.next.is_some() as usize;
@@ -195,6 +257,8 @@ mod tests {
             }
             assert!(shadows > 0 && shadows < cases.len(), "{strategy:?}: lit and unlit lanes: {shadows}");
             assert!(delta > 0, "{strategy:?}: the point light is sampled");
+            let kernel_draws = is_constant && strategy != Strategy::BsdfOnly;
+            assert_eq!(uniform > 0, kernel_draws, "{strategy:?}: {uniform} constant-environment samples drawn in lanes");
             assert!(continued > cases.len() / 2 && continued < cases.len(), "{strategy:?}: {continued} continue");
         }
     }

@@ -79,6 +79,16 @@ impl Environment {
         }
     }
 
+    /// The radiance of a constant environment (`None` for an image), whose [`Self::sample`]
+    /// is the uniform sphere: what lane kernels draw themselves.
+    #[inline]
+    pub fn constant_radiance(&self) -> Option<Rgb> {
+        match self.kind {
+            Kind::Constant(c) => Some(c),
+            Kind::Image { .. } => None,
+        }
+    }
+
     fn image_kind(width: usize, height: usize, texels: Vec<Rgb>) -> Kind {
         let weights: Vec<f32> = texels
             .iter()

@@ -150,6 +150,16 @@ impl LightSet {
         }
     }
 
+    /// The radiance of light `index` if it is a constant environment (sampled uniformly over
+    /// the sphere by [`Self::sample_chosen`]).
+    #[inline]
+    pub fn constant_environment(&self, index: u32) -> Option<Rgb> {
+        match &self.lights[index as usize] {
+            Light::Environment => self.environment.as_ref()?.constant_radiance(),
+            _ => None,
+        }
+    }
+
     /// Samples light `index`, chosen with probability `select_pdf` by [`Self::choose`], from
     /// shading point `p`.
     #[inline]
