@@ -15,6 +15,7 @@
 //!   coordinates reciprocal. [`isotropic_angles`] and [`network_input`] fold.
 //! - Angles are in radians.
 
+use crate::trig::atan2;
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -48,7 +49,7 @@ pub struct HalfDiffAngles {
 /// Polar angle of a unit vector, accurate near both poles (atan2 rather than acos).
 #[inline]
 pub fn polar_angle(v: Vec3) -> f32 {
-    (v.x * v.x + v.y * v.y).sqrt().atan2(v.z)
+    atan2((v.x * v.x + v.y * v.y).sqrt(), v.z)
 }
 
 /// Half and difference vectors of (wi, wo). When wi = −wo (no half vector) h is taken as +z.
@@ -85,9 +86,9 @@ pub fn half_diff_angles(wi: Vec3, wo: Vec3) -> HalfDiffAngles {
     let hd = half_diff(wi, wo);
     HalfDiffAngles {
         theta_h: polar_angle(hd.h),
-        phi_h: hd.cos_sin_phi_h.1.atan2(hd.cos_sin_phi_h.0),
+        phi_h: atan2(hd.cos_sin_phi_h.1, hd.cos_sin_phi_h.0),
         theta_d: polar_angle(hd.d),
-        phi_d: hd.d.y.atan2(hd.d.x),
+        phi_d: atan2(hd.d.y, hd.d.x),
     }
 }
 
@@ -134,9 +135,9 @@ fn needs_fold(d: Vec3) -> bool {
 pub fn isotropic_angles(wi: Vec3, wo: Vec3) -> [f32; 3] {
     let hd = half_diff(wi, wo);
     let phi_d = if needs_fold(hd.d) {
-        (-hd.d.y).atan2(-hd.d.x)
+        atan2(-hd.d.y, -hd.d.x)
     } else {
-        hd.d.y.atan2(hd.d.x)
+        atan2(hd.d.y, hd.d.x)
     };
     [polar_angle(hd.h), polar_angle(hd.d), fold_phi_d(phi_d)]
 }
@@ -170,7 +171,7 @@ fn sin_theta_h_and_folded_d(hd: &HalfDiff) -> (f32, Vec3) {
 pub fn network_input_and_angles(wi: Vec3, wo: Vec3) -> ([f32; 6], [f32; 3]) {
     let hd = half_diff(wi, wo);
     let (sin_h, d) = sin_theta_h_and_folded_d(&hd);
-    let angles = [sin_h.atan2(hd.h.z), polar_angle(d), fold_phi_d(d.y.atan2(d.x))];
+    let angles = [atan2(sin_h, hd.h.z), polar_angle(d), fold_phi_d(atan2(d.y, d.x))];
     ([sin_h, 0.0, hd.h.z, d.x, d.y, d.z], angles)
 }
 

@@ -32,6 +32,7 @@ pub mod sampling;
 pub mod scene;
 pub mod support;
 pub mod testing;
+pub mod trig;
 
 pub use color::Rgb;
 pub use error::{Error, Result};

@@ -32,7 +32,8 @@
 //!
 //! The BRDF is never asked for a density: only its values enter the fit.
 
-use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, Distribution1D, ONE_MINUS_EPSILON};
+use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, sin_cos_turns, Distribution1D, ONE_MINUS_EPSILON};
+use crate::trig::atan2;
 use crate::bsdf::{BsdfSample, Bxdf};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -290,8 +291,8 @@ fn row_boundary_v(y: f64) -> f32 {
 #[inline]
 fn half_vector_at(v: f32, x: f32, sign: f32) -> Vec3 {
     let sin_h = (v * (2.0 - v)).max(0.0).sqrt();
-    let (sp, cp) = (sign * x * PI).sin_cos();
-    Vec3::new(sin_h * cp, sin_h * sp, 1.0 - v)
+    let (sp, cp) = sin_cos_turns(0.5 * x);
+    Vec3::new(sin_h * cp, sin_h * (sign * sp), 1.0 - v)
 }
 
 impl TabulatedSampler {
@@ -440,13 +441,13 @@ impl TabulatedSampler {
         let (c, s) = azimuth(wo);
         let hx = c * h.x + s * h.y;
         let hy = -s * h.x + c * h.y;
-        let sin_h = hx.hypot(hy);
-        let theta_h = sin_h.atan2(h.z);
+        let sin2_h = hx * hx + hy * hy;
+        let theta_h = atan2(sin2_h.sqrt(), h.z);
         let ny = self.row_v.len() - 1;
         let row = (((theta_h / FRAC_PI_2).sqrt() * ny as f32) as usize).min(ny - 1);
-        let half = 0.5 * theta_h;
-        let v = 2.0 * half.sin() * half.sin();
-        let x = (hy.atan2(hx).abs() / PI).min(1.0);
+        // 1 − cos θh as sin²θh / (1 + cos θh): no cancellation near h = n (h.z > 0 here).
+        let v = sin2_h / (1.0 + h.z);
+        let x = (atan2(hy, hx).abs() / PI).min(1.0);
         let (k, t) = self.nodes(wo);
         let mut density =
             (1.0 - t) * self.tables[k].density(x, v, row, self.phi_cells, &self.row_v);

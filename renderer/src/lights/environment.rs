@@ -9,8 +9,9 @@
 
 use crate::color::luminance;
 use crate::error::{Error, Result};
-use crate::sampling::{sample_uniform_sphere, uniform_sphere_pdf, Distribution2D};
+use crate::sampling::{sample_uniform_sphere, sin_cos_turns, uniform_sphere_pdf, Distribution2D};
 use crate::scene::{EnvironmentSource, EnvironmentSpec};
+use crate::trig::atan2;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -203,19 +204,20 @@ impl Environment {
 /// Image coordinates of a direction in the map's frame (see the module doc).
 #[inline]
 pub fn direction_to_uv(d: Vec3) -> Vec2 {
-    let u = 0.5 + d.x.atan2(-d.z) * (0.5 / PI);
+    let u = 0.5 + atan2(d.x, -d.z) * (0.5 / PI);
     let v = d.y.clamp(-1.0, 1.0).acos() / PI;
     Vec2::new(u.rem_euclid(1.0), v)
 }
 
-/// Direction in the map's frame of image coordinates (inverse of [`direction_to_uv`]).
+/// Direction in the map's frame of image coordinates (inverse of [`direction_to_uv`]):
+/// θ = πv and φ = 2π(u − 0.5), whose sines and cosines are [`sin_cos_turns`] of v/2 and the
+/// negated ones of u (about one ulp, several times faster than libm's).
 #[inline]
 pub fn uv_to_direction(uv: Vec2) -> Vec3 {
-    let phi = (uv.x - 0.5) * 2.0 * PI;
-    let theta = uv.y * PI;
-    let (st, ct) = theta.sin_cos();
-    let (sp, cp) = phi.sin_cos();
-    Vec3::new(st * sp, ct, -st * cp)
+    let (st, ct) = sin_cos_turns(uv.y * 0.5);
+    let (s, c) = sin_cos_turns(uv.x);
+    // sin φ = −sin 2πu and cos φ = −cos 2πu.
+    Vec3::new(st * -s, ct, st * c)
 }
 
 /// Reads an .exr or .hdr image as linear RGB radiance; rejects non-finite or negative texels.
