@@ -21,7 +21,7 @@ use crate::bsdf::MetallicRoughness;
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::lights::LightSample;
 use crate::render_scene::RenderScene;
-use crate::sampling::{sample_uniform_sphere_lanes, uniform_sphere_pdf};
+use crate::sampling::sample_uniform_sphere_lanes;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -43,9 +43,7 @@ impl PathTracer {
     #[inline]
     pub(crate) fn lane_light(&self, scene: &RenderScene, v: &Vertex) -> LaneLight {
         if let Some((index, select_pdf)) = v.light.filter(|_| self.strategy != Strategy::BsdfOnly) {
-            if let Some(radiance) = scene.lights.constant_environment(index) {
-                // As LightSet::sample_chosen: the environment's density times the selection's.
-                let pdf = uniform_sphere_pdf() * select_pdf;
+            if let Some((radiance, pdf)) = scene.lights.constant_environment(index, select_pdf) {
                 return LaneLight::UniformSphere { u: v.u_light, radiance, pdf };
             }
         }

@@ -80,12 +80,13 @@ impl Environment {
         }
     }
 
-    /// The radiance of a constant environment (`None` for an image), whose [`Self::sample`]
-    /// is the uniform sphere: what lane kernels draw themselves.
+    /// For a constant environment (`None` for an image), the radiance and density (1/sr) of
+    /// every sample [`Self::sample`] draws, a uniform direction on the sphere: what lane
+    /// kernels need to draw the direction themselves.
     #[inline]
-    pub fn constant_radiance(&self) -> Option<Rgb> {
+    pub fn uniform_sample_terms(&self) -> Option<(Rgb, f32)> {
         match self.kind {
-            Kind::Constant(c) => Some(c),
+            Kind::Constant(c) => Some((c, uniform_sphere_pdf())),
             Kind::Image { .. } => None,
         }
     }
@@ -167,10 +168,10 @@ impl Environment {
     /// Draws a direction toward the environment.
     pub fn sample(&self, u: Vec2) -> Option<EnvironmentSample> {
         match &self.kind {
-            Kind::Constant(c) => Some(EnvironmentSample {
+            Kind::Constant(_) => self.uniform_sample_terms().map(|(radiance, pdf)| EnvironmentSample {
                 direction: sample_uniform_sphere(u),
-                radiance: *c,
-                pdf: uniform_sphere_pdf(),
+                radiance,
+                pdf,
             }),
             Kind::Image { distribution, texels, .. } => {
                 let (uv, map_pdf, texel) = distribution.sample_continuous(u);

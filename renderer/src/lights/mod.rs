@@ -150,12 +150,17 @@ impl LightSet {
         }
     }
 
-    /// The radiance of light `index` if it is a constant environment (sampled uniformly over
-    /// the sphere by [`Self::sample_chosen`]).
+    /// Where light `index` is a constant environment, chosen with probability `select_pdf`:
+    /// the radiance and density (1/sr, selection included) of the uniform sample on the
+    /// sphere [`Self::sample_chosen`] draws, for lane kernels that draw the direction
+    /// themselves.
     #[inline]
-    pub fn constant_environment(&self, index: u32) -> Option<Rgb> {
+    pub fn constant_environment(&self, index: u32, select_pdf: f32) -> Option<(Rgb, f32)> {
         match &self.lights[index as usize] {
-            Light::Environment => self.environment.as_ref()?.constant_radiance(),
+            Light::Environment => {
+                let (radiance, pdf) = self.environment.as_ref()?.uniform_sample_terms()?;
+                Some((radiance, pdf * select_pdf))
+            }
             _ => None,
         }
     }
