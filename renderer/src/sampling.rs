@@ -345,69 +345,195 @@ impl Distribution1D {
     }
 }
 
+/// One cell of an alias table: a draw that lands in the cell keeps it when the draw's
+/// remainder within the cell is below `threshold`, else takes cell `alias`.
+#[derive(Clone, Copy, Debug, Default)]
+struct AliasEntry {
+    threshold: f32,
+    alias: u32,
+}
+
+/// Walker's alias table for the cells of `weights` (as Vose builds it, in f64), appended to
+/// `entries`: every cell is drawn with probability weight / Σ weights in one look-up, without
+/// a search. Negative or non-finite weights count as zero, and a zero-weight cell is never
+/// drawn; when all weights are zero every cell is equally likely. Returns Σ weights (of the
+/// cleaned weights, 0 when all are zero).
+fn push_alias_table(weights: &[f32], entries: &mut Vec<AliasEntry>) -> f64 {
+    let clean = |w: f32| if w.is_finite() && w > 0.0 { w as f64 } else { 0.0 };
+    let n = weights.len();
+    let sum: f64 = weights.iter().map(|&w| clean(w)).sum();
+    let first = entries.len();
+    entries.extend((0..n).map(|i| AliasEntry { threshold: 1.0, alias: i as u32 }));
+    if sum == 0.0 {
+        return 0.0;
+    }
+    let table = &mut entries[first..];
+    // Each cell's probability × n: below 1 the cell lends the rest of its column to a cell
+    // above 1, which then holds that much less.
+    let mut scaled: Vec<f64> = weights.iter().map(|&w| clean(w) * n as f64 / sum).collect();
+    let (mut small, mut large): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| scaled[i] < 1.0);
+    while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
+        small.pop();
+        table[s] = AliasEntry {
+            threshold: scaled[s] as f32,
+            alias: l as u32,
+        };
+        scaled[l] -= 1.0 - scaled[s];
+        if scaled[l] < 1.0 {
+            large.pop();
+            small.push(l);
+        }
+    }
+    // What is left holds probability ≈ 1 / n by construction (up to rounding) and keeps its
+    // whole column; a zero-weight cell left over by rounding gives its column to the
+    // heaviest cell instead, so it is never drawn.
+    let heaviest = (0..n).max_by(|&a, &b| clean(weights[a]).total_cmp(&clean(weights[b]))).unwrap_or(0);
+    for i in small.into_iter().chain(large) {
+        table[i] = if clean(weights[i]) > 0.0 {
+            AliasEntry { threshold: 1.0, alias: i as u32 }
+        } else {
+            AliasEntry { threshold: 0.0, alias: heaviest as u32 }
+        };
+    }
+    sum
+}
+
+/// Draws a cell of the alias table `entries` with u in [0, 1): the cell and u's remainder
+/// remapped to [0, 1), uniform and independent of the cell drawn (pbrt-v4's
+/// `AliasTable::Sample`). Branch-free: the kept-or-aliased choice is a select.
+#[inline]
+fn sample_alias(entries: &[AliasEntry], u: f32) -> (usize, f32) {
+    let n = entries.len();
+    let x = u * n as f32;
+    let i = (x as usize).min(n - 1);
+    let r = (x - i as f32).clamp(0.0, ONE_MINUS_EPSILON);
+    let AliasEntry { threshold, alias } = entries[i];
+    let keep = r < threshold;
+    let cell = if keep { i } else { alias as usize };
+    // Kept: r ∈ [0, threshold) with threshold > 0; aliased: r ∈ [threshold, 1) with
+    // threshold < 1. Either width is positive.
+    let (low, width) = if keep { (0.0, threshold) } else { (threshold, 1.0 - threshold) };
+    (cell, ((r - low) / width).min(ONE_MINUS_EPSILON))
+}
+
 /// A piecewise-constant density on [0, 1)² given on a `width × height` grid (row-major,
-/// row = v), sampled as a marginal in v and a conditional in u.
+/// row = v), sampled as a marginal in v and a conditional in u, each by an alias table: a
+/// sample is two look-ups, not two searches. Each cell carries a payload `T` (an
+/// environment's radiance) in one record with its density: a sample of a large image reads
+/// an alias entry at random in its row (the rows' tables are kept apart from the records,
+/// eight bytes per cell, so that a row's table spans few cache lines) and the record of the
+/// cell drawn, mostly a heavy one and so likely cached; a density look-up reads one record.
+/// Unlike an inverse CDF, the alias map from u to cells is not monotonic: it would break the
+/// stratification of low-discrepancy samples, which the renderer's independent streams do
+/// not have.
 #[derive(Clone, Debug)]
-pub struct Distribution2D {
-    conditional: Vec<Distribution1D>,
-    marginal: Distribution1D,
-    /// The density of each cell (row-major), the product of the marginal's and the row's
-    /// densities: [`Self::pdf`] is one look-up instead of two in two tables.
-    density: Vec<f32>,
+pub struct Distribution2D<T: Copy = ()> {
+    width: usize,
+    height: usize,
+    /// Alias table over the rows.
+    marginal: Vec<AliasEntry>,
+    /// Alias table of each row over its columns, row-major (aliases are columns).
+    conditional: Vec<AliasEntry>,
+    /// Per cell, row-major.
+    cells: Vec<Cell<T>>,
+    /// Mean weight (the integral over [0, 1)²).
+    integral: f32,
+}
+
+/// A cell of a [`Distribution2D`]: its density with respect to area in [0, 1)², and its
+/// payload.
+#[derive(Clone, Copy, Debug)]
+struct Cell<T> {
+    density: f32,
+    payload: T,
 }
 
 impl Distribution2D {
-    /// Builds from `width * height` non-negative weights, row-major (index = u + width * v).
+    /// Builds from `width * height` weights, row-major (index = u + width * v), without
+    /// payloads. See [`Self::with_payloads`].
     pub fn new(weights: &[f32], width: usize, height: usize) -> Self {
+        Self::with_payloads(weights, vec![(); weights.len()], width, height)
+    }
+}
+
+impl<T: Copy> Distribution2D<T> {
+    /// Builds from `width * height` weights and payloads, row-major (index = u + width * v).
+    /// Negative or non-finite weights count as zero; when all are zero the density is
+    /// uniform (and `integral()` returns 0).
+    pub fn with_payloads(weights: &[f32], payloads: Vec<T>, width: usize, height: usize) -> Self {
+        assert!(width > 0 && height > 0, "Distribution2D needs at least one cell");
         assert_eq!(weights.len(), width * height, "Distribution2D size mismatch");
-        let conditional: Vec<Distribution1D> = weights
+        assert_eq!(payloads.len(), weights.len(), "Distribution2D payload count mismatch");
+        let mut conditional = Vec::with_capacity(weights.len());
+        let row_sums: Vec<f32> = weights
             .chunks_exact(width)
-            .map(Distribution1D::new)
+            .map(|row| push_alias_table(row, &mut conditional) as f32)
             .collect();
-        let marginal_weights: Vec<f32> = conditional.iter().map(|c| c.integral()).collect();
-        let marginal = Distribution1D::new(&marginal_weights);
-        let density = conditional
+        let mut marginal = Vec::with_capacity(height);
+        let total = push_alias_table(&row_sums, &mut marginal);
+        let count = (width * height) as f64;
+        let density = |w: f32| match total > 0.0 {
+            true if w.is_finite() && w > 0.0 => (w as f64 * count / total) as f32,
+            true => 0.0,
+            false => 1.0,
+        };
+        let cells = weights
             .iter()
-            .enumerate()
-            .flat_map(|(row, c)| {
-                let pdf_v = marginal.pdf_cell(row) * height as f32;
-                (0..width).map(move |col| pdf_v * (c.pdf_cell(col) * width as f32))
+            .zip(payloads)
+            .map(|(&w, payload)| Cell {
+                density: density(w),
+                payload,
             })
             .collect();
         Distribution2D {
+            width,
+            height,
             marginal,
             conditional,
-            density,
+            cells,
+            integral: (total / count) as f32,
         }
     }
 
     /// Number of cells along u (columns) and v (rows).
     #[inline]
     pub fn size(&self) -> (usize, usize) {
-        (self.conditional[0].len(), self.conditional.len())
+        (self.width, self.height)
     }
 
     /// Integral of the weights over [0, 1)².
     pub fn integral(&self) -> f32 {
-        self.marginal.integral()
+        self.integral
     }
 
     /// Samples a point in [0, 1)²; returns it, its density (with respect to area in the
-    /// unit square) and the index (row-major) of the cell it was drawn in.
+    /// unit square) and the payload of the cell it was drawn in. The point is uniform within
+    /// its cell.
     #[inline]
-    pub fn sample_continuous(&self, u: Vec2) -> (Vec2, f32, usize) {
-        let (v, pdf_v, row) = self.marginal.sample_continuous(u.y);
-        let (x, pdf_u, col) = self.conditional[row].sample_continuous(u.x);
-        (Vec2::new(x, v), pdf_u * pdf_v, col + row * self.conditional[row].len())
+    pub fn sample_continuous(&self, u: Vec2) -> (Vec2, f32, T) {
+        let (w, h) = (self.width, self.height);
+        let (row, dv) = sample_alias(&self.marginal, u.y);
+        let (col, du) = sample_alias(&self.conditional[row * w..(row + 1) * w], u.x);
+        let cell = &self.cells[col + row * w];
+        let p = Vec2::new((col as f32 + du) / w as f32, (row as f32 + dv) / h as f32).min(Vec2::splat(ONE_MINUS_EPSILON));
+        (p, cell.density, cell.payload)
+    }
+
+    /// Density at a point of [0, 1)² of [`Self::sample_continuous`], and the payload of the
+    /// cell there.
+    #[inline]
+    pub fn at(&self, p: Vec2) -> (f32, T) {
+        let (w, h) = self.size();
+        let row = ((p.y * h as f32) as usize).min(h - 1);
+        let col = ((p.x * w as f32) as usize).min(w - 1);
+        let cell = &self.cells[col + row * w];
+        (cell.density, cell.payload)
     }
 
     /// Density at a point of [0, 1)² of [`Self::sample_continuous`].
     #[inline]
     pub fn pdf(&self, p: Vec2) -> f32 {
-        let (w, h) = self.size();
-        let row = ((p.y * h as f32) as usize).min(h - 1);
-        let col = ((p.x * w as f32) as usize).min(w - 1);
-        self.density[col + row * w]
+        self.at(p).0
     }
 }
 
@@ -483,19 +609,118 @@ mod tests {
         }
     }
 
-    #[test]
-    fn distribution2d_pdf_agrees_with_sampling() {
-        let w: Vec<f32> = (0..12).map(|i| (i % 5) as f32).collect();
-        let d = Distribution2D::new(&w, 4, 3);
-        for k in 0..200 {
-            let u = Vec2::new((k as f32 * 0.618_034) % 1.0, (k as f32 + 0.5) / 200.0);
-            let (p, pdf, cell) = d.sample_continuous(u);
-            assert!((d.pdf(p) - pdf).abs() < 1e-4 * pdf.max(1.0), "{p:?}");
-            assert_eq!(cell, (p.x * 4.0) as usize + 4 * (p.y * 3.0) as usize, "{p:?}");
-            // The table holds the product of the marginal and conditional densities exactly.
-            let row = (p.y * 3.0) as usize;
-            assert_eq!(d.pdf(p), d.marginal.pdf_continuous(p.y) * d.conditional[row].pdf_continuous(p.x));
+    /// The probability with which each cell of an alias table is drawn, from its entries:
+    /// its own kept share and the shares other cells give it.
+    fn alias_probabilities(entries: &[AliasEntry]) -> Vec<f64> {
+        let n = entries.len() as f64;
+        let mut p = vec![0.0f64; entries.len()];
+        for (i, e) in entries.iter().enumerate() {
+            p[i] += e.threshold as f64 / n;
+            p[e.alias as usize] += (1.0 - e.threshold as f64) / n;
         }
+        p
+    }
+
+    /// Every cell is drawn with probability weight / Σ weights (zero-weight, negative and
+    /// non-finite cells never), on spiky weights over many magnitudes, one heavy cell among
+    /// empty ones, all-zero weights (uniform) and a single cell.
+    #[test]
+    fn alias_tables_draw_each_cell_in_proportion_to_its_weight() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(5);
+        let spiky: Vec<f32> = (0..1000)
+            .map(|i| match i % 9 {
+                0 => 0.0,
+                1 => 1e6 * rng.random::<f32>(),
+                2 => 1e-6 * rng.random::<f32>(),
+                3 => -1.0,
+                4 => f32::NAN,
+                _ => rng.random(),
+            })
+            .collect();
+        let mut one_heavy = vec![0.0f32; 257];
+        one_heavy[100] = 3.0;
+        for weights in [spiky, one_heavy, vec![0.0; 7], vec![2.5]] {
+            let mut entries = Vec::new();
+            let sum = push_alias_table(&weights, &mut entries);
+            let clean: Vec<f64> = weights.iter().map(|&w| if w.is_finite() && w > 0.0 { w as f64 } else { 0.0 }).collect();
+            assert_eq!(sum, clean.iter().sum::<f64>());
+            let n = weights.len() as f64;
+            for (i, p) in alias_probabilities(&entries).into_iter().enumerate() {
+                let expected = if sum > 0.0 { clean[i] / sum } else { 1.0 / n };
+                assert!((p - expected).abs() <= 1e-6 * expected + 1e-12, "cell {i}: {p} vs {expected}");
+                if expected == 0.0 {
+                    assert_eq!(p, 0.0, "cell {i}");
+                }
+            }
+        }
+    }
+
+    /// Draws land in the cells the table says, never in a zero-weight one, and the
+    /// remapped remainder is uniform over [0, 1) within each cell.
+    #[test]
+    fn alias_draws_follow_the_table_and_remap_u_uniformly() {
+        let weights = [1.0f32, 0.0, 3.0, 0.5, 0.0, 2.0];
+        let mut entries = Vec::new();
+        push_alias_table(&weights, &mut entries);
+        let probabilities = alias_probabilities(&entries);
+        let m = 600_000;
+        let mut counts = [0usize; 6];
+        let mut remainder_sums = [0.0f64; 6];
+        for k in 0..m {
+            let (cell, r) = sample_alias(&entries, (k as f32 + 0.5) / m as f32);
+            assert!((0.0..1.0).contains(&r), "{r}");
+            counts[cell] += 1;
+            remainder_sums[cell] += r as f64;
+        }
+        for cell in 0..6 {
+            let frequency = counts[cell] as f64 / m as f64;
+            assert!((frequency - probabilities[cell]).abs() < 1e-4, "cell {cell}: {frequency} vs {}", probabilities[cell]);
+            if counts[cell] > 0 {
+                let mean = remainder_sums[cell] / counts[cell] as f64;
+                assert!((mean - 0.5).abs() < 1e-3, "cell {cell}: mean remainder {mean}");
+            }
+        }
+        assert_eq!(counts[1] + counts[4], 0);
+        // The ends of [0, 1) stay in range.
+        for u in [0.0, ONE_MINUS_EPSILON] {
+            let (cell, r) = sample_alias(&entries, u);
+            assert!(cell < 6 && weights[cell] > 0.0 && (0.0..1.0).contains(&r));
+        }
+    }
+
+    /// Points fall in the cell whose payload is reported, with that cell's density, which is its weight over
+    /// the mean weight; the cells' frequencies over a fine grid of u follow the weights.
+    #[test]
+    fn distribution2d_samples_follow_the_weights() {
+        let (w, h) = (5, 3);
+        let weights: Vec<f32> = (0..w * h).map(|i| (i % 4) as f32 * (1.0 + i as f32)).collect();
+        // Each cell's payload is its index.
+        let d = Distribution2D::with_payloads(&weights, (0..w * h).collect(), w, h);
+        let mean = weights.iter().sum::<f32>() / (w * h) as f32;
+        assert!((d.integral() - mean).abs() < 1e-6 * mean);
+        let n = 700;
+        let mut counts = vec![0usize; w * h];
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                let (p, pdf, cell) = d.sample_continuous(u);
+                assert!(p.cmpge(Vec2::ZERO).all() && p.cmplt(Vec2::ONE).all(), "{p}");
+                assert_eq!(cell, (p.x * w as f32) as usize + w * (p.y * h as f32) as usize, "{u}: {p}");
+                assert_eq!((pdf, cell), d.at(p));
+                assert!((pdf - weights[cell] / mean).abs() < 1e-5 * pdf, "{pdf}");
+                counts[cell] += 1;
+            }
+        }
+        for (cell, &count) in counts.iter().enumerate() {
+            let expected = weights[cell] as f64 / (mean as f64 * (w * h) as f64);
+            let frequency = count as f64 / (n * n) as f64;
+            assert!((frequency - expected).abs() < 2e-3, "cell {cell}: {frequency} vs {expected}");
+        }
+        // All-zero weights: uniform.
+        let uniform = Distribution2D::new(&[0.0; 6], 3, 2);
+        assert_eq!(uniform.integral(), 0.0);
+        assert_eq!(uniform.sample_continuous(Vec2::new(0.7, 0.2)).1, 1.0);
     }
 
     #[test]

@@ -26,13 +26,9 @@ pub struct Environment {
 
 enum Kind {
     Constant(Rgb),
-    Image {
-        width: usize,
-        height: usize,
-        /// Radiance per texel (strength applied), row-major from the top row.
-        texels: Vec<Rgb>,
-        distribution: Distribution2D,
-    },
+    /// The image's sampling distribution over its texels, each carrying its radiance
+    /// (strength applied), row-major from the top row.
+    Image(Distribution2D<Rgb>),
 }
 
 /// A direction drawn toward the environment.
@@ -101,19 +97,14 @@ impl Environment {
                 luminance(t).max(0.0) * sin_theta
             })
             .collect();
-        Kind::Image {
-            width,
-            height,
-            distribution: Distribution2D::new(&weights, width, height),
-            texels,
-        }
+        Kind::Image(Distribution2D::with_payloads(&weights, texels, width, height))
     }
 
     /// Rough emitted power scale (mean radiance × π), used to weigh light selection.
     pub fn power_hint(&self) -> f32 {
         match &self.kind {
             Kind::Constant(c) => luminance(*c) * PI,
-            Kind::Image { distribution, .. } => {
+            Kind::Image(distribution) => {
                 // distribution.integral() = mean of luminance·sinθ over the unit square;
                 // the mean over the sphere is that × π/2.
                 distribution.integral() * PI * 0.5 * PI
@@ -144,23 +135,12 @@ impl Environment {
     pub fn radiance_pdf(&self, d: Vec3) -> (Rgb, f32) {
         match &self.kind {
             Kind::Constant(c) => (*c, uniform_sphere_pdf()),
-            Kind::Image {
-                width,
-                height,
-                texels,
-                distribution,
-            } => {
+            Kind::Image(distribution) => {
                 let local = self.world_to_map(d);
-                let uv = direction_to_uv(local);
-                let x = ((uv.x * *width as f32) as usize).min(width - 1);
-                let y = ((uv.y * *height as f32) as usize).min(height - 1);
+                let (map_pdf, radiance) = distribution.at(direction_to_uv(local));
                 let sin_theta = (1.0 - local.y * local.y).max(0.0).sqrt();
-                let pdf = if sin_theta > 0.0 {
-                    distribution.pdf(uv) / (2.0 * PI * PI * sin_theta)
-                } else {
-                    0.0
-                };
-                (texels[x + width * y], pdf)
+                let pdf = if sin_theta > 0.0 { map_pdf / (2.0 * PI * PI * sin_theta) } else { 0.0 };
+                (radiance, pdf)
             }
         }
     }
@@ -173,8 +153,8 @@ impl Environment {
                 radiance,
                 pdf,
             }),
-            Kind::Image { distribution, texels, .. } => {
-                let (uv, map_pdf, texel) = distribution.sample_continuous(u);
+            Kind::Image(distribution) => {
+                let (uv, map_pdf, radiance) = distribution.sample_continuous(u);
                 if map_pdf <= 0.0 {
                     return None;
                 }
@@ -188,7 +168,7 @@ impl Environment {
                 // in the neighbouring texel by rounding).
                 Some(EnvironmentSample {
                     direction: self.map_to_world(local),
-                    radiance: texels[texel],
+                    radiance,
                     pdf: map_pdf / (2.0 * PI * PI * sin_theta),
                 })
             }
