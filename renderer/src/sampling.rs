@@ -523,11 +523,25 @@ impl<T: Copy> Distribution2D<T> {
     /// cell there.
     #[inline]
     pub fn at(&self, p: Vec2) -> (f32, T) {
+        let cell = &self.cells[self.cell_index(p)];
+        (cell.density, cell.payload)
+    }
+
+    /// Starts fetching the record that [`Self::at`] of `p` reads into the cache, so that the
+    /// look-ups of many points, issued after all their prefetches, overlap their misses. No
+    /// effect on values.
+    #[inline]
+    pub fn prefetch_at(&self, p: Vec2) {
+        crate::support::prefetch(&self.cells[self.cell_index(p)]);
+    }
+
+    /// The row-major index of the cell holding `p`.
+    #[inline]
+    fn cell_index(&self, p: Vec2) -> usize {
         let (w, h) = self.size();
         let row = ((p.y * h as f32) as usize).min(h - 1);
         let col = ((p.x * w as f32) as usize).min(w - 1);
-        let cell = &self.cells[col + row * w];
-        (cell.density, cell.payload)
+        col + row * w
     }
 
     /// Density at a point of [0, 1)² of [`Self::sample_continuous`].

@@ -178,15 +178,9 @@ pub fn weigh_measured_corners(values: &[[f32; 3]], idx: &[usize; 8], w: &[f32; 8
 /// hint.
 #[inline]
 pub fn prefetch_corners(values: &[[f32; 3]], idx: &[usize; 8]) {
-    #[cfg(target_arch = "x86_64")]
-    for &i in idx {
-        if let Some(v) = values.get(i) {
-            // SAFETY: a prefetch of an address inside `values`; it never faults.
-            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(v.as_ptr().cast()) };
-        }
+    for v in idx.iter().filter_map(|&i| values.get(i)) {
+        crate::support::prefetch(v);
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (values, idx);
 }
 
 /// A MERL table in memory: the raw values exactly as in the file (so write → read is exact).

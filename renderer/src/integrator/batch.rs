@@ -16,6 +16,7 @@ use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::Bsdf;
+use crate::lights::environment::MapPoint;
 use crate::render_scene::RenderScene;
 use glam::Vec3;
 
@@ -55,6 +56,9 @@ pub struct BatchBuffers<'s> {
     neural: DeferredScatter<'s, NeuralBsdf>,
     nbrdf: DeferredScatter<'s, NbrdfBsdf>,
     merl: DeferredScatter<'s, MerlBsdf>,
+    /// The chunk's rays that left the scene (path index) and where they fall in the
+    /// environment.
+    escapes: Vec<(u32, MapPoint)>,
 }
 
 /// What one batch step produces, both in the order of the active paths: the shadow tests
@@ -91,6 +95,7 @@ impl PathTracer {
             neural,
             nbrdf,
             merl,
+            escapes,
         } = buffers;
         for (chunk, chunk_hits) in active.chunks(CHUNK).zip(hits.chunks(CHUNK)) {
             outcomes.clear();
@@ -101,9 +106,23 @@ impl PathTracer {
             neural.clear();
             nbrdf.clear();
             merl.clear();
+            // Rays that left the scene first: all located in the environment (which
+            // prefetches their image records), then all looked up, so that their cache
+            // misses overlap.
+            escapes.clear();
+            for (&i, hit) in chunk.iter().zip(chunk_hits) {
+                if hit.is_none() {
+                    if let Some(at) = scene.lights.locate_environment(paths[i as usize].ray.direction) {
+                        escapes.push((i, at));
+                    }
+                }
+            }
+            for &(i, at) in escapes.iter() {
+                self.escape_at(scene, &mut paths[i as usize], at);
+            }
             for (&i, &hit) in chunk.iter().zip(chunk_hits) {
                 let path = &mut paths[i as usize];
-                let Some(v) = self.begin(scene, path, hit) else {
+                let Some(v) = hit.and_then(|hit| self.begin(scene, path, Some(hit))) else {
                     outcomes.push(Outcome::Ended);
                     positions.push(Vec3::ZERO);
                     continue;

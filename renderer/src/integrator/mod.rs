@@ -15,6 +15,7 @@ pub use batch::{BatchBuffers, StepResults};
 
 use crate::accel::{offset_ray_origin, Hit, Ray};
 use crate::bsdf::{Bsdf, BsdfSample, Bxdf};
+use crate::lights::environment::MapPoint;
 use crate::lights::LightSample;
 use crate::render_scene::{RenderScene, SurfacePoint};
 use crate::sampler::Sampler;
@@ -181,6 +182,25 @@ impl PathTracer {
         (scattered.shadow, alive)
     }
 
+    /// The end of a path whose ray left the scene: adds the environment's radiance along it
+    /// (MIS-weighted against light sampling).
+    #[inline(always)]
+    fn escape(&self, scene: &RenderScene, path: &mut PathState) {
+        if let Some(at) = scene.lights.locate_environment(path.ray.direction) {
+            self.escape_at(scene, path, at);
+        }
+    }
+
+    /// [`Self::escape`] where the ray's direction falls at `at` in the environment
+    /// ([`crate::lights::LightSet::locate_environment`]).
+    #[inline(always)]
+    pub(crate) fn escape_at(&self, scene: &RenderScene, path: &mut PathState, at: MapPoint) {
+        if let Some((le, pdf)) = scene.lights.environment_radiance_pdf_at(at) {
+            let w = self.hit_weight(path.prev_bsdf_pdf, || pdf);
+            path.l += path.beta * le * w;
+        }
+    }
+
     /// The first half of a vertex: adds the emission `path.ray` finds at `hit` (or, on a
     /// miss, in the environment) and, where the path may scatter there, draws the vertex's
     /// random numbers and chooses its light. `None` when the path ends here.
@@ -188,10 +208,7 @@ impl PathTracer {
     fn begin<'s>(&self, scene: &'s RenderScene, path: &mut PathState, hit: Option<Hit>) -> Option<Vertex<'s>> {
         let ray = path.ray;
         let Some(hit) = hit else {
-            if let Some((le, pdf)) = scene.lights.environment_radiance_pdf(ray.direction) {
-                let w = self.hit_weight(path.prev_bsdf_pdf, || pdf);
-                path.l += path.beta * le * w;
-            }
+            self.escape(scene, path);
             return None;
         };
         let sp = scene.surface_point(&hit, ray.direction)?;

@@ -31,6 +31,15 @@ enum Kind {
     Image(Distribution2D<Rgb>),
 }
 
+/// Where a direction falls in an environment image ([`Environment::locate`]).
+#[derive(Clone, Copy, Debug)]
+pub struct MapPoint {
+    /// Image coordinates in [0, 1)² (see [`direction_to_uv`]).
+    uv: Vec2,
+    /// sin θ of the direction in the map's frame.
+    sin_theta: f32,
+}
+
 /// A direction drawn toward the environment.
 #[derive(Clone, Copy, Debug)]
 pub struct EnvironmentSample {
@@ -133,13 +142,37 @@ impl Environment {
     /// the image (an atan2 and an acos), as a ray that leaves the scene needs them.
     #[inline]
     pub fn radiance_pdf(&self, d: Vec3) -> (Rgb, f32) {
+        self.radiance_pdf_at(self.locate(d))
+    }
+
+    /// The first half of [`Self::radiance_pdf`]: where world direction `d` (unit) falls in
+    /// the image, its cell's record prefetched into the cache. Locating many directions
+    /// before reading any ([`Self::radiance_pdf_at`]) overlaps their cache misses.
+    #[inline]
+    pub fn locate(&self, d: Vec3) -> MapPoint {
+        match &self.kind {
+            Kind::Constant(_) => MapPoint { uv: Vec2::ZERO, sin_theta: 1.0 },
+            Kind::Image(distribution) => {
+                let local = self.world_to_map(d);
+                let uv = direction_to_uv(local);
+                distribution.prefetch_at(uv);
+                MapPoint {
+                    uv,
+                    sin_theta: (1.0 - local.y * local.y).max(0.0).sqrt(),
+                }
+            }
+        }
+    }
+
+    /// The second half of [`Self::radiance_pdf`]: radiance and solid-angle density at a
+    /// point that [`Self::locate`] found.
+    #[inline]
+    pub fn radiance_pdf_at(&self, at: MapPoint) -> (Rgb, f32) {
         match &self.kind {
             Kind::Constant(c) => (*c, uniform_sphere_pdf()),
             Kind::Image(distribution) => {
-                let local = self.world_to_map(d);
-                let (map_pdf, radiance) = distribution.at(direction_to_uv(local));
-                let sin_theta = (1.0 - local.y * local.y).max(0.0).sqrt();
-                let pdf = if sin_theta > 0.0 { map_pdf / (2.0 * PI * PI * sin_theta) } else { 0.0 };
+                let (map_pdf, radiance) = distribution.at(at.uv);
+                let pdf = if at.sin_theta > 0.0 { map_pdf / (2.0 * PI * PI * at.sin_theta) } else { 0.0 };
                 (radiance, pdf)
             }
         }

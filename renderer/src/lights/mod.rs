@@ -17,7 +17,7 @@ use crate::scene::{PunctualLight, Texture};
 use crate::Rgb;
 use area::{Emitter, TriangleLight};
 use std::sync::Arc;
-use environment::Environment;
+use environment::{Environment, MapPoint};
 use glam::{Vec2, Vec3};
 
 /// A light chosen and sampled for a shading point.
@@ -209,13 +209,20 @@ impl LightSet {
         t.pdf(p, q) * selection.pdf_cell(light as usize)
     }
 
-    /// The environment's radiance from world direction `d` and the density (1/sr, selection
-    /// included) with which [`Self::sample`] picks the environment in that direction; `None`
-    /// without an environment.
+    /// Where world direction `d` (unit) falls in the environment ([`Environment::locate`],
+    /// which prefetches what [`Self::environment_radiance_pdf_at`] reads); `None` without one.
     #[inline]
-    pub fn environment_radiance_pdf(&self, d: Vec3) -> Option<(Rgb, f32)> {
+    pub fn locate_environment(&self, d: Vec3) -> Option<MapPoint> {
+        Some(self.environment.as_ref()?.locate(d))
+    }
+
+    /// The environment's radiance in the direction [`Self::locate_environment`] found at
+    /// `at`, and the density (1/sr, selection included) with which [`Self::sample`] picks the
+    /// environment in that direction; `None` without an environment.
+    #[inline]
+    pub fn environment_radiance_pdf_at(&self, at: MapPoint) -> Option<(Rgb, f32)> {
         let env = self.environment.as_ref()?;
-        let (radiance, pdf) = env.radiance_pdf(d);
+        let (radiance, pdf) = env.radiance_pdf_at(at);
         let select = self.selection.as_ref().map_or(0.0, |s| s.pdf_cell(self.environment_light));
         Some((radiance, pdf * select))
     }
