@@ -543,12 +543,6 @@ impl<T: Copy> Distribution2D<T> {
         let col = ((p.x * w as f32) as usize).min(w - 1);
         col + row * w
     }
-
-    /// Density at a point of [0, 1)² of [`Self::sample_continuous`].
-    #[inline]
-    pub fn pdf(&self, p: Vec2) -> f32 {
-        self.at(p).0
-    }
 }
 
 #[cfg(test)]
