@@ -186,8 +186,8 @@ pub fn power_heuristic(f: f32, g: f32) -> f32 {
     }
 }
 
-/// A piecewise-constant density on [0, 1) over `n` equal cells, sampled by inverting its
-/// cumulative distribution.
+/// A discrete distribution over `n` cells (a piecewise-constant density on [0, 1) over `n`
+/// equal cells), sampled by inverting its cumulative distribution.
 #[derive(Clone, Debug)]
 pub struct Distribution1D {
     /// Non-negative cell weights as given.
@@ -273,16 +273,6 @@ impl Distribution1D {
         self.func[i]
     }
 
-    /// Samples a continuous x in [0, 1); returns (x, density of x, cell index).
-    pub fn sample_continuous(&self, u: f32) -> (f32, f32, usize) {
-        let i = self.find_cell(u);
-        let (c0, c1) = (self.cdf[i], self.cdf[i + 1]);
-        let du = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.5 };
-        let n = self.func.len() as f32;
-        let x = ((i as f32 + du.clamp(0.0, 1.0)) / n).min(ONE_MINUS_EPSILON);
-        (x, self.pdf_cell(i) * n, i)
-    }
-
     /// Samples a cell index; returns (index, its probability mass, u remapped to [0, 1)).
     pub fn sample_discrete(&self, u: f32) -> (usize, f32, f32) {
         let i = self.find_cell(u);
@@ -299,14 +289,6 @@ impl Distribution1D {
     #[inline]
     pub fn pdf_cell(&self, i: usize) -> f32 {
         self.cdf[i + 1] - self.cdf[i]
-    }
-
-    /// Density at x in [0, 1) of [`Self::sample_continuous`].
-    #[inline]
-    pub fn pdf_continuous(&self, x: f32) -> f32 {
-        let n = self.func.len();
-        let i = ((x * n as f32) as usize).min(n - 1);
-        self.pdf_cell(i) * n as f32
     }
 
     #[inline]
@@ -569,15 +551,17 @@ mod tests {
         let mut counts = [0usize; 4];
         let n = 10_000;
         for k in 0..n {
-            let (x, pdf, i) = d.sample_continuous((k as f32 + 0.5) / n as f32);
-            assert!(pdf > 0.0);
-            assert_eq!(i, (x * 4.0) as usize);
+            let (i, mass, remapped) = d.sample_discrete((k as f32 + 0.5) / n as f32);
+            assert!(mass > 0.0);
+            assert_eq!(mass, d.pdf_cell(i));
+            assert!((0.0..1.0).contains(&remapped), "{remapped}");
             counts[i] += 1;
         }
         assert_eq!(counts[0], 0);
         assert_eq!(counts[3], 0);
         assert!((counts[2] as f32 / counts[1] as f32 - 3.0).abs() < 0.01);
-        assert!((d.pdf_continuous(0.6) - 3.0).abs() < 1e-5);
+        // Cell 2 holds three quarters of the mass: density 3 over its quarter of [0, 1).
+        assert!((d.pdf_cell(2) * 4.0 - 3.0).abs() < 1e-5);
     }
 
     /// The guide table only narrows the search: every u finds the cell a search of the whole
