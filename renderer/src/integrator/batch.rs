@@ -122,6 +122,8 @@ impl PathTracer {
             }
             for (&i, &hit) in chunk.iter().zip(chunk_hits) {
                 let path = &mut paths[i as usize];
+                // Escaped rays were ended above: `begin` of a miss would add the environment
+                // again.
                 let Some(v) = hit.and_then(|hit| self.begin(scene, path, Some(hit))) else {
                     outcomes.push(Outcome::Ended);
                     positions.push(Vec3::ZERO);
