@@ -76,6 +76,10 @@ enum Command {
 
 fn main() -> ExitCode {
     renderer::support::exit_quietly_on_broken_pipe();
+    if let Err(e) = renderer::support::cpu::check_build_features() {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Tabulate(args) => tabulate::run(args),

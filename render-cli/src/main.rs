@@ -496,6 +496,10 @@ fn run_report(args: ReportArgs) -> Result<()> {
 
 fn main() -> ExitCode {
     renderer::support::exit_quietly_on_broken_pipe();
+    if let Err(e) = renderer::support::cpu::check_build_features() {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     let subcommand = std::env::args_os().nth(1);
     let outcome = if subcommand.as_ref().is_some_and(|a| a == "report") {
         match ReportArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit) {

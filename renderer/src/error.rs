@@ -23,6 +23,10 @@ pub enum Error {
     /// A command-line option or configuration value is out of range or malformed.
     #[error("invalid value for {flag}: {reason}")]
     InvalidArgument { flag: String, reason: String },
+    /// The running CPU lacks instruction-set features this build was compiled for (see
+    /// [`crate::support::cpu::missing_build_features`]).
+    #[error("this CPU lacks {} which this build assumes (built for x86-64-v3); rebuild for it with RUSTFLAGS=\"-C target-cpu=native\"", missing.join(", "))]
+    UnsupportedCpu { missing: Vec<&'static str> },
 }
 
 impl Error {

@@ -104,6 +104,83 @@ pub mod cpu {
             false
         }
     }
+
+    /// The instruction-set features this build was compiled to assume everywhere (the
+    /// workspace's `.cargo/config.toml` builds x86-64 for `target-cpu=x86-64-v3`) that the
+    /// running CPU lacks, by their `target_feature` names: empty where the build runs.
+    pub fn missing_build_features() -> Vec<&'static str> {
+        build_features().into_iter().filter(|&(_, built, present)| built && !present).map(|(name, ..)| name).collect()
+    }
+
+    /// Every x86-64 feature a build may assume beyond the baseline: its `target_feature` name,
+    /// whether this build was compiled with it, and whether the running CPU has it. Read from
+    /// CPUID itself, not `is_x86_feature_detected!`, which answers "present" for every feature
+    /// enabled at compile time.
+    #[cfg(target_arch = "x86_64")]
+    pub(super) fn build_features() -> [(&'static str, bool, bool); 16] {
+        use raw_cpuid::{CpuId, ExtendedFeatures, ExtendedProcessorFeatureIdentifiers, FeatureInfo};
+        let cpuid = CpuId::new();
+        let (basic, extended, amd) = (
+            cpuid.get_feature_info(),
+            cpuid.get_extended_feature_info(),
+            cpuid.get_extended_processor_and_feature_identifiers(),
+        );
+        let basic = |has: fn(&FeatureInfo) -> bool| basic.as_ref().is_some_and(has);
+        let extended = |has: fn(&ExtendedFeatures) -> bool| extended.as_ref().is_some_and(has);
+        let amd = |has: fn(&ExtendedProcessorFeatureIdentifiers) -> bool| amd.as_ref().is_some_and(has);
+        // AVX needs the operating system to save the YMM registers too (XCR0 bits 1, 2).
+        let avx = basic(FeatureInfo::has_avx) && basic(FeatureInfo::has_oxsave) && os_saves_ymm();
+        [
+            ("sse3", cfg!(target_feature = "sse3"), basic(FeatureInfo::has_sse3)),
+            ("ssse3", cfg!(target_feature = "ssse3"), basic(FeatureInfo::has_ssse3)),
+            ("sse4.1", cfg!(target_feature = "sse4.1"), basic(FeatureInfo::has_sse41)),
+            ("sse4.2", cfg!(target_feature = "sse4.2"), basic(FeatureInfo::has_sse42)),
+            ("popcnt", cfg!(target_feature = "popcnt"), basic(FeatureInfo::has_popcnt)),
+            ("cmpxchg16b", cfg!(target_feature = "cmpxchg16b"), basic(FeatureInfo::has_cmpxchg16b)),
+            ("movbe", cfg!(target_feature = "movbe"), basic(FeatureInfo::has_movbe)),
+            ("xsave", cfg!(target_feature = "xsave"), basic(FeatureInfo::has_xsave)),
+            ("avx", cfg!(target_feature = "avx"), avx),
+            ("f16c", cfg!(target_feature = "f16c"), basic(FeatureInfo::has_f16c)),
+            ("fma", cfg!(target_feature = "fma"), basic(FeatureInfo::has_fma)),
+            ("avx2", cfg!(target_feature = "avx2"), avx && extended(ExtendedFeatures::has_avx2)),
+            ("bmi1", cfg!(target_feature = "bmi1"), extended(ExtendedFeatures::has_bmi1)),
+            ("bmi2", cfg!(target_feature = "bmi2"), extended(ExtendedFeatures::has_bmi2)),
+            ("lzcnt", cfg!(target_feature = "lzcnt"), amd(ExtendedProcessorFeatureIdentifiers::has_lzcnt)),
+            ("avx512f", cfg!(target_feature = "avx512f"), avx && extended(ExtendedFeatures::has_avx512f)),
+        ]
+    }
+
+    #[cfg(not(target_arch = "x86_64"))]
+    pub(super) fn build_features() -> [(&'static str, bool, bool); 0] {
+        []
+    }
+
+    /// Whether the operating system saves the SSE and AVX register state (XCR0 bits 1 and 2);
+    /// to be asked only where CPUID reports OSXSAVE.
+    #[cfg(target_arch = "x86_64")]
+    fn os_saves_ymm() -> bool {
+        #[target_feature(enable = "xsave")]
+        unsafe fn xcr0() -> u64 {
+            // SAFETY: the caller has checked OSXSAVE, so XGETBV is available.
+            unsafe { std::arch::x86_64::_xgetbv(0) }
+        }
+        // SAFETY: only called after CPUID reported OSXSAVE (see `missing_build_features`);
+        // XSAVE comes with it.
+        unsafe { xcr0() & 0b110 == 0b110 }
+    }
+
+    /// An error naming the features this build needs and the CPU lacks
+    /// ([`missing_build_features`]), or `Ok`. Programs and plugin entry points call it first,
+    /// so a CPU older than the build's target gets a one-line error instead of an illegal
+    /// instruction.
+    pub fn check_build_features() -> crate::Result<()> {
+        let missing = missing_build_features();
+        if missing.is_empty() {
+            Ok(())
+        } else {
+            Err(crate::Error::UnsupportedCpu { missing })
+        }
+    }
 }
 
 /// The largest image width or height the renderer makes or reads as a render's part.
@@ -137,6 +214,33 @@ pub fn parse_resolution(s: &str) -> std::result::Result<(u32, u32), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// CPUID is read right: every feature agrees with the kernel's own list in
+    /// /proc/cpuinfo, the CPU running the tests has what the build assumes, and a CPU that
+    /// lacks features gets a message naming them and how to rebuild.
+    #[test]
+    fn build_features_are_read_from_cpuid() {
+        assert_eq!(cpu::missing_build_features(), Vec::<&str>::new());
+        assert!(cpu::check_build_features().is_ok());
+        #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+        {
+            let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap();
+            let flags: Vec<&str> = cpuinfo.lines().find(|l| l.starts_with("flags")).unwrap().split_whitespace().collect();
+            for (name, _, present) in cpu::build_features() {
+                let flag = match name {
+                    "sse3" => "pni",
+                    "sse4.1" => "sse4_1",
+                    "sse4.2" => "sse4_2",
+                    "cmpxchg16b" => "cx16",
+                    "lzcnt" => "abm",
+                    other => other,
+                };
+                assert_eq!(present, flags.contains(&flag), "{name} (/proc/cpuinfo flag {flag})");
+            }
+        }
+        let message = Error::UnsupportedCpu { missing: vec!["avx2", "fma"] }.to_string();
+        assert!(message.contains("lacks avx2, fma") && message.contains("target-cpu=native"), "{message}");
+    }
 
     #[test]
     fn atomic_writes_replace_whole_files_or_nothing() {

@@ -27,6 +27,9 @@ typedef enum NbStatus {
   NB_STATUS_INVALID_ARGUMENT = 4,
   // An internal error (a caught panic); please report it.
   NB_STATUS_PANIC = 5,
+  // The CPU lacks instruction-set features the library was built for (x86-64-v3: AVX2,
+  // FMA, BMI); the message names them. Rebuild the library for this CPU.
+  NB_STATUS_UNSUPPORTED_CPU = 6,
 } NbStatus;
 
 // An opened material (opaque).

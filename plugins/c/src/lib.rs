@@ -38,6 +38,9 @@ pub enum NbStatus {
     InvalidArgument = 4,
     /// An internal error (a caught panic); please report it.
     Panic = 5,
+    /// The CPU lacks instruction-set features the library was built for (x86-64-v3: AVX2,
+    /// FMA, BMI); the message names them. Rebuild the library for this CPU.
+    UnsupportedCpu = 6,
 }
 
 /// An opened material (opaque).
@@ -60,6 +63,7 @@ fn status_of(e: &Error) -> NbStatus {
         Error::InvalidFile { .. } => NbStatus::InvalidFile,
         Error::UnknownName { .. } => NbStatus::UnknownName,
         Error::InvalidArgument { .. } => NbStatus::InvalidArgument,
+        Error::UnsupportedCpu { .. } => NbStatus::UnsupportedCpu,
     }
 }
 
@@ -158,6 +162,7 @@ pub extern "C" fn nb_last_error() -> *const c_char {
 #[no_mangle]
 pub unsafe extern "C" fn nb_material_open(path: *const c_char, name: *const c_char, out: *mut *mut NbMaterial) -> NbStatus {
     guard(|| {
+        renderer::support::cpu::check_build_features()?;
         let path = unsafe { string_arg(path, "path") }?;
         let name = if name.is_null() { None } else { Some(unsafe { string_arg(name, "name") }?) };
         if out.is_null() {
@@ -178,6 +183,7 @@ pub unsafe extern "C" fn nb_material_open(path: *const c_char, name: *const c_ch
 #[no_mangle]
 pub unsafe extern "C" fn nb_material_open_latent_vector(path: *const c_char, z: *const f32, len: usize, out: *mut *mut NbMaterial) -> NbStatus {
     guard(|| {
+        renderer::support::cpu::check_build_features()?;
         let path = unsafe { string_arg(path, "path") }?;
         if z.is_null() || len == 0 {
             return Err(invalid("z", "NULL or empty"));

@@ -299,6 +299,9 @@ fn latent_codes<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDi
 
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // A CPU older than the build's target fails the import with the reason, not later with
+    // an illegal instruction.
+    renderer::support::cpu::check_build_features().map_err(|e| pyo3::exceptions::PyImportError::new_err(e.to_string()))?;
     m.add_class::<Material>()?;
     m.add_function(wrap_pyfunction!(latent_codes, m)?)?;
     m.add("InvalidFileError", m.py().get_type::<InvalidFileError>())?;
