@@ -25,7 +25,7 @@ pub enum Error {
     InvalidArgument { flag: String, reason: String },
     /// The running CPU lacks instruction-set features this build was compiled for (see
     /// [`crate::support::cpu::missing_build_features`]).
-    #[error("this CPU lacks {} which this build assumes (built for x86-64-v3); rebuild for it with RUSTFLAGS=\"-C target-cpu=native\"", missing.join(", "))]
+    #[error("this CPU lacks {}, which this build was compiled for; rebuild for it with RUSTFLAGS=\"-C target-cpu=native\" cargo build --release", missing.join(", "))]
     UnsupportedCpu { missing: Vec<&'static str> },
 }
 
