@@ -128,8 +128,12 @@ pub mod cpu {
         let basic = |has: fn(&FeatureInfo) -> bool| basic.as_ref().is_some_and(has);
         let extended = |has: fn(&ExtendedFeatures) -> bool| extended.as_ref().is_some_and(has);
         let amd = |has: fn(&ExtendedProcessorFeatureIdentifiers) -> bool| amd.as_ref().is_some_and(has);
-        // AVX needs the operating system to save the YMM registers too (XCR0 bits 1, 2).
-        let avx = basic(FeatureInfo::has_avx) && basic(FeatureInfo::has_oxsave) && os_saves_ymm();
+        // AVX needs the operating system to save the YMM registers too (XCR0 bits 1, 2),
+        // AVX-512 also the opmask and ZMM registers (bits 5, 6, 7).
+        // SAFETY: XCR0 is read only where CPUID reports OSXSAVE.
+        let xcr0 = if basic(FeatureInfo::has_oxsave) { unsafe { enabled_register_state() } } else { 0 };
+        let avx = basic(FeatureInfo::has_avx) && xcr0 & 0b110 == 0b110;
+        let avx512 = avx && xcr0 & 0b1110_0000 == 0b1110_0000;
         [
             ("sse3", cfg!(target_feature = "sse3"), basic(FeatureInfo::has_sse3)),
             ("ssse3", cfg!(target_feature = "ssse3"), basic(FeatureInfo::has_ssse3)),
@@ -146,7 +150,7 @@ pub mod cpu {
             ("bmi1", cfg!(target_feature = "bmi1"), extended(ExtendedFeatures::has_bmi1)),
             ("bmi2", cfg!(target_feature = "bmi2"), extended(ExtendedFeatures::has_bmi2)),
             ("lzcnt", cfg!(target_feature = "lzcnt"), amd(ExtendedProcessorFeatureIdentifiers::has_lzcnt)),
-            ("avx512f", cfg!(target_feature = "avx512f"), avx && extended(ExtendedFeatures::has_avx512f)),
+            ("avx512f", cfg!(target_feature = "avx512f"), avx512 && extended(ExtendedFeatures::has_avx512f)),
         ]
     }
 
@@ -155,18 +159,16 @@ pub mod cpu {
         []
     }
 
-    /// Whether the operating system saves the SSE and AVX register state (XCR0 bits 1 and 2);
-    /// to be asked only where CPUID reports OSXSAVE.
+    /// XCR0: the register state the operating system saves (bit 1 SSE, 2 AVX, 5–7
+    /// AVX-512).
+    ///
+    /// # Safety
+    /// CPUID must report OSXSAVE (XGETBV and XSAVE are available then).
     #[cfg(target_arch = "x86_64")]
-    fn os_saves_ymm() -> bool {
-        #[target_feature(enable = "xsave")]
-        unsafe fn xcr0() -> u64 {
-            // SAFETY: the caller has checked OSXSAVE, so XGETBV is available.
-            unsafe { std::arch::x86_64::_xgetbv(0) }
-        }
-        // SAFETY: only called after CPUID reported OSXSAVE (see `missing_build_features`);
-        // XSAVE comes with it.
-        unsafe { xcr0() & 0b110 == 0b110 }
+    #[target_feature(enable = "xsave")]
+    unsafe fn enabled_register_state() -> u64 {
+        // SAFETY: the caller has checked OSXSAVE.
+        unsafe { std::arch::x86_64::_xgetbv(0) }
     }
 
     /// An error naming the features this build needs and the CPU lacks
