@@ -119,7 +119,7 @@ fn eval_decoded(
     wi: Vec3,
 ) -> (Rgb, bool) {
     match net_point(wo, wi) {
-        Some(point) => map_back(reference, mapping, epsilon, &point, net.forward(point.x)),
+        Some(point) => map_back(mapping, epsilon, net.forward(point.x), reference_at(reference, &point)),
         None => (Rgb::ZERO, false),
     }
 }
@@ -136,12 +136,17 @@ fn net_point(wo: Vec3, wi: Vec3) -> Option<NetPoint> {
     Some(NetPoint { x, corners, weights })
 }
 
-/// f_r in 1/sr at `point` from the net's output `y` there, and whether a channel was
-/// clamped: f_ref looked up at the point's trilinear corners, the mapping inverted, the
-/// value capped.
+/// f_ref (RGB, 1/sr) at `point`: the reference looked up at its trilinear corners, 0 where
+/// none of them is measured.
 #[inline]
-fn map_back(reference: &[[f32; 3]], mapping: MappingForm, epsilon: f32, point: &NetPoint, y: [f32; 3]) -> (Rgb, bool) {
-    let f_ref = crate::formats::merl::weigh_measured_corners(reference, &point.corners, &point.weights).unwrap_or([0.0; 3]);
+fn reference_at(reference: &[[f32; 3]], point: &NetPoint) -> Rgb {
+    Rgb::from_array(crate::formats::merl::weigh_measured_corners(reference, &point.corners, &point.weights).unwrap_or([0.0; 3]))
+}
+
+/// f_r in 1/sr from the net's output `y` and f_ref at the same point, and whether a channel
+/// was clamped: the mapping inverted, the value capped.
+#[inline]
+fn map_back(mapping: MappingForm, epsilon: f32, y: [f32; 3], f_ref: Rgb) -> (Rgb, bool) {
     let mut clamped = false;
     let f = [0, 1, 2].map(|c| {
         let v = mapping.inverse(y[c].min(MAX_LOG_VALUE), f_ref[c], epsilon);
@@ -186,15 +191,29 @@ impl BatchEval for NeuralBsdf {
 
     fn eval_prepared(&self, points: &[NetPoint], values: &mut [Rgb]) {
         assert_eq!(points.len(), values.len(), "one value per point");
-        let inputs: Vec<[f32; INPUTS]> = points.iter().map(|p| p.x).collect();
-        let mut outputs = vec![[0.0; OUTPUTS]; points.len()];
-        self.net.forward_batch(&inputs, &mut outputs);
-        for ((point, y), value) in points.iter().zip(&outputs).zip(values) {
-            let (f, clamped) = map_back(&self.reference, self.mapping, self.epsilon, point, *y);
-            if clamped {
-                self.count_clamped();
+        // f_ref first, while the entries `prepare` prefetched are still in the cache (the
+        // forward passes stream the net's weights through it); `values` holds it meanwhile.
+        for (point, value) in points.iter().zip(values.iter_mut()) {
+            *value = reference_at(&self.reference, point);
+        }
+        // Points per forward call: a multiple of every kernel's batch, small enough for the
+        // stack (a step's chunk of 256 vertices gives up to 512 points).
+        const CHUNK: usize = 240;
+        let mut inputs = [[0.0; INPUTS]; CHUNK];
+        let mut outputs = [[0.0; OUTPUTS]; CHUNK];
+        for (points, values) in points.chunks(CHUNK).zip(values.chunks_mut(CHUNK)) {
+            let n = points.len();
+            for (x, point) in inputs.iter_mut().zip(points) {
+                *x = point.x;
             }
-            *value = f;
+            self.net.forward_batch(&inputs[..n], &mut outputs[..n]);
+            for (y, value) in outputs.iter().zip(values) {
+                let (f, clamped) = map_back(self.mapping, self.epsilon, *y, *value);
+                if clamped {
+                    self.count_clamped();
+                }
+                *value = f;
+            }
         }
     }
 }

@@ -9,13 +9,14 @@
 //! `[3][stride]`, and evaluated as dot products.
 //!
 //! Kernels, chosen once per net from the CPU's features: AVX-512F (16 lanes per register),
-//! AVX2 + FMA (8 lanes), and a portable loop. Every output sums its even and its odd inputs
-//! in two chains (a single point is latency-bound on one chain), in the same order whatever
-//! the number of points, so a point's output is the same bits alone and in a batch (what
-//! keeps batched rendering equal to one path at a time). One point takes four registers of
-//! outputs per pass; a batch several points (six with AVX-512) two registers each, so that
-//! every weight load is shared by the points' accumulators and the kernel runs close to the
-//! FMA throughput.
+//! AVX2 + FMA (8 lanes), and a portable loop. Every hidden output is one chain of FMAs from
+//! its bias over the inputs in order, whatever the number of points, so a point's output is
+//! the same bits alone and in a batch (what keeps batched rendering equal to one path at a
+//! time). One point keeps the whole padded width of 64 outputs in flight (eight independent
+//! chains on AVX2, enough to hide the FMA latency); a batch runs several points over fewer
+//! registers each (six points × two registers on AVX2, × four on AVX-512), so that every
+//! weight load is shared by six points' accumulators and the kernel runs close to the FMA
+//! throughput.
 
 use crate::neural::mlp::Mlp;
 use crate::{Error, Result};
@@ -185,7 +186,11 @@ impl TargetNet {
     pub fn forward(&self, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
         let mut out = [[0.0; OUTPUTS]];
         let mut scratch = [[Activations::ZERO; 1]; 2];
-        self.forward_points::<1, { REGISTERS_ONE }>(&[x], &mut out, &mut scratch);
+        match self.kernel {
+            Kernel::Avx512 => self.forward_points::<1, { ONE_POINT_AVX512 }>(&[x], &mut out, &mut scratch),
+            Kernel::Avx2Fma => self.forward_points::<1, { ONE_POINT_AVX2 }>(&[x], &mut out, &mut scratch),
+            Kernel::Portable => self.forward_points::<1, 1>(&[x], &mut out, &mut scratch),
+        }
         out[0]
     }
 
@@ -195,8 +200,8 @@ impl TargetNet {
     pub fn forward_batch(&self, inputs: &[[f32; INPUTS]], outputs: &mut [[f32; OUTPUTS]]) {
         assert_eq!(inputs.len(), outputs.len(), "one output per input");
         match self.kernel {
-            Kernel::Avx512 => self.forward_chunks::<BATCH_AVX512, 2>(inputs, outputs),
-            Kernel::Avx2Fma => self.forward_chunks::<BATCH_AVX2, 2>(inputs, outputs),
+            Kernel::Avx512 => self.forward_chunks::<BATCH_AVX512, { BATCH_REGISTERS_AVX512 }>(inputs, outputs),
+            Kernel::Avx2Fma => self.forward_chunks::<BATCH_AVX2, { BATCH_REGISTERS_AVX2 }>(inputs, outputs),
             Kernel::Portable => self.forward_chunks::<4, 1>(inputs, outputs),
         }
     }
@@ -274,15 +279,20 @@ impl TargetNet {
     }
 }
 
-/// Output registers per point and pass of the one-point kernel: four chains of even and four
-/// of odd inputs hide most of the FMA latency.
-const REGISTERS_ONE: usize = 4;
-/// Points per pass of the batched AVX-512 kernel: 6 points × 2 registers × (even, odd) = 24
-/// accumulators of the 32 registers, every weight load shared by six points (measured: 97 %
-/// of the FMA peak, against 78 % with 4 points and 75 % with 8, which spills).
+/// Output registers per pass of the one-point kernels: the whole padded width of 64 outputs
+/// in flight, eight independent FMA chains on AVX2 (enough to hide the FMA latency), four on
+/// AVX-512.
+const ONE_POINT_AVX2: usize = 8;
+const ONE_POINT_AVX512: usize = 4;
+/// Points and output registers per pass of the batched AVX-512 kernel: 6 points × 4 registers
+/// = 24 accumulators, 4 weight registers and a broadcast of the 32; each weight load serves
+/// six points, each broadcast four registers.
 const BATCH_AVX512: usize = 6;
-/// Points per pass of the batched AVX2 kernel (16 registers): 3 × 2 × 2 = 12 accumulators.
-const BATCH_AVX2: usize = 3;
+const BATCH_REGISTERS_AVX512: usize = 4;
+/// Points and output registers per pass of the batched AVX2 kernel (16 registers): 6 × 2 = 12
+/// accumulators, 2 weight registers and a broadcast; 8 loads per 12 FMAs.
+const BATCH_AVX2: usize = 6;
+const BATCH_REGISTERS_AVX2: usize = 2;
 
 /// Dot product with eight partial sums (vectorises on every target).
 #[inline]
@@ -313,14 +323,13 @@ fn hidden_portable<const B: usize>(layer: &HiddenLayer, input: &[Activations; B]
 
 /// The vector kernels: one macro body instantiated for 512- and 256-bit registers.
 ///
-/// Every kernel computes each output in one order, whatever the number of points: a chain of
-/// FMAs over the even inputs starting from the bias, a chain over the odd inputs starting
-/// from zero, their sum, then the last input when the width is odd; the output layer is a
-/// chain of FMAs over the activation registers and a fixed horizontal sum. So a point gives
-/// the same bits alone as in a batch.
+/// Every kernel computes each output in one order, whatever the number of points: a hidden
+/// output is a chain of FMAs from its bias over the inputs in order; an output of the last
+/// layer is a product of the first activation register, a chain of FMAs over the others and a
+/// fixed horizontal sum. So a point gives the same bits alone as in a batch.
 #[cfg(target_arch = "x86_64")]
 mod simd {
-    use super::{Activations, HiddenLayer, OUTPUTS};
+    use super::{Activations, HiddenLayer, MAX_WIDTH, OUTPUTS};
     use std::arch::x86_64::*;
 
     macro_rules! kernels {
@@ -336,7 +345,7 @@ mod simd {
             ) {
                 let s = layer.stride;
                 let w = layer.weight.as_ptr();
-                let pairs = layer.d_in / 2;
+                assert!(layer.d_in <= MAX_WIDTH && s % (R * $lanes) == 0 && layer.weight.len() >= layer.d_in * s);
                 for c in (0..s).step_by(R * $lanes) {
                     // SAFETY (all loads and stores below): c + R·lanes ≤ stride ≤ MAX_WIDTH,
                     // rows i < d_in of `stride` floats lie inside `weight`.
@@ -344,51 +353,31 @@ mod simd {
                     for g in 0..R {
                         bias[g] = unsafe { $load(layer.bias.as_ptr().add(c + g * $lanes)) };
                     }
-                    let mut even = [bias; B];
-                    let mut odd = [[$zero(); R]; B];
-                    for k in 0..pairs {
-                        let r0 = unsafe { w.add(2 * k * s + c) };
-                        let r1 = unsafe { r0.add(s) };
-                        let mut w0: [$vec; R] = [$zero(); R];
-                        let mut w1: [$vec; R] = [$zero(); R];
+                    let mut acc = [bias; B];
+                    for i in 0..layer.d_in {
+                        let row = unsafe { w.add(i * s + c) };
+                        let mut wi: [$vec; R] = [$zero(); R];
                         for g in 0..R {
-                            w0[g] = unsafe { $load(r0.add(g * $lanes)) };
-                            w1[g] = unsafe { $load(r1.add(g * $lanes)) };
+                            wi[g] = unsafe { $load(row.add(g * $lanes)) };
                         }
                         for p in 0..B {
-                            let x0 = $set1(input[p].0[2 * k]);
-                            let x1 = $set1(input[p].0[2 * k + 1]);
+                            let x = $set1(input[p].0[i]);
                             for g in 0..R {
-                                even[p][g] = $fmadd(x0, w0[g], even[p][g]);
-                                odd[p][g] = $fmadd(x1, w1[g], odd[p][g]);
+                                acc[p][g] = $fmadd(x, wi[g], acc[p][g]);
                             }
                         }
                     }
                     for p in 0..B {
                         for g in 0..R {
-                            even[p][g] = $add(even[p][g], odd[p][g]);
-                        }
-                    }
-                    if layer.d_in % 2 == 1 {
-                        let i = layer.d_in - 1;
-                        let r0 = unsafe { w.add(i * s + c) };
-                        for p in 0..B {
-                            let x0 = $set1(input[p].0[i]);
-                            for g in 0..R {
-                                even[p][g] = $fmadd(x0, unsafe { $load(r0.add(g * $lanes)) }, even[p][g]);
-                            }
-                        }
-                    }
-                    for p in 0..B {
-                        for g in 0..R {
-                            let v = $max(even[p][g], $zero());
+                            let v = $max(acc[p][g], $zero());
                             unsafe { $store(output[p].0.as_mut_ptr().add(c + g * $lanes), v) };
                         }
                     }
                 }
             }
 
-            /// The linear output layer of `B` points: `weight` is `[OUTPUTS][stride]`.
+            /// The linear output layer of `B` points: `weight` is `[OUTPUTS][stride]`. Two
+            /// points at a time, so that six dot products are in flight.
             #[target_feature(enable = $feature)]
             pub(super) unsafe fn $output<const B: usize>(
                 weight: &[f32],
@@ -397,17 +386,30 @@ mod simd {
                 input: &[Activations; B],
                 output: &mut [[f32; OUTPUTS]; B],
             ) {
-                assert!(weight.len() >= OUTPUTS * stride && stride % $lanes == 0 && stride > 0);
-                for p in 0..B {
-                    let x = input[p].0.as_ptr();
-                    for c in 0..OUTPUTS {
-                        // SAFETY: rows of `stride` floats, checked above; stride ≤ MAX_WIDTH.
-                        let row = unsafe { weight.as_ptr().add(c * stride) };
-                        let mut acc = $mul(unsafe { $load(x) }, unsafe { $load(row) });
-                        for g in (($lanes)..stride).step_by($lanes) {
-                            acc = $fmadd(unsafe { $load(x.add(g)) }, unsafe { $load(row.add(g)) }, acc);
+                assert!(weight.len() >= OUTPUTS * stride && stride % $lanes == 0 && stride > 0 && stride <= MAX_WIDTH);
+                for (points, outs) in input.chunks(2).zip(output.chunks_mut(2)) {
+                    let n = points.len();
+                    // SAFETY: rows of `stride` floats, checked above; stride ≤ MAX_WIDTH.
+                    let row = |c: usize, g: usize| unsafe { $load(weight.as_ptr().add(c * stride + g)) };
+                    let x = |q: usize, g: usize| unsafe { $load(points[q.min(n - 1)].0.as_ptr().add(g)) };
+                    let mut acc = [[$zero(); OUTPUTS]; 2];
+                    for q in 0..2 {
+                        for c in 0..OUTPUTS {
+                            acc[q][c] = $mul(x(q, 0), row(c, 0));
                         }
-                        output[p][c] = bias[c] + unsafe { $hsum(acc) };
+                    }
+                    for g in (($lanes)..stride).step_by($lanes) {
+                        for q in 0..2 {
+                            let xg = x(q, g);
+                            for c in 0..OUTPUTS {
+                                acc[q][c] = $fmadd(xg, row(c, g), acc[q][c]);
+                            }
+                        }
+                    }
+                    for (out, sums) in outs.iter_mut().zip(&acc) {
+                        for c in 0..OUTPUTS {
+                            out[c] = bias[c] + unsafe { $hsum(sums[c]) };
+                        }
                     }
                 }
             }
