@@ -1,7 +1,9 @@
 //! Would half-precision weights make the batched target net faster? The shipped kernel
 //! (`TargetNet::forward_batch`, f32 weights and activations, FMA) against two variants of
-//! its hidden layers on the same 6-60-60-60-60-3 net, same blocking (6 points × 32 outputs
-//! per pass, even and odd input chains):
+//! its hidden layers on the same 6-60-60-60-60-3 net, blocked as the kernel was when this was
+//! measured (6 points × 32 outputs per pass, even and odd input chains; the shipped kernel now
+//! runs 6 points × 64 outputs in one chain per output, with the same 4 weight loads per 24
+//! FMAs, so the conversions' share is unchanged):
 //! - f16 weights converted to f32 after each load (F16C `vcvtph2ps`), f32 FMA accumulation;
 //! - bf16 weights and bf16 activations multiplied in pairs with f32 accumulation
 //!   (AVX512_BF16 `vdpbf16ps`, two multiply-adds per lane and instruction).
