@@ -222,7 +222,7 @@ fn flop_utilisation(_: &mut Criterion) {
     });
     let flops = net.flops_per_eval() as f64;
     eprintln!(
-        "target net ({:?} kernel, {} FLOP/eval): peak {:.1} GFLOP/s/core ({name}); batch {:.2} M evals/s = {:.0}% of peak; one point {:.2} M evals/s = {:.0}%",
+        "target net ({:?} kernel, {} FLOP/eval dense): peak {:.1} GFLOP/s/core ({name}); batch {:.2} M evals/s = {:.0}% of peak; one point {:.2} M evals/s = {:.0}% (dense FLOPs: rows of zero inputs are skipped, so above 100 % is possible)",
         net.kernel(),
         flops,
         peak * 1e-9,

@@ -16,7 +16,9 @@
 //! chains on AVX2, enough to hide the FMA latency); a batch runs several points over fewer
 //! registers each (six points × two registers on AVX2, × four on AVX-512), so that every
 //! weight load is shared by six points' accumulators and the kernel runs close to the FMA
-//! throughput.
+//! throughput. The vector kernels skip the weight rows of inputs that are zero in every point
+//! of a pass (ReLU leaves 40–77 % of a decoded net's hidden activations at zero), which
+//! changes no bit of the result.
 
 use crate::neural::mlp::Mlp;
 use crate::{Error, Result};
@@ -346,6 +348,10 @@ mod simd {
                 let s = layer.stride;
                 let w = layer.weight.as_ptr();
                 assert!(layer.d_in <= MAX_WIDTH && s % (R * $lanes) == 0 && layer.weight.len() >= layer.d_in * s);
+                let mut nonzero = [0u16; MAX_WIDTH];
+                // SAFETY: AVX-512F and AVX2 + FMA CPUs have AVX2.
+                let rows = unsafe { nonzero_inputs(input, layer.d_in, &mut nonzero) };
+                let rows = &nonzero[..rows];
                 for c in (0..s).step_by(R * $lanes) {
                     // SAFETY (all loads and stores below): c + R·lanes ≤ stride ≤ MAX_WIDTH,
                     // rows i < d_in of `stride` floats lie inside `weight`.
@@ -354,7 +360,8 @@ mod simd {
                         bias[g] = unsafe { $load(layer.bias.as_ptr().add(c + g * $lanes)) };
                     }
                     let mut acc = [bias; B];
-                    for i in 0..layer.d_in {
+                    for &i in rows {
+                        let i = usize::from(i);
                         let row = unsafe { w.add(i * s + c) };
                         let mut wi: [$vec; R] = [$zero(); R];
                         for g in 0..R {
@@ -414,6 +421,37 @@ mod simd {
                 }
             }
         };
+    }
+
+    /// Writes to `rows` the indices below `d_in` of the inputs that are not zero (of either
+    /// sign) in at least one of the points, in order, and returns how many there are. The
+    /// kernels skip the other inputs' weight rows: an input that is zero in every point adds
+    /// only zeros to every output, which can change no more than the sign of a zero sum, and
+    /// ReLU's `max(sum, +0)` returns +0 for either sign, so the activations are the same bits
+    /// with the rows skipped as without (and a point's the same alone as in a batch, which
+    /// skips fewer). Most rows go: 40–77 % of a decoded net's hidden activations are zero,
+    /// up to a third of its neurons over the whole domain.
+    #[target_feature(enable = "avx2")]
+    unsafe fn nonzero_inputs<const B: usize>(input: &[Activations; B], d_in: usize, rows: &mut [u16; MAX_WIDTH]) -> usize {
+        let magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+        let d_in = d_in.min(MAX_WIDTH);
+        let mut n = 0;
+        for base in (0..d_in).step_by(8) {
+            let mut any = _mm256_setzero_ps();
+            for point in input {
+                // SAFETY: base + 8 ≤ MAX_WIDTH (base is a multiple of 8 below d_in ≤ MAX_WIDTH).
+                any = _mm256_or_ps(any, unsafe { _mm256_loadu_ps(point.0.as_ptr().add(base)) });
+            }
+            let nonzero = _mm256_cmp_ps::<_CMP_NEQ_UQ>(_mm256_and_ps(any, magnitude), _mm256_setzero_ps());
+            // Lanes at or beyond d_in hold whatever an earlier layer left there.
+            let mut mask = (_mm256_movemask_ps(nonzero) as u32) & (u32::MAX >> (32 - (d_in - base).min(8)));
+            while mask != 0 {
+                rows[n] = (base + mask.trailing_zeros() as usize) as u16;
+                n += 1;
+                mask &= mask - 1;
+            }
+        }
+        n
     }
 
     /// Sum of the lanes of a 512-bit register (a fixed tree of additions).
@@ -505,6 +543,63 @@ pub(crate) mod tests {
                 }
             }
         }
+    }
+
+    /// Skipping the weight rows of inputs that are zero in every point changes no bit: the
+    /// AVX2 kernels, one point and batched, against the same order of operations over every
+    /// input in scalar code, on inputs with exact zeros of both signs and a net whose hidden
+    /// layer has dead units (a third of them never active).
+    #[test]
+    fn skipped_zero_rows_change_no_bits() {
+        let mut mlp = random_mlp(&[6, 60, 60, 3], 7);
+        mlp.layers[0].bias[..20].fill(-10.0);
+        let net = TargetNet::with_kernel(&mlp, Kernel::Avx2Fma).unwrap();
+        if net.kernel() != Kernel::Avx2Fma {
+            return;
+        }
+        let mut inputs = random_inputs(64);
+        for (k, x) in inputs.iter_mut().enumerate() {
+            x[1] = if k % 2 == 0 { 0.0 } else { -0.0 };
+            if k % 3 == 0 {
+                x[4] = -0.0;
+            }
+        }
+        let mut batch = vec![[0.0; OUTPUTS]; inputs.len()];
+        net.forward_batch(&inputs, &mut batch);
+        for (x, yb) in inputs.iter().zip(&batch) {
+            let want = avx2_order_over_every_input(&mlp, x).map(f32::to_bits);
+            assert_eq!(net.forward(*x).map(f32::to_bits), want, "one point at {x:?}");
+            assert_eq!(yb.map(f32::to_bits), want, "batch at {x:?}");
+        }
+    }
+
+    /// The AVX2 kernels' operations in their order, in scalar code, with no input skipped:
+    /// each hidden output a chain of FMAs from its bias then `max(·, +0)`; each output an
+    /// eight-lane chain over the padded activations, summed as `hsum256` does, plus the bias.
+    fn avx2_order_over_every_input(mlp: &Mlp, x: &[f32; INPUTS]) -> [f32; OUTPUTS] {
+        let (output, hidden) = mlp.layers.split_last().unwrap();
+        let mut h = x.to_vec();
+        for layer in hidden {
+            h = (0..layer.d_out)
+                .map(|j| {
+                    let sum = (0..layer.d_in).fold(layer.bias[j], |acc, i| h[i].mul_add(layer.weight[i * layer.d_out + j], acc));
+                    if sum > 0.0 { sum } else { 0.0 }
+                })
+                .collect();
+        }
+        let stride = h.len().div_ceil(CHUNK) * CHUNK;
+        h.resize(stride, 0.0);
+        std::array::from_fn(|c| {
+            let w = |i: usize| if i < output.d_in { output.weight[i * OUTPUTS + c] } else { 0.0 };
+            let mut acc: [f32; 8] = std::array::from_fn(|j| h[j] * w(j));
+            for g in (8..stride).step_by(8) {
+                for (j, a) in acc.iter_mut().enumerate() {
+                    *a = h[g + j].mul_add(w(g + j), *a);
+                }
+            }
+            let quad: [f32; 4] = std::array::from_fn(|k| acc[k] + acc[k + 4]);
+            output.bias[c] + ((quad[0] + quad[2]) + (quad[1] + quad[3]))
+        })
     }
 
     #[test]
