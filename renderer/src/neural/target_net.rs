@@ -336,7 +336,7 @@ mod simd {
 
     macro_rules! kernels {
         ($hidden:ident, $output:ident, $feature:literal, $vec:ty, $lanes:expr, $load:ident, $store:ident,
-         $set1:ident, $fmadd:ident, $mul:ident, $add:ident, $max:ident, $zero:ident, $hsum:path) => {
+         $set1:ident, $fmadd:ident, $mul:ident, $max:ident, $zero:ident, $hsum:path) => {
             /// One hidden layer of `B` points: relu(x · W + b) over the padded width, `R`
             /// registers of outputs at a time (`R` × lanes must divide the stride).
             #[target_feature(enable = $feature)]
@@ -469,9 +469,9 @@ mod simd {
     }
 
     kernels!(hidden_avx512, output_avx512, "avx512f", __m512, 16, _mm512_loadu_ps, _mm512_storeu_ps,
-        _mm512_set1_ps, _mm512_fmadd_ps, _mm512_mul_ps, _mm512_add_ps, _mm512_max_ps, _mm512_setzero_ps, hsum512);
+        _mm512_set1_ps, _mm512_fmadd_ps, _mm512_mul_ps, _mm512_max_ps, _mm512_setzero_ps, hsum512);
     kernels!(hidden_avx2, output_avx2, "avx2,fma", __m256, 8, _mm256_loadu_ps, _mm256_storeu_ps,
-        _mm256_set1_ps, _mm256_fmadd_ps, _mm256_mul_ps, _mm256_add_ps, _mm256_max_ps, _mm256_setzero_ps, hsum256);
+        _mm256_set1_ps, _mm256_fmadd_ps, _mm256_mul_ps, _mm256_max_ps, _mm256_setzero_ps, hsum256);
 }
 
 #[cfg(test)]
