@@ -61,12 +61,17 @@ fn merl_table() -> PathBuf {
 
 /// The `render` binary of this build (the cross-check renders with it): built by
 /// `cargo test --workspace` already; otherwise built here, with this test's profile.
+///
+/// It is selected with `--workspace` so that cargo resolves dependency features over the
+/// whole workspace, as `cargo test --workspace` did: `-p render-cli` alone would resolve
+/// fewer features for shared dependencies (serde, half, syn, ...) and rebuild most of the
+/// dependency tree under different hashes, minutes of a cold CI run.
 fn render_binary() -> PathBuf {
     let path = profile_dir().join("render");
     let profile = profile_name();
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| env!("CARGO").into());
     let status = Command::new(cargo)
-        .args(["build", "--quiet", "-p", "render-cli", "--bin", "render", "--profile", &profile])
+        .args(["build", "--quiet", "--workspace", "--bin", "render", "--profile", &profile])
         .current_dir(crate_dir())
         .status()
         .expect("run cargo build for the render binary");
@@ -108,13 +113,17 @@ fn pytest_suite_passes() {
     println!("{log}");
 }
 
-/// `pip install ./plugins/python` works: maturin builds the package from pyproject.toml (here
-/// with the test build's profile, so the compiled dependencies are reused; users get a
-/// release build) into a fresh directory, from which it imports and evaluates a material.
+/// `pip install ./plugins/python` works: maturin builds the package from pyproject.toml into
+/// a fresh directory, from which it imports and evaluates a material.
+///
+/// maturin builds this package alone, so cargo resolves fewer features of shared
+/// dependencies than `cargo test --workspace` did and cannot reuse its build; the test builds
+/// with the unoptimised `pip-test` profile (Cargo.toml), 1.5 minutes on 2 cores instead of
+/// 4.5 at the test profile (users get a release build).
 #[test]
 fn pip_installs_the_package() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let profile = profile_name();
+    let profile = "pip-test";
     let output = Command::new("python3")
         .args(["-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--disable-pip-version-check", "--target"])
         .arg(dir.path())
