@@ -25,7 +25,7 @@ pub enum Error {
     InvalidArgument { flag: String, reason: String },
     /// The running CPU lacks instruction-set features this build was compiled for (see
     /// [`crate::support::cpu::missing_build_features`]).
-    #[error("this CPU lacks {}, which this build was compiled for; rebuild for it with RUSTFLAGS=\"-C target-cpu=native\" cargo build --release", missing.join(", "))]
+    #[error("this CPU lacks {}, which this build was compiled for; rebuild for it with RUSTFLAGS=\"-C target-cpu=native\" set (cargo build --release, or pip install of the Python package)", missing.join(", "))]
     UnsupportedCpu { missing: Vec<&'static str> },
 }
 
