@@ -114,12 +114,8 @@ fn pytest_suite_passes() {
 }
 
 /// `pip install ./plugins/python` works: maturin builds the package from pyproject.toml into
-/// a fresh directory, from which it imports and evaluates a material.
-///
-/// maturin builds this package alone, so cargo resolves fewer features of shared
-/// dependencies than `cargo test --workspace` did and cannot reuse its build; the test builds
-/// with the unoptimised `pip-test` profile (Cargo.toml), 1.5 minutes on 2 cores instead of
-/// 4.5 at the test profile (users get a release build).
+/// a fresh directory, from which it imports and evaluates a material. It builds at the
+/// unoptimised `pip-test` profile (Cargo.toml says why; users get a release build).
 #[test]
 fn pip_installs_the_package() {
     let dir = tempfile::tempdir().expect("tempdir");
