@@ -13,7 +13,7 @@ use super::BatchEval;
 
 use crate::neural::mapping::MappingForm;
 use crate::neural::mlp::Mlp;
-use crate::neural::target_net::{TargetNet, INPUTS, OUTPUTS};
+use crate::neural::target_net::{TargetNet, INPUTS, ORDERED, OUTPUTS};
 use crate::Result;
 use crate::Rgb;
 use glam::Vec3;
@@ -196,9 +196,9 @@ impl BatchEval for NeuralBsdf {
         for (point, value) in points.iter().zip(values.iter_mut()) {
             *value = reference_at(&self.reference, point);
         }
-        // Points per forward call: a multiple of every kernel's batch, small enough for the
-        // stack (a step's chunk of 256 vertices gives up to 512 points).
-        const CHUNK: usize = 240;
+        // Points per forward call: as many as the net orders together (a step's chunk of
+        // vertices gives up to that many).
+        const CHUNK: usize = ORDERED;
         let mut inputs = [[0.0; INPUTS]; CHUNK];
         let mut outputs = [[0.0; OUTPUTS]; CHUNK];
         for (points, values) in points.chunks(CHUNK).zip(values.chunks_mut(CHUNK)) {
