@@ -94,10 +94,11 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             }
         };
         // As `PathTracer::light_term`: a value `prepare` leaves out is zero, which contributes
-        // nothing; the density is `Bxdf::pdf`, what `eval_pdf` gives for tabulated BSDFs.
+        // nothing; the density is `Bxdf::pdf`, what `eval_pdf` gives for tabulated BSDFs, and
+        // is left out (0) where MIS does not use it (a point light's sample).
         let light = tracer.light_sample(scene, v).and_then(|ls| {
             let wi = light_direction(&v.sp, &ls)?;
-            let pdf = bsdf.pdf(v.wo, wi);
+            let pdf = if tracer.weighs_light_sample(&ls) { bsdf.pdf(v.wo, wi) } else { 0.0 };
             Some((ls, wi, pdf, add(bsdf.prepare(v.wo, wi)?)))
         });
         // As `Bxdf::sample` of a tabulated BSDF; a zero value ends the path in `continuation`.

@@ -272,6 +272,14 @@ impl PathTracer {
         self.light_contribution(sp, beta, ls, wi, f, bsdf_pdf)
     }
 
+    /// Whether light sample `ls` is weighed against BSDF sampling by MIS, i.e. whether
+    /// [`Self::light_contribution`] uses the BSDF's density of its direction (not for delta
+    /// lights, which BSDF sampling cannot hit, nor under [`Strategy::LightOnly`]).
+    #[inline(always)]
+    fn weighs_light_sample(&self, ls: &LightSample) -> bool {
+        !ls.is_delta && self.strategy != Strategy::LightOnly
+    }
+
     /// The shadow test of light sample `ls` arriving from `wi` (local frame) at `sp`, where
     /// the BSDF's value is `f` (1/sr) and its density of sampling `wi` `bsdf_pdf`; `None` where
     /// it cannot contribute (also where a NaN makes a test fail, hence the negated
@@ -283,10 +291,7 @@ impl PathTracer {
             return None;
         }
         let origin = offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, ls.direction);
-        let w = match (ls.is_delta, self.strategy) {
-            (true, _) | (false, Strategy::LightOnly) => 1.0,
-            (false, _) => power_heuristic(ls.pdf, bsdf_pdf),
-        };
+        let w = if self.weighs_light_sample(ls) { power_heuristic(ls.pdf, bsdf_pdf) } else { 1.0 };
         Some(ShadowTest {
             ray: shadow_ray(origin, ls.direction, ls.shadow_target),
             contribution: beta * f * ls.radiance * (wi.z * w / ls.pdf),
