@@ -176,10 +176,17 @@ pub fn weigh_measured_corners(values: &[[f32; 3]], idx: &[usize; 8], w: &[f32; 8
 /// [`trilinear_corners`]), so that look-ups of many points issued after their prefetches
 /// overlap their memory latencies. No effect on values; a no-op where the CPU has no prefetch
 /// hint.
+///
+/// The corners come in pairs of neighbours along φd: 24 contiguous bytes (except where φd
+/// wraps around), so at most two cache lines, which the first channel of the first entry and
+/// the last channel of the second fetch — also where an entry straddles two lines.
 #[inline]
 pub fn prefetch_corners(values: &[[f32; 3]], idx: &[usize; 8]) {
-    for v in idx.iter().filter_map(|&i| values.get(i)) {
-        crate::support::prefetch(v);
+    for pair in idx.chunks_exact(2) {
+        if let (Some(first), Some(second)) = (values.get(pair[0]), values.get(pair[1])) {
+            crate::support::prefetch(&first[0]);
+            crate::support::prefetch(&second[2]);
+        }
     }
 }
 
