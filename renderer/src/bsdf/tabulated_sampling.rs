@@ -141,6 +141,20 @@ impl std::fmt::Debug for TabulatedSampler {
     }
 }
 
+/// What a [`TabulatedSampler`] needs of one `wo` (local frame): its two θo nodes and the
+/// azimuth the tables are relative to, found once ([`TabulatedSampler::view`]) for all the
+/// draws and densities of a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct SamplerView {
+    wo: Vec3,
+    /// The lower θo node and the weight of the upper one.
+    node: usize,
+    upper_weight: f32,
+    /// cos and sin of wo's azimuth.
+    cos_phi: f32,
+    sin_phi: f32,
+}
+
 /// A density over [0, 1] × [0, 1] ∋ (x, v), bilinear in each cell of a grid with equal
 /// columns in x and the sampler's row boundaries in v.
 #[derive(Clone)]
@@ -225,15 +239,11 @@ impl BilinearTable {
         let s = invert_linear(c0[columns], c1[columns], u_row);
         let q_cdf = |i: usize| (1.0 - s) * c0[i] + s * c1[i];
         let target = u.x * q_cdf(columns);
-        let (mut lo, mut hi) = (0usize, columns);
-        while hi - lo > 1 {
-            let mid = (lo + hi) / 2;
-            if q_cdf(mid) <= target {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
+        // The last column whose cumulative value is ≤ target (q_cdf(0) = 0): q_cdf rises
+        // with i (rounded sums and products of non-negative, non-decreasing terms), so that
+        // is the count of inner vertices ≤ target. Counted without branches (and in vector
+        // lanes) rather than by bisection, whose branches a random target mispredicts.
+        let lo = (1..columns).map(|i| (q_cdf(i) <= target) as usize).sum::<usize>();
         let (v0, v1) = (
             &self.values[r * line..(r + 1) * line],
             &self.values[(r + 1) * line..(r + 2) * line],
@@ -332,13 +342,21 @@ impl TabulatedSampler {
         }
     }
 
-    /// The two θo nodes around `wo` and the weight of the upper one.
+    /// What the draws and densities given `wo` (local frame) share: the two θo nodes around
+    /// it, the weight of the upper one, and its azimuth.
     #[inline]
-    fn nodes(&self, wo: Vec3) -> (usize, f32) {
+    pub fn view(&self, wo: Vec3) -> SamplerView {
         let n = self.tables.len();
         let s = crate::brdf_coords::polar_angle(wo) / FRAC_PI_2 * (n - 1) as f32;
-        let k = (s.max(0.0) as usize).min(n - 2);
-        (k, (s - k as f32).clamp(0.0, 1.0))
+        let node = (s.max(0.0) as usize).min(n - 2);
+        let (cos_phi, sin_phi) = azimuth(wo);
+        SamplerView {
+            wo,
+            node,
+            upper_weight: (s - node as f32).clamp(0.0, 1.0),
+            cos_phi,
+            sin_phi,
+        }
     }
 
     /// The fitted tables.
@@ -357,19 +375,31 @@ impl TabulatedSampler {
     /// (which picks cosine lobe, θo node and the sign of φh − φo). `None` when `wo` is below
     /// the horizon or the drawn reflection is. The density of the result is [`Self::pdf`].
     pub fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<Vec3> {
-        if wo.z <= 0.0 {
+        self.sample_in(&self.view(wo), u, uc)
+    }
+
+    /// [`Self::sample`] given the view of `wo`.
+    #[inline]
+    pub fn sample_in(&self, view: &SamplerView, u: Vec2, uc: f32) -> Option<Vec3> {
+        if view.wo.z <= 0.0 {
             return None;
         }
-        let (lobe, _) = self.choose(wo, uc);
-        self.sample_lobe(wo, lobe, u)
+        let (lobe, _) = self.choose(view, uc);
+        self.sample_lobe(view, lobe, u)
     }
 
     /// [`Self::sample`] with its density [`Self::pdf`]; `None` also where the density is not
     /// positive and finite. What [`Bxdf::sample`] of a [`TabulatedBrdf`] draws.
     #[inline]
     pub fn sample_with_pdf(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<(Vec3, f32)> {
-        let wi = self.sample(wo, u, uc)?;
-        let pdf = self.pdf(wo, wi);
+        self.sample_with_pdf_in(&self.view(wo), u, uc)
+    }
+
+    /// [`Self::sample_with_pdf`] given the view of `wo`.
+    #[inline]
+    pub fn sample_with_pdf_in(&self, view: &SamplerView, u: Vec2, uc: f32) -> Option<(Vec3, f32)> {
+        let wi = self.sample_in(view, u, uc)?;
+        let pdf = self.pdf_in(view, wi);
         (pdf > 0.0 && pdf.is_finite()).then_some((wi, pdf))
     }
 
@@ -380,19 +410,21 @@ impl TabulatedSampler {
         if wo.z <= 0.0 {
             return None;
         }
-        let (lobe, rest) = self.choose(wo, u.x);
-        self.sample_lobe(wo, lobe, Vec2::new(rest.min(ONE_MINUS_EPSILON), u.y))
+        let view = self.view(wo);
+        let (lobe, rest) = self.choose(&view, u.x);
+        self.sample_lobe(&view, lobe, Vec2::new(rest.min(ONE_MINUS_EPSILON), u.y))
     }
 
-    /// The lobe `uc` picks given `wo`, and `uc` rescaled to [0, 1) within its choice.
+    /// The lobe `uc` picks given the view of `wo`, and `uc` rescaled to [0, 1) within its
+    /// choice.
     #[inline]
-    fn choose(&self, wo: Vec3, uc: f32) -> (Lobe, f32) {
+    fn choose(&self, view: &SamplerView, uc: f32) -> (Lobe, f32) {
         let cf = self.cosine_fraction;
         if uc < cf || cf >= 1.0 {
             return (Lobe::Cosine, uc / cf.max(f32::MIN_POSITIVE));
         }
         let uc = (uc - cf) / (1.0 - cf);
-        let (k, t) = self.nodes(wo);
+        let (k, t) = (view.node, view.upper_weight);
         let (node, uc) = if uc < 1.0 - t {
             (k, uc / (1.0 - t))
         } else {
@@ -405,16 +437,16 @@ impl TabulatedSampler {
         }
     }
 
-    /// Draws wi from one lobe given `wo` (z > 0) and a 2D sample.
+    /// Draws wi from one lobe given the view of `wo` (z > 0) and a 2D sample.
     #[inline]
-    fn sample_lobe(&self, wo: Vec3, lobe: Lobe, u: Vec2) -> Option<Vec3> {
+    fn sample_lobe(&self, view: &SamplerView, lobe: Lobe, u: Vec2) -> Option<Vec3> {
         let Lobe::Table { node, sign } = lobe else {
             let wi = sample_cosine_hemisphere(u);
             return (wi.z > 0.0).then_some(wi);
         };
         let (x, v) = self.tables[node].sample(u, self.phi_cells, &self.row_v);
         let hl = half_vector_at(v, x, sign);
-        let (c, s) = azimuth(wo);
+        let (c, s, wo) = (view.cos_phi, view.sin_phi, view.wo);
         let h = Vec3::new(c * hl.x - s * hl.y, s * hl.x + c * hl.y, hl.z);
         let wi = crate::bsdf::microfacet::reflect(wo, h);
         (wi.z > 0.0 && wo.dot(h) > 0.0).then(|| wi.normalize())
@@ -423,22 +455,29 @@ impl TabulatedSampler {
     /// Solid-angle density (1/sr) with which [`Self::sample`] draws `wi` given `wo`; 0 below
     /// either horizon.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
+        self.pdf_in(&self.view(wo), wi)
+    }
+
+    /// [`Self::pdf`] given the view of `wo`.
+    #[inline]
+    pub fn pdf_in(&self, view: &SamplerView, wi: Vec3) -> f32 {
+        if view.wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
         let cf = self.cosine_fraction;
-        cf * cosine_hemisphere_pdf(wi.z) + (1.0 - cf) * self.table_pdf(wo, wi)
+        cf * cosine_hemisphere_pdf(wi.z) + (1.0 - cf) * self.table_pdf(view, wi)
     }
 
     /// Density of the tabulated part alone (1/sr), both horizons already checked.
     #[inline]
-    fn table_pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn table_pdf(&self, view: &SamplerView, wi: Vec3) -> f32 {
+        let wo = view.wo;
         let h = (wo + wi).normalize();
         let cos_oh = wo.dot(h);
         if cos_oh.is_nan() || cos_oh <= 0.0 {
             return 0.0;
         }
-        let (c, s) = azimuth(wo);
+        let (c, s) = (view.cos_phi, view.sin_phi);
         let hx = c * h.x + s * h.y;
         let hy = -s * h.x + c * h.y;
         let sin2_h = hx * hx + hy * hy;
@@ -448,7 +487,7 @@ impl TabulatedSampler {
         // 1 − cos θh as sin²θh / (1 + cos θh): no cancellation near h = n (h.z > 0 here).
         let v = sin2_h / (1.0 + h.z);
         let x = (atan2(hy, hx).abs() / PI).min(1.0);
-        let (k, t) = self.nodes(wo);
+        let (k, t) = (view.node, view.upper_weight);
         let mut density =
             (1.0 - t) * self.tables[k].density(x, v, row, self.phi_cells, &self.row_v);
         if t > 0.0 {

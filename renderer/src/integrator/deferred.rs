@@ -96,15 +96,17 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         // As `PathTracer::light_term`: a value `prepare` leaves out is zero, which contributes
         // nothing; the density is `Bxdf::pdf`, what `eval_pdf` gives for tabulated BSDFs, and
         // is left out (0) where MIS does not use it (a point light's sample).
+        // Both read the sampler's view of wo, found once.
+        let sampler = bsdf.sampler();
+        let view = sampler.view(v.wo);
         let light = tracer.light_sample(scene, v).and_then(|ls| {
             let wi = light_direction(&v.sp, &ls)?;
-            let pdf = if tracer.weighs_light_sample(&ls) { bsdf.pdf(v.wo, wi) } else { 0.0 };
+            let pdf = if tracer.weighs_light_sample(&ls) { sampler.pdf_in(&view, wi) } else { 0.0 };
             Some((ls, wi, pdf, add(bsdf.prepare(v.wo, wi)?)))
         });
         // As `Bxdf::sample` of a tabulated BSDF; a zero value ends the path in `continuation`.
-        let sample = bsdf
-            .sampler()
-            .sample_with_pdf(v.wo, v.u, v.uc)
+        let sample = sampler
+            .sample_with_pdf_in(&view, v.u, v.uc)
             .and_then(|(wi, pdf)| Some((wi, pdf, add(bsdf.prepare(v.wo, wi)?))));
         self.vertices.push(Pending {
             sp: v.sp,
