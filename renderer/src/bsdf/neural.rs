@@ -13,7 +13,7 @@ use super::BatchEval;
 
 use crate::neural::mapping::MappingForm;
 use crate::neural::mlp::Mlp;
-use crate::neural::target_net::{TargetNet, INPUTS, ORDERED, OUTPUTS};
+use crate::neural::target_net::{TargetNet, INPUTS};
 use crate::Result;
 use crate::Rgb;
 use glam::Vec3;
@@ -196,25 +196,19 @@ impl BatchEval for NeuralBsdf {
         for (point, value) in points.iter().zip(values.iter_mut()) {
             *value = reference_at(&self.reference, point);
         }
-        // Points per forward call: as many as the net orders together (a step's chunk of
-        // vertices gives up to that many).
-        const CHUNK: usize = ORDERED;
-        let mut inputs = [[0.0; INPUTS]; CHUNK];
-        let mut outputs = [[0.0; OUTPUTS]; CHUNK];
-        for (points, values) in points.chunks(CHUNK).zip(values.chunks_mut(CHUNK)) {
-            let n = points.len();
-            for (x, point) in inputs.iter_mut().zip(points) {
-                *x = point.x;
-            }
-            self.net.forward_batch(&inputs[..n], &mut outputs[..n]);
-            for (y, value) in outputs.iter().zip(values) {
-                let (f, clamped) = map_back(self.mapping, self.epsilon, *y, *value);
+        // The net reads each point's input where it is and hands back each output, which is
+        // mapped back onto f_ref in place.
+        self.net.forward_each(
+            points.len(),
+            |i| points[i].x,
+            |i, y| {
+                let (f, clamped) = map_back(self.mapping, self.epsilon, y, values[i]);
                 if clamped {
                     self.count_clamped();
                 }
-                *value = f;
-            }
-        }
+                values[i] = f;
+            },
+        );
     }
 }
 

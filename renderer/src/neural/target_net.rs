@@ -208,10 +208,18 @@ impl TargetNet {
     /// point gives does not depend on its neighbours.
     pub fn forward_batch(&self, inputs: &[[f32; INPUTS]], outputs: &mut [[f32; OUTPUTS]]) {
         assert_eq!(inputs.len(), outputs.len(), "one output per input");
+        self.forward_each(inputs.len(), |i| inputs[i], |i, y| outputs[i] = y);
+    }
+
+    /// [`TargetNet::forward_batch`] of `count` points whose inputs `input(i)` gives, each
+    /// output handed to `output(i, y)` (in the order the passes run): for callers whose
+    /// inputs and outputs live in their own records, without copying them to arrays and back.
+    #[inline]
+    pub fn forward_each(&self, count: usize, input: impl Fn(usize) -> [f32; INPUTS], output: impl FnMut(usize, [f32; OUTPUTS])) {
         match self.kernel {
-            Kernel::Avx512 => self.forward_ordered::<BATCH_AVX512, { BATCH_REGISTERS_AVX512 }>(inputs, outputs),
-            Kernel::Avx2Fma => self.forward_ordered::<BATCH_AVX2, { BATCH_REGISTERS_AVX2 }>(inputs, outputs),
-            Kernel::Portable => self.forward_ordered::<4, 1>(inputs, outputs),
+            Kernel::Avx512 => self.forward_ordered::<BATCH_AVX512, { BATCH_REGISTERS_AVX512 }>(count, input, output),
+            Kernel::Avx2Fma => self.forward_ordered::<BATCH_AVX2, { BATCH_REGISTERS_AVX2 }>(count, input, output),
+            Kernel::Portable => self.forward_ordered::<4, 1>(count, input, output),
         }
     }
 
@@ -228,27 +236,32 @@ impl TargetNet {
     /// registers of outputs per pass. The last pass of each ordered run is padded with
     /// copies of its last point: one more pass of the batched kernel costs less than the
     /// points one by one, and gives the same bits.
-    fn forward_ordered<const B: usize, const R: usize>(&self, inputs: &[[f32; INPUTS]], outputs: &mut [[f32; OUTPUTS]]) {
+    fn forward_ordered<const B: usize, const R: usize>(
+        &self,
+        count: usize,
+        input: impl Fn(usize) -> [f32; INPUTS],
+        mut output: impl FnMut(usize, [f32; OUTPUTS]),
+    ) {
         let mut scratch = [[Activations::ZERO; B]; 2];
         // A point's sort key in the high half (its first input in IEEE total order), its
         // index in the run in the low half.
         let mut keys = [0u64; ORDERED];
-        for (ins, outs) in inputs.chunks(ORDERED).zip(outputs.chunks_mut(ORDERED)) {
-            let keys = &mut keys[..ins.len()];
-            for (k, (key, x)) in keys.iter_mut().zip(ins).enumerate() {
-                let bits = x[0].to_bits();
+        for start in (0..count).step_by(ORDERED) {
+            let keys = &mut keys[..ORDERED.min(count - start)];
+            for (k, key) in keys.iter_mut().enumerate() {
+                let bits = input(start + k)[0].to_bits();
                 let ordered = if bits >> 31 == 1 { !bits } else { bits | 1 << 31 };
                 *key = u64::from(ordered) << 32 | k as u64;
             }
             keys.sort_unstable();
-            let index = |key: u64| key as u32 as usize;
+            let index = |key: u64| start + key as u32 as usize;
             for pass in keys.chunks(B) {
                 let last = index(pass[pass.len() - 1]);
-                let x: [[f32; INPUTS]; B] = std::array::from_fn(|k| ins[pass.get(k).map_or(last, |&key| index(key))]);
+                let x: [[f32; INPUTS]; B] = std::array::from_fn(|k| input(pass.get(k).map_or(last, |&key| index(key))));
                 let mut y = [[0.0; OUTPUTS]; B];
                 self.forward_points::<B, R>(&x, &mut y, &mut scratch);
                 for (&key, y) in pass.iter().zip(&y) {
-                    outs[index(key)] = *y;
+                    output(index(key), *y);
                 }
             }
         }
