@@ -175,6 +175,44 @@ pub fn network_input_and_angles(wi: Vec3, wo: Vec3) -> ([f32; 6], [f32; 3]) {
     ([sin_h, 0.0, hd.h.z, d.x, d.y, d.z], angles)
 }
 
+/// Boxes that together hold every [`network_input`] of directions above the horizon: θh and
+/// θd (each in [0, π/2] there) and the folded φd (in [0, π]) cut into `n` equal steps each,
+/// every box one interval per input (low, high), widened by 10⁻⁵ for the inputs' f32
+/// rounding. What [`crate::neural::mlp::Mlp::without_never_active_units`] proves over.
+pub fn network_input_boxes(n: usize) -> Vec<[(f64, f64); 6]> {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    const SLACK: f64 = 1e-5;
+    let steps = |end: f64| (0..n).map(move |k| (end * k as f64 / n as f64, end * (k + 1) as f64 / n as f64));
+    // sin and cos over [a, b] ⊂ [0, π]: sin rises to π/2 then falls, cos falls.
+    let sin = |(a, b): (f64, f64)| {
+        let top = if a <= FRAC_PI_2 && b >= FRAC_PI_2 { 1.0 } else { a.sin().max(b.sin()) };
+        (a.sin().min(b.sin()), top)
+    };
+    let cos = |(a, b): (f64, f64)| (b.cos(), a.cos());
+    let product = |(a, b): (f64, f64), (c, d): (f64, f64)| {
+        let p = [a * c, a * d, b * c, b * d];
+        (p.iter().copied().fold(f64::INFINITY, f64::min), p.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+    };
+    let widen = |(a, b): (f64, f64)| (a - SLACK, b + SLACK);
+    let mut boxes = Vec::with_capacity(n * n * n);
+    for theta_h in steps(FRAC_PI_2) {
+        for theta_d in steps(FRAC_PI_2) {
+            for phi_d in steps(PI) {
+                let sin_d = sin(theta_d);
+                boxes.push([
+                    widen(sin(theta_h)),
+                    (0.0, 0.0),
+                    widen(cos(theta_h)),
+                    widen(product(sin_d, cos(phi_d))),
+                    widen(product(sin_d, sin(phi_d))),
+                    widen(cos(theta_d)),
+                ]);
+            }
+        }
+    }
+    boxes
+}
+
 /// The 6D NBRDF network input of the isotropic angles (θh, θd, φd), radians; φd is used as
 /// given (not folded).
 #[inline]

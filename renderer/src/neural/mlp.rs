@@ -74,6 +74,89 @@ impl Mlp {
         }
         h
     }
+
+    /// The same net without the hidden units that are zero after ReLU for every input in
+    /// `boxes` (each box one interval per input, low ≤ high), and how many went. Proved by
+    /// interval bounds, box by box in f64: a unit goes only if the upper bound of its
+    /// pre-activation is negative in every box by more than the rounding any f32 evaluation
+    /// of the chain could add (each layer's bounds widened by (d_in + 2) · 2⁻²³ times the sum
+    /// of the magnitudes of its terms, which also covers the rounding of the inputs to the
+    /// next layer). A removed unit contributes exact zeros to the next layer, which a sum
+    /// over inputs in order skips without changing a bit (the vector kernels skip zero rows
+    /// already), so inside the boxes the pruned net gives the same bits. The last hidden
+    /// layer is kept whole: the output layer's sums run over its units in vector lanes, and
+    /// moving a unit to another lane would change their rounding.
+    pub fn without_never_active_units<B: AsRef<[(f64, f64)]>>(&self, boxes: &[B]) -> (Mlp, usize) {
+        let hidden = self.layers.len().saturating_sub(1);
+        if boxes.is_empty() {
+            return (self.clone(), 0);
+        }
+        let mut active: Vec<Vec<bool>> = self.layers[..hidden].iter().map(|l| vec![false; l.d_out]).collect();
+        for b in boxes {
+            let mut bounds: Vec<(f64, f64)> = b.as_ref().to_vec();
+            for (layer, active) in self.layers[..hidden].iter().zip(active.iter_mut()) {
+                if bounds.len() != layer.d_in {
+                    return (self.clone(), 0);
+                }
+                let gamma = (layer.d_in + 2) as f64 * f64::from(f32::EPSILON);
+                bounds = (0..layer.d_out)
+                    .map(|o| {
+                        let bias = f64::from(layer.bias[o]);
+                        let (mut lo, mut hi, mut magnitude) = (bias, bias, bias.abs());
+                        for (i, &(a, b)) in bounds.iter().enumerate() {
+                            let w = f64::from(layer.weight[i * layer.d_out + o]);
+                            let (p, q) = (w * a, w * b);
+                            lo += p.min(q);
+                            hi += p.max(q);
+                            magnitude += p.abs().max(q.abs());
+                        }
+                        let margin = gamma * magnitude;
+                        if hi + margin >= 0.0 {
+                            active[o] = true;
+                        }
+                        ((lo - margin).max(0.0), (hi + margin).max(0.0))
+                    })
+                    .collect();
+            }
+        }
+        // Units to drop: never active, in any hidden layer but the last.
+        let keep: Vec<Vec<bool>> = active
+            .iter()
+            .enumerate()
+            .map(|(k, a)| {
+                let mut keep = if k + 1 < hidden { a.clone() } else { vec![true; a.len()] };
+                // A layer keeps at least one unit (a constant net is still a net).
+                if !keep.iter().any(|&k| k) {
+                    keep[0] = true;
+                }
+                keep
+            })
+            .collect();
+        let removed = keep.iter().flatten().filter(|&&k| !k).count();
+        if removed == 0 {
+            return (self.clone(), 0);
+        }
+        let mut layers = self.layers.clone();
+        for (k, keep) in keep.iter().enumerate() {
+            // Layer k loses output columns, layer k + 1 the matching input rows.
+            let (out, next) = (&self.layers[k], &self.layers[k + 1]);
+            let kept: Vec<usize> = (0..out.d_out).filter(|&o| keep[o]).collect();
+            let layer = &layers[k];
+            let bias = kept.iter().map(|&o| layer.bias[o]).collect();
+            let weight = (0..layer.d_in)
+                .flat_map(|i| kept.iter().map(move |&o| layer.weight[i * out.d_out + o]))
+                .collect();
+            layers[k].bias = bias;
+            layers[k].weight = weight;
+            layers[k].d_out = kept.len();
+            layers[k + 1].weight = kept
+                .iter()
+                .flat_map(|&i| next.weight[i * next.d_out..(i + 1) * next.d_out].iter().copied())
+                .collect();
+            layers[k + 1].d_in = kept.len();
+        }
+        (Mlp { layers }, removed)
+    }
 }
 
 /// The set encoder of the trained model: per sample [6D network input ‖ 3 mapped values] →
@@ -176,4 +259,47 @@ impl LatentFile {
         Mlp { layers }
     }
 
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layer(d_in: usize, d_out: usize, weight: Vec<f32>, bias: Vec<f32>) -> DenseLayer {
+        DenseLayer { d_in, d_out, weight, bias }
+    }
+
+    /// A unit that no input of the boxes switches on goes; one that only a corner of the
+    /// domain switches on stays, as does every unit of the last hidden layer; the pruned net
+    /// gives the same bits inside the boxes, the corner included.
+    #[test]
+    fn never_active_units_go_and_the_rest_give_the_same_bits() {
+        // Inputs (x0, x1), x0 ∈ [0, 1], x1 ∈ [−1, 1]. Hidden 1: u0 = relu(0.1 x0 + 0.1 x1 − 5)
+        // is never on; u1 = relu(x0 − 0.99) only for x0 > 0.99; u2 = relu(x1). Hidden 2 (the
+        // last): v0 = relu(u0 − 1) is never on but stays; v1 = relu(u0 + u1 + u2).
+        let mlp = Mlp {
+            layers: vec![
+                layer(2, 3, vec![0.1, 1.0, 0.0, 0.1, 0.0, 1.0], vec![-5.0, -0.99, 0.0]),
+                layer(3, 2, vec![1.0, 1.0, 0.0, 1.0, 0.0, 1.0], vec![-1.0, 0.0]),
+                layer(2, 1, vec![2.0, 3.0], vec![0.5]),
+            ],
+        };
+        let boxes: Vec<[(f64, f64); 2]> = (0..4).map(|k| [(k as f64 / 4.0, (k + 1) as f64 / 4.0), (-1.0, 1.0)]).collect();
+        let (pruned, removed) = mlp.without_never_active_units(&boxes);
+        assert_eq!(removed, 1);
+        assert_eq!((pruned.layers[0].d_out, pruned.layers[1].d_in, pruned.layers[1].d_out), (2, 2, 2));
+        assert_eq!(pruned.layers[0].bias, vec![-0.99, 0.0]);
+        assert_eq!(pruned.layers[1].weight, vec![0.0, 1.0, 0.0, 1.0]);
+        for i in 0..=200 {
+            for x1 in [-1.0, -0.3, 0.0, 0.7, 1.0] {
+                let x = [i as f32 / 200.0, x1];
+                assert_eq!(pruned.forward(&x)[0].to_bits(), mlp.forward(&x)[0].to_bits(), "{x:?}");
+            }
+        }
+        // The corner is why u1 stays: without it, x0 = 1 would lose u1's 0.01.
+        assert!(mlp.forward(&[1.0, 0.0])[0] > mlp.forward(&[0.5, 0.0])[0]);
+        // Nothing is proved over no boxes, nor over boxes of the wrong width.
+        assert_eq!(mlp.without_never_active_units::<[(f64, f64); 2]>(&[]).1, 0);
+        assert_eq!(mlp.without_never_active_units(&[[(0.0, 1.0); 3]]).1, 0);
+    }
 }

@@ -3,8 +3,9 @@
 //!
 //! The net maps the 6D input of [`crate::brdf_coords::network_input`] to the mapped value y
 //! per RGB channel: ReLU after every hidden layer, a linear output layer. Layout: every hidden
-//! layer's output width is padded to a multiple of [`CHUNK`] lanes with zero weights and
-//! biases, so the padded activations are 0 after ReLU and never contribute; its weights are
+//! layer's output width is padded to a multiple of [`Kernel::stride_multiple`] lanes (64 for
+//! AVX-512, 8 otherwise) with zero weights and biases, so the padded activations are 0 after
+//! ReLU and never contribute; its weights are
 //! stored `[d_in][stride]` row-major. The output layer (3 channels) is stored transposed,
 //! `[3][stride]`, and evaluated as dot products.
 //!
@@ -12,9 +13,10 @@
 //! AVX2 + FMA (8 lanes), and a portable loop. Every hidden output is one chain of FMAs from
 //! its bias over the inputs in order, whatever the number of points, so a point's output is
 //! the same bits alone and in a batch (what keeps batched rendering equal to one path at a
-//! time). One point keeps the whole padded width of 64 outputs in flight (eight independent
-//! chains on AVX2, enough to hide the FMA latency); a batch runs several points over fewer
-//! registers each (six points × two registers on AVX2, × four on AVX-512), so that every
+//! time). One point keeps up to 64 outputs in flight (eight independent chains on AVX2,
+//! enough to hide the FMA latency); a batch runs several points over fewer registers each
+//! (six points × two registers on AVX2, × four on AVX-512; a width that is not a multiple
+//! ends in smaller blocks), so that every
 //! weight load is shared by six points' accumulators and the kernel runs close to the FMA
 //! throughput. The vector kernels skip the weight rows of inputs that are zero in every point
 //! of a pass (ReLU leaves 40–77 % of a decoded net's hidden activations at zero), which
@@ -28,8 +30,6 @@ use crate::{Error, Result};
 pub const INPUTS: usize = 6;
 /// Output width (RGB).
 pub const OUTPUTS: usize = 3;
-/// Hidden widths are padded to a multiple of this many lanes.
-pub const CHUNK: usize = 64;
 /// Widest hidden layer the evaluator supports (activations live on the stack).
 pub const MAX_WIDTH: usize = 256;
 
@@ -45,6 +45,16 @@ pub enum Kernel {
 }
 
 impl Kernel {
+    /// Hidden widths are padded to a multiple of this many outputs: the AVX-512 kernel's
+    /// block (four registers of 16), one register of eight for the others (whose kernels
+    /// end a width with smaller blocks). The padding's outputs are computed and are zero.
+    pub fn stride_multiple(self) -> usize {
+        match self {
+            Kernel::Avx512 => 64,
+            Kernel::Avx2Fma | Kernel::Portable => 8,
+        }
+    }
+
     /// The fastest kernel this CPU runs.
     pub fn detect() -> Self {
         use crate::support::cpu::{has_avx2_fma, has_avx512f};
@@ -66,7 +76,7 @@ impl Kernel {
 struct HiddenLayer {
     /// Real input width (the padded inputs beyond it are zero and skipped).
     d_in: usize,
-    /// Padded output width, a multiple of [`CHUNK`].
+    /// Padded output width, a multiple of the kernel's [`Kernel::stride_multiple`].
     stride: usize,
     /// W, `[d_in][stride]` row-major, zero beyond the real output width.
     weight: Vec<f32>,
@@ -131,11 +141,18 @@ impl TargetNet {
                 return Err(invalid(format!("layer {k} has non-finite weights")));
             }
         }
+        let kernel = if kernel == Kernel::Portable || Kernel::detect() == Kernel::Portable {
+            Kernel::Portable
+        } else if kernel == Kernel::Avx512 && Kernel::detect() != Kernel::Avx512 {
+            Kernel::Avx2Fma
+        } else {
+            kernel
+        };
         let (output, hidden_layers) = layers.split_last().expect("at least two layers");
         let hidden: Vec<HiddenLayer> = hidden_layers
             .iter()
             .map(|l| {
-                let stride = l.d_out.div_ceil(CHUNK) * CHUNK;
+                let stride = l.d_out.next_multiple_of(kernel.stride_multiple());
                 let mut weight = vec![0.0; l.d_in * stride];
                 for (row, src) in weight.chunks_exact_mut(stride).zip(l.weight.chunks_exact(l.d_out)) {
                     row[..l.d_out].copy_from_slice(src);
@@ -157,13 +174,6 @@ impl TargetNet {
                 out_weight[c * last_stride + i] = output.weight[i * OUTPUTS + c];
             }
         }
-        let kernel = if kernel == Kernel::Portable || Kernel::detect() == Kernel::Portable {
-            Kernel::Portable
-        } else if kernel == Kernel::Avx512 && Kernel::detect() != Kernel::Avx512 {
-            Kernel::Avx2Fma
-        } else {
-            kernel
-        };
         Ok(TargetNet {
             hidden,
             out_weight,
@@ -373,7 +383,9 @@ mod simd {
         ($hidden:ident, $output:ident, $feature:literal, $vec:ty, $lanes:expr, $load:ident, $store:ident,
          $set1:ident, $fmadd:ident, $mul:ident, $max:ident, $zero:ident, $hsum:path) => {
             /// One hidden layer of `B` points: relu(x · W + b) over the padded width, `R`
-            /// registers of outputs at a time (`R` × lanes must divide the stride).
+            /// registers of outputs at a time (`R` a power of two); a width that is not a
+            /// multiple of `R` registers ends in blocks of `R/2`, `R/4`, … registers (the
+            /// stride must be a multiple of one register).
             #[target_feature(enable = $feature)]
             pub(super) unsafe fn $hidden<const B: usize, const R: usize>(
                 layer: &HiddenLayer,
@@ -381,36 +393,78 @@ mod simd {
                 output: &mut [Activations; B],
             ) {
                 let s = layer.stride;
-                let w = layer.weight.as_ptr();
-                assert!(layer.d_in <= MAX_WIDTH && s % (R * $lanes) == 0 && layer.weight.len() >= layer.d_in * s);
+                assert!(
+                    R.is_power_of_two()
+                        && layer.d_in <= MAX_WIDTH
+                        && s <= MAX_WIDTH
+                        && s % $lanes == 0
+                        && layer.weight.len() >= layer.d_in * s
+                        && layer.bias.len() >= s
+                );
                 let mut nonzero = [0u16; MAX_WIDTH];
                 // SAFETY: AVX-512F and AVX2 + FMA CPUs have AVX2.
                 let rows = unsafe { nonzero_inputs(input, layer.d_in, &mut nonzero) };
                 let rows = &nonzero[..rows];
-                for c in (0..s).step_by(R * $lanes) {
-                    // SAFETY (all loads and stores below): c + R·lanes ≤ stride ≤ MAX_WIDTH,
-                    // rows i < d_in of `stride` floats lie inside `weight`.
-                    let mut bias: [$vec; R] = [$zero(); R];
-                    for g in 0..R {
+                let mut c = 0;
+                while c + R * $lanes <= s {
+                    // SAFETY: c + R·lanes ≤ stride, checked with the layer's sizes above.
+                    unsafe { block::<B, R>(layer, rows, input, output, c) };
+                    c += R * $lanes;
+                }
+                // SAFETY (the tail): each block ends at or before the stride.
+                if R > 4 && c + 4 * $lanes <= s {
+                    unsafe { block::<B, 4>(layer, rows, input, output, c) };
+                    c += 4 * $lanes;
+                }
+                if R > 2 && c + 2 * $lanes <= s {
+                    unsafe { block::<B, 2>(layer, rows, input, output, c) };
+                    c += 2 * $lanes;
+                }
+                if R > 1 && c + $lanes <= s {
+                    unsafe { block::<B, 1>(layer, rows, input, output, c) };
+                    c += $lanes;
+                }
+                debug_assert_eq!(c, s);
+
+                /// Outputs `c .. c + RR·lanes` of every point: each a chain of FMAs from
+                /// its bias over the nonzero inputs `rows` in order, then ReLU.
+                ///
+                /// # Safety
+                /// The CPU has the kernel's features; c + RR·lanes ≤ stride ≤ MAX_WIDTH and
+                /// the layer holds `d_in` rows of `stride` weights and `stride` biases.
+                #[target_feature(enable = $feature)]
+                #[inline]
+                unsafe fn block<const B: usize, const RR: usize>(
+                    layer: &HiddenLayer,
+                    rows: &[u16],
+                    input: &[Activations; B],
+                    output: &mut [Activations; B],
+                    c: usize,
+                ) {
+                    let (s, w) = (layer.stride, layer.weight.as_ptr());
+                    // SAFETY (all loads and stores below): the function's contract; rows
+                    // i < d_in.
+                    let mut bias: [$vec; RR] = [$zero(); RR];
+                    for g in 0..RR {
                         bias[g] = unsafe { $load(layer.bias.as_ptr().add(c + g * $lanes)) };
                     }
                     let mut acc = [bias; B];
                     for &i in rows {
                         let i = usize::from(i);
                         let row = unsafe { w.add(i * s + c) };
-                        let mut wi: [$vec; R] = [$zero(); R];
-                        for g in 0..R {
+                        let mut wi: [$vec; RR] = [$zero(); RR];
+                        for g in 0..RR {
                             wi[g] = unsafe { $load(row.add(g * $lanes)) };
                         }
                         for p in 0..B {
                             let x = $set1(input[p].0[i]);
-                            for g in 0..R {
+                            for g in 0..RR {
                                 acc[p][g] = $fmadd(x, wi[g], acc[p][g]);
                             }
                         }
                     }
                     for p in 0..B {
-                        for g in 0..R {
+                        for g in 0..RR {
                             let v = $max(acc[p][g], $zero());
                             unsafe { $store(output[p].0.as_mut_ptr().add(c + g * $lanes), v) };
                         }
@@ -623,7 +677,7 @@ pub(crate) mod tests {
                 })
                 .collect();
         }
-        let stride = h.len().div_ceil(CHUNK) * CHUNK;
+        let stride = h.len().next_multiple_of(Kernel::Avx2Fma.stride_multiple());
         h.resize(stride, 0.0);
         std::array::from_fn(|c| {
             let w = |i: usize| if i < output.d_in { output.weight[i * OUTPUTS + c] } else { 0.0 };
