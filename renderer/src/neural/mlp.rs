@@ -1,6 +1,8 @@
 //! The reference f32 forward passes of the trained model stored in a latent file: dense
 //! layers, the hypernetwork heads that decode a latent code into a target net, and the set
-//! encoder. (The target net is evaluated fast by [`super::target_net::TargetNet`].)
+//! encoder, and the pruning of units no input of a domain switches on
+//! ([`Mlp::without_never_active_units`]). (The target net is evaluated fast by
+//! [`super::target_net::TargetNet`].)
 //!
 //! Dense layers compute y = x · W + b with W stored [d_in, d_out] row-major (as NBRDF's `.npy`
 //! tensors and burn's `Linear`).
