@@ -89,14 +89,16 @@ impl Mlp {
     /// layer is kept whole: the output layer's sums run over its units in vector lanes, and
     /// moving a unit to another lane would change their rounding.
     pub fn without_never_active_units<B: AsRef<[(f64, f64)]>>(&self, boxes: &[B]) -> (Mlp, usize) {
-        let hidden = self.layers.len().saturating_sub(1);
-        if boxes.is_empty() {
+        // The hidden layers that may lose units: all but the last hidden one, whose bounds
+        // are therefore never needed.
+        let prunable = self.layers.len().saturating_sub(2);
+        if boxes.is_empty() || prunable == 0 {
             return (self.clone(), 0);
         }
-        let mut active: Vec<Vec<bool>> = self.layers[..hidden].iter().map(|l| vec![false; l.d_out]).collect();
+        let mut active: Vec<Vec<bool>> = self.layers[..prunable].iter().map(|l| vec![false; l.d_out]).collect();
         for b in boxes {
             let mut bounds: Vec<(f64, f64)> = b.as_ref().to_vec();
-            for (layer, active) in self.layers[..hidden].iter().zip(active.iter_mut()) {
+            for (layer, active) in self.layers[..prunable].iter().zip(active.iter_mut()) {
                 if bounds.len() != layer.d_in {
                     return (self.clone(), 0);
                 }
@@ -121,25 +123,18 @@ impl Mlp {
                     .collect();
             }
         }
-        // Units to drop: never active, in any hidden layer but the last.
-        let keep: Vec<Vec<bool>> = active
-            .iter()
-            .enumerate()
-            .map(|(k, a)| {
-                let mut keep = if k + 1 < hidden { a.clone() } else { vec![true; a.len()] };
-                // A layer keeps at least one unit (a constant net is still a net).
-                if !keep.iter().any(|&k| k) {
-                    keep[0] = true;
-                }
-                keep
-            })
-            .collect();
-        let removed = keep.iter().flatten().filter(|&&k| !k).count();
+        // A layer keeps at least one unit (a constant net is still a net).
+        for keep in &mut active {
+            if !keep.iter().any(|&k| k) {
+                keep[0] = true;
+            }
+        }
+        let removed = active.iter().flatten().filter(|&&k| !k).count();
         if removed == 0 {
             return (self.clone(), 0);
         }
         let mut layers = self.layers.clone();
-        for (k, keep) in keep.iter().enumerate() {
+        for (k, keep) in active.iter().enumerate() {
             // Layer k loses output columns, layer k + 1 the matching input rows.
             let (out, next) = (&self.layers[k], &self.layers[k + 1]);
             let kept: Vec<usize> = (0..out.d_out).filter(|&o| keep[o]).collect();
