@@ -7,7 +7,7 @@
 
 use crate::camera::PinholeCamera;
 use crate::film::{Film, PixelAccumulator, Region};
-use crate::accel::{Hit, Ray};
+use crate::accel::{Hit, Ray, DEPTH_CLASSES};
 use crate::integrator::{BatchBuffers, PathState, PathTracer, StepResults};
 use crate::lanes::{Vec2s, LANES};
 use crate::render_scene::RenderScene;
@@ -77,10 +77,12 @@ pub struct RenderStats {
     pub seed: u64,
     /// True when the render was interrupted (Ctrl-C) before its budget was spent.
     pub interrupted: bool,
-    /// How closest-hit and occlusion rays were traced: "packets", "single rays", or
-    /// "measuring" when the render ended before the choice was made.
-    pub closest_traversal: &'static str,
-    pub occlusion_traversal: &'static str,
+    /// How closest-hit and occlusion rays were traced, per class of path depth (camera
+    /// rays and their shadow rays, the first bounce, deeper bounces; see
+    /// [`crate::accel::DEPTH_CLASSES`]): "packets", "single rays", or "measuring" when the
+    /// render ended before the choice was made.
+    pub closest_traversal: [&'static str; DEPTH_CLASSES],
+    pub occlusion_traversal: [&'static str; DEPTH_CLASSES],
 }
 
 /// The buffers of a tile's batch of paths, reused from tile to tile by a worker thread.
@@ -210,23 +212,25 @@ impl<'a> Renderer<'a> {
             }
         }
         active.extend(0..paths.len() as u32);
+        let mut depth = 0;
         while !active.is_empty() {
             counters.rays += active.len() as u64;
             rays.clear();
             rays.extend(active.iter().map(|&i| paths[i as usize].ray));
-            scene.intersect_all(rays, hits);
+            scene.intersect_all(rays, hits, depth);
             self.integrator.step_batch(scene, paths, active, hits, buffers, step);
             let shadows = &step.shadows;
             counters.shadow_rays += shadows.len() as u64;
             rays.clear();
             rays.extend(shadows.iter().map(|(_, test)| test.ray));
-            scene.occluded_all(rays, blocked);
+            scene.occluded_all(rays, blocked, depth);
             for ((i, test), &blocked) in shadows.iter().zip(blocked.iter()) {
                 if !blocked {
                     paths[*i as usize].l += test.contribution;
                 }
             }
             std::mem::swap(active, &mut step.next);
+            depth += 1;
         }
         radiance.clear();
         radiance.resize(batch, Rgb::ZERO);
@@ -329,8 +333,8 @@ impl<'a> Renderer<'a> {
             max_depth: self.integrator.max_depth,
             seed: self.seed,
             interrupted: cancel.load(Ordering::Relaxed),
-            closest_traversal: traversal_name(self.scene.trace_modes().0),
-            occlusion_traversal: traversal_name(self.scene.trace_modes().1),
+            closest_traversal: self.scene.trace_modes().map(|(closest, _)| traversal_name(closest)),
+            occlusion_traversal: self.scene.trace_modes().map(|(_, occlusion)| traversal_name(occlusion)),
         };
         (film, stats)
     }

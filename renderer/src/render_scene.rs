@@ -4,7 +4,7 @@
 //! some triangle uses, and the environment's sampling structures exist only when the scene
 //! has an environment.
 
-use crate::accel::{gamma, interpolate_point, Bvh, Hit, InstanceBvh, Ray, NO_INSTANCE};
+use crate::accel::{gamma, interpolate_point, Bvh, Hit, InstanceBvh, Ray, DEPTH_CLASSES, NO_INSTANCE};
 use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
@@ -222,31 +222,34 @@ impl RenderScene {
     /// How batches of closest-hit and occlusion rays are traced (true: packets, false: one
     /// ray at a time, `None` before the first measurement): one at a time for scenes with
     /// alpha-tested surfaces or instances, else as the BVH's policies chose.
-    pub fn trace_modes(&self) -> (Option<bool>, Option<bool>) {
+    pub fn trace_modes(&self) -> [(Option<bool>, Option<bool>); DEPTH_CLASSES] {
         if self.has_alpha || self.instances.is_some() {
-            (Some(false), Some(false))
+            [(Some(false), Some(false)); DEPTH_CLASSES]
         } else {
             self.bvh.trace_modes()
         }
     }
 
-    /// [`RenderScene::intersect`] of many rays: `out[i]` for `rays[i]`.
-    pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>) {
+    /// [`RenderScene::intersect`] of many rays at path depth `depth` (0 for camera rays;
+    /// batches of each depth choose their trace mode apart, see [`Bvh::intersect_all`]):
+    /// `out[i]` for `rays[i]`.
+    pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, depth: usize) {
         if self.has_alpha || self.instances.is_some() {
             out.clear();
             out.extend(rays.iter().map(|r| self.intersect(r)));
         } else {
-            self.bvh.intersect_all(rays, out);
+            self.bvh.intersect_all(rays, out, depth);
         }
     }
 
-    /// [`RenderScene::occluded`] of many rays: `out[i]` for `rays[i]`.
-    pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>) {
+    /// [`RenderScene::occluded`] of many rays from vertices at path depth `depth`: `out[i]`
+    /// for `rays[i]`.
+    pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>, depth: usize) {
         if self.has_alpha || self.instances.is_some() {
             out.clear();
             out.extend(rays.iter().map(|r| self.occluded(r)));
         } else {
-            self.bvh.occluded_all(rays, out);
+            self.bvh.occluded_all(rays, out, depth);
         }
     }
 
@@ -509,10 +512,10 @@ mod tests {
         assert!(!scene.occluded(&segment(0.25)), "shadow rays pass through the hole");
         assert!(scene.occluded(&segment(0.75)));
         let mut hits = Vec::new();
-        scene.intersect_all(&[down_at(0.25), down_at(0.75)], &mut hits);
+        scene.intersect_all(&[down_at(0.25), down_at(0.75)], &mut hits, 0);
         assert_eq!(hits, vec![Some(left), Some(right)]);
         let mut blocked = Vec::new();
-        scene.occluded_all(&[segment(0.25), segment(0.75)], &mut blocked);
+        scene.occluded_all(&[segment(0.25), segment(0.75)], &mut blocked, 0);
         assert_eq!(blocked, vec![false, true]);
     }
 

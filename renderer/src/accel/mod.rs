@@ -79,9 +79,23 @@ pub struct Bvh {
     packs: Vec<TrianglePack>,
     /// First pack of each node.
     node_packs: Vec<u32>,
-    /// How batches of closest-hit and of occlusion queries are traced.
-    closest_policy: TracePolicy,
-    occluded_policy: TracePolicy,
+    /// How batches of closest-hit and of occlusion queries are traced, per class of path
+    /// depth (see [`DEPTH_CLASSES`]).
+    closest_policies: [TracePolicy; DEPTH_CLASSES],
+    occluded_policies: [TracePolicy; DEPTH_CLASSES],
+}
+
+/// Classes of batches whose trace mode is chosen apart, by the depth of their rays' paths
+/// (0: rays from the camera or to lights from its hits), the last class taking every deeper
+/// batch. Rays that leave the camera together stay together and suit packets; rays scattered
+/// from surfaces spread, and on dense meshes one at a time is faster for them — one policy
+/// for both would give one of them the wrong mode.
+pub const DEPTH_CLASSES: usize = 3;
+
+/// The class of batches at path depth `depth`.
+#[inline]
+fn depth_class(depth: usize) -> usize {
+    depth.min(DEPTH_CLASSES - 1)
 }
 
 /// A traversal stack: 64 entries in place (left uninitialised until pushed); deeper trees
@@ -153,8 +167,8 @@ impl Bvh {
                 bvh: CwBvh::default(),
                 packs: Vec::new(),
                 node_packs: Vec::new(),
-                closest_policy: TracePolicy::new(false),
-                occluded_policy: TracePolicy::new(false),
+                closest_policies: std::array::from_fn(|_| TracePolicy::new(false)),
+                occluded_policies: std::array::from_fn(|_| TracePolicy::new(false)),
             };
         }
         let mut build_time = Duration::ZERO;
@@ -183,8 +197,8 @@ impl Bvh {
             }
         }
         Bvh {
-            closest_policy: TracePolicy::new(packets_available()),
-            occluded_policy: TracePolicy::new(packets_available()),
+            closest_policies: std::array::from_fn(|_| TracePolicy::new(packets_available())),
+            occluded_policies: std::array::from_fn(|_| TracePolicy::new(packets_available())),
             bvh,
             packs,
             node_packs,
@@ -231,10 +245,11 @@ impl Bvh {
         })
     }
 
-    /// Closest hits of many rays: `out[i]` = [`Bvh::intersect`] of `rays[i]`, traced in
-    /// packets or one by one as the closest-hit [`TracePolicy`] has found faster.
-    pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>) {
-        self.closest_policy.trace(|packets| self.intersect_all_with(rays, out, packets));
+    /// Closest hits of many rays at path depth `depth` (0 for camera rays): `out[i]` =
+    /// [`Bvh::intersect`] of `rays[i]`, traced in packets or one by one as the closest-hit
+    /// [`TracePolicy`] of the depth's class ([`DEPTH_CLASSES`]) has found faster.
+    pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, depth: usize) {
+        self.closest_policies[depth_class(depth)].trace(|packets| self.intersect_all_with(rays, out, packets));
     }
 
     /// As [`Bvh::intersect_all`], in packets whenever the CPU has a packet kernel
@@ -274,16 +289,17 @@ impl Bvh {
         }
     }
 
-    /// Occlusion of many rays: `out[i]` = [`Bvh::occluded`] of `rays[i]`, traced in packets
-    /// or one by one as the occlusion [`TracePolicy`] has found faster.
-    pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>) {
-        self.occluded_policy.trace(|packets| self.occluded_all_with(rays, out, packets));
+    /// Occlusion of many rays from vertices at path depth `depth` (0 for the camera's
+    /// hits): `out[i]` = [`Bvh::occluded`] of `rays[i]`, traced in packets or one by one as
+    /// the occlusion [`TracePolicy`] of the depth's class has found faster.
+    pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>, depth: usize) {
+        self.occluded_policies[depth_class(depth)].trace(|packets| self.occluded_all_with(rays, out, packets));
     }
 
-    /// The traversal modes closest-hit and occlusion batches use now (true: packets), or
-    /// `None` before the first measurement.
-    pub fn trace_modes(&self) -> (Option<bool>, Option<bool>) {
-        (self.closest_policy.choice(), self.occluded_policy.choice())
+    /// Per class of depth ([`DEPTH_CLASSES`]), the traversal modes its closest-hit and
+    /// occlusion batches use now (true: packets), or `None` before the first measurement.
+    pub fn trace_modes(&self) -> [(Option<bool>, Option<bool>); DEPTH_CLASSES] {
+        std::array::from_fn(|c| (self.closest_policies[c].choice(), self.occluded_policies[c].choice()))
     }
 
     /// As [`Bvh::occluded_all`], in packets whenever the CPU has a packet kernel (`packets`)
@@ -904,13 +920,31 @@ mod tests {
             bvh.occluded_all_with(&rays, &mut single_blocked, false);
             assert_eq!(packet_hits, single_hits, "batch of {n}");
             assert_eq!(packet_blocked, single_blocked, "batch of {n}");
-            bvh.intersect_all(&rays, &mut packet_hits);
-            bvh.occluded_all(&rays, &mut packet_blocked);
+            bvh.intersect_all(&rays, &mut packet_hits, batch);
+            bvh.occluded_all(&rays, &mut packet_blocked, batch);
             assert_eq!(packet_hits, single_hits, "batch of {n}, as the policy traces it");
             assert_eq!(packet_blocked, single_blocked, "batch of {n}, as the policy traces it");
         }
         #[cfg(target_arch = "x86_64")]
         assert_eq!(Bvh::packet_width().is_some(), has_avx2_fma());
+    }
+
+    #[test]
+    fn each_depth_class_chooses_its_trace_mode_apart() {
+        let bvh = Bvh::build(random_soup(3, 500, 2.0).into_iter());
+        let mut s = crate::sampler::Sampler::new(4, 0, 0);
+        let rays = packet_rays(&mut s, 64, 24.0, true);
+        let (mut hits, mut blocked) = (Vec::new(), Vec::new());
+        bvh.intersect_all(&rays, &mut hits, 1);
+        bvh.occluded_all(&rays, &mut blocked, DEPTH_CLASSES + 5);
+        let modes = bvh.trace_modes();
+        if Bvh::packet_width().is_none() {
+            assert!(modes.iter().all(|&m| m == (Some(false), Some(false))), "{modes:?}");
+            return;
+        }
+        assert_eq!(modes[0], (None, None), "depth 0 not measured yet");
+        assert!(modes[1].0.is_some() && modes[1].1.is_none(), "only depth 1's closest hits measured: {modes:?}");
+        assert!(modes[DEPTH_CLASSES - 1].0.is_none() && modes[DEPTH_CLASSES - 1].1.is_some(), "deeper batches share the last class: {modes:?}");
     }
 
     #[test]
