@@ -108,12 +108,15 @@ impl PathTracer {
             merl.clear();
             // Rays that left the scene first: all located in the environment (which
             // prefetches their image records), then all looked up, so that their cache
-            // misses overlap.
+            // misses overlap; the hits' triangle records are prefetched on the way.
             escapes.clear();
             for (&i, hit) in chunk.iter().zip(chunk_hits) {
-                if hit.is_none() {
-                    if let Some(at) = scene.lights.locate_environment(paths[i as usize].ray.direction) {
-                        escapes.push((i, at));
+                match hit {
+                    Some(hit) => scene.prefetch_hit(hit),
+                    None => {
+                        if let Some(at) = scene.lights.locate_environment(paths[i as usize].ray.direction) {
+                            escapes.push((i, at));
+                        }
                     }
                 }
             }
