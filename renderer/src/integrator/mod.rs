@@ -211,6 +211,18 @@ impl PathTracer {
             self.escape(scene, path);
             return None;
         };
+        // The vertex's samples are drawn first (a path that ends here draws nothing more, so
+        // drawing them early changes nothing) and the chosen light's sample starts fetching
+        // what it reads, while the surface point is found.
+        let sampler = &mut path.sampler;
+        let u_select = sampler.next_1d();
+        let u_light = sampler.next_2d();
+        let uc = sampler.next_1d();
+        let u = sampler.next_2d();
+        let light = scene.lights.choose(u_select);
+        if let Some((index, _)) = light {
+            scene.lights.prefetch_sample(index, u_light);
+        }
         let sp = scene.surface_point(&hit, ray.direction)?;
         let le = scene.emission(&sp);
         if le.max_element() > 0.0 {
@@ -225,16 +237,11 @@ impl PathTracer {
         if wo.z <= 0.0 {
             return None;
         }
-        let sampler = &mut path.sampler;
-        let u_select = sampler.next_1d();
-        let u_light = sampler.next_2d();
-        let uc = sampler.next_1d();
-        let u = sampler.next_2d();
         Some(Vertex {
             sp,
             bsdf,
             wo,
-            light: scene.lights.choose(u_select),
+            light,
             u_light,
             uc,
             u,
