@@ -352,7 +352,10 @@ fn child_hits<S: Simd>(s: S, node: &CwBvhNode, c: usize, rays: &Rays<S>, adj_dir
 /// t_max) (byte c, bit i: lane i; up to 8 lanes): each ray tests the eight children at once
 /// with the arithmetic of [`super::node::intersect_avx2`], the boxes decoded once. Cheaper
 /// than [`child_hits`] where a node is entered by few of the packet's rays, which is the rule
-/// for rays scattered from a surface, and no dearer with all eight.
+/// for rays scattered from a surface, and no dearer with all eight. All children see the
+/// bounds at the node's entry, as in the single-ray walk (a leaf child's hits lower them
+/// for the triangles tested after it, not for the boxes): a box admitted on a looser bound
+/// only costs its visit, since its triangles are tested against the bounds of their time.
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
@@ -510,6 +513,8 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
             continue;
         }
         let node = &nodes[index as usize];
+        // The per-lane node frame of `child_hits` (unused, and compiled out, where children
+        // are tested at once).
         let (adj_dir_inv, adj_orig) = node_frame(s, node, rays);
         // SAFETY: the token `s` exists only where AVX2 and FMA exist (see `Simd`).
         let crossed = if S::CHILDREN_AT_ONCE { unsafe { children_crossed(s, node, rays, lanes, *t_max) } } else { 0 };
