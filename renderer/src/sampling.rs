@@ -380,14 +380,19 @@ fn push_alias_table(weights: &[f32], entries: &mut Vec<AliasEntry>) -> f64 {
     sum
 }
 
+/// The entry of an alias table of `n` entries that [`sample_alias`] of `u` reads, and u · n.
+#[inline]
+fn alias_entry(n: usize, u: f32) -> (usize, f32) {
+    let x = u * n as f32;
+    ((x as usize).min(n - 1), x)
+}
+
 /// Draws a cell of the alias table `entries` with u in [0, 1): the cell and u's remainder
 /// remapped to [0, 1), uniform and independent of the cell drawn (pbrt-v4's
 /// `AliasTable::Sample`). Branch-free: the kept-or-aliased choice is a select.
 #[inline]
 fn sample_alias(entries: &[AliasEntry], u: f32) -> (usize, f32) {
-    let n = entries.len();
-    let x = u * n as f32;
-    let i = (x as usize).min(n - 1);
+    let (i, x) = alias_entry(entries.len(), u);
     let r = (x - i as f32).clamp(0.0, ONE_MINUS_EPSILON);
     let AliasEntry { threshold, alias } = entries[i];
     let keep = r < threshold;
@@ -508,7 +513,7 @@ impl<T: Copy> Distribution2D<T> {
     pub fn prefetch_sample(&self, u: Vec2) {
         let w = self.width;
         let (row, _) = sample_alias(&self.marginal, u.y);
-        let col = ((u.x * w as f32) as usize).min(w - 1);
+        let (col, _) = alias_entry(w, u.x);
         crate::support::prefetch(&self.conditional[row * w + col]);
     }
 
