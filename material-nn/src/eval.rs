@@ -42,6 +42,7 @@ use rand::{Rng, SeedableRng};
 use renderer::brdf_coords::rendered_point;
 use crate::dataset::draw_angles;
 use renderer::bsdf::neural::{NeuralBsdf, ReferenceValues};
+use renderer::neural::reference::ReferenceTable;
 use renderer::bsdf::merl::MerlBsdf;
 use renderer::bsdf::nbrdf::NbrdfBsdf;
 use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
@@ -462,7 +463,8 @@ pub fn evaluate(
         tables.push(table);
     }
     let file = crate::export::latent_file(run, WeightType::F32);
-    let reference: ReferenceValues = Arc::new(run.codec.sampler.reference.values.clone());
+    // f_ref as the file carries it (f16), as a render of the file looks it up.
+    let reference: ReferenceValues = Arc::new(ReferenceTable::new(&file.f_ref));
     let mut preview = match &settings.images {
         Some(images) => {
             if let Some(dir) = &images.out_dir {

@@ -223,7 +223,7 @@ impl Material {
     /// unmeasured. `None` for a table or a network.
     #[getter]
     fn f_ref<'py>(&self, py: Python<'py>) -> Option<Bound<'py, numpy::PyArray4<f32>>> {
-        self.bsdf.neural().map(|n| bins_array(py, n.reference()))
+        self.bsdf.neural().map(|n| bins_array(py, &n.reference().values()))
     }
 
     /// For a MERL table, f_r (1/sr) per bin as the renderer interpolates it (scale applied,

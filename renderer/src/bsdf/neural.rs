@@ -13,6 +13,7 @@ use super::BatchEval;
 
 use crate::neural::mapping::MappingForm;
 use crate::neural::mlp::Mlp;
+use crate::neural::reference::ReferenceTable;
 use crate::neural::target_net::{TargetNet, INPUTS};
 use crate::Result;
 use crate::Rgb;
@@ -35,9 +36,8 @@ const COUNTER_SLOTS: usize = 16;
 #[repr(align(64))]
 struct PaddedCounter(AtomicU64);
 
-/// The reference BRDF f_ref of a latent file: f_r per MERL bin (within-channel index order),
-/// RGB, 1/sr, f32; a negative channel marks the bin unmeasured.
-pub type ReferenceValues = Arc<Vec<[f32; 3]>>;
+/// The reference BRDF f_ref of a latent file, shared by the codes decoded from it.
+pub type ReferenceValues = Arc<ReferenceTable>;
 
 /// A decoded latent code as a BSDF.
 #[derive(Debug)]
@@ -99,9 +99,8 @@ impl NeuralBsdf {
         &self.decoded
     }
 
-    /// f_ref per MERL bin (within-channel index order, [`crate::formats::merl::bin_index`]),
-    /// RGB, 1/sr; a negative channel marks the bin unmeasured.
-    pub fn reference(&self) -> &[[f32; 3]] {
+    /// f_ref per MERL bin ([`ReferenceTable::value`]).
+    pub fn reference(&self) -> &ReferenceTable {
         &self.reference
     }
 
@@ -122,7 +121,7 @@ impl NeuralBsdf {
 #[inline]
 fn eval_decoded(
     net: &TargetNet,
-    reference: &[[f32; 3]],
+    reference: &ReferenceTable,
     mapping: MappingForm,
     epsilon: f32,
     wo: Vec3,
@@ -142,15 +141,17 @@ fn net_point(wo: Vec3, wi: Vec3) -> Option<NetPoint> {
         return None;
     }
     let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles(wi, wo);
-    let (corners, weights) = crate::formats::merl::trilinear_corners(theta_h, theta_d, phi_d);
-    Some(NetPoint { x, corners, weights })
+    Some(NetPoint {
+        x,
+        axes: crate::formats::merl::TrilinearAxes::new(theta_h, theta_d, phi_d),
+    })
 }
 
 /// f_ref (RGB, 1/sr) at `point`: the reference looked up at its trilinear corners, 0 where
 /// none of them is measured.
 #[inline]
-fn reference_at(reference: &[[f32; 3]], point: &NetPoint) -> Rgb {
-    Rgb::from_array(crate::formats::merl::weigh_measured_corners(reference, &point.corners, &point.weights).unwrap_or([0.0; 3]))
+fn reference_at(reference: &ReferenceTable, point: &NetPoint) -> Rgb {
+    Rgb::from_array(reference.lookup(&point.axes))
 }
 
 /// f_r in 1/sr from the net's output `y` and f_ref at the same point, and whether a channel
@@ -171,13 +172,11 @@ fn map_back(mapping: MappingForm, epsilon: f32, y: [f32; 3], f_ref: Rgb) -> (Rgb
 }
 
 /// One evaluation of a decoded net prepared without the net ([`BatchEval`]): its input and
-/// the corners and weights at which f_ref is looked up (whose entries are already being
-/// fetched).
+/// where f_ref is looked up (whose entries are already being fetched).
 #[derive(Clone, Copy, Debug)]
 pub struct NetPoint {
     x: [f32; INPUTS],
-    corners: [usize; 8],
-    weights: [f32; 8],
+    axes: crate::formats::merl::TrilinearAxes,
 }
 
 impl NeuralBsdf {
@@ -195,7 +194,7 @@ impl BatchEval for NeuralBsdf {
     #[inline]
     fn prepare(&self, wo: Vec3, wi: Vec3) -> Option<NetPoint> {
         let point = net_point(wo, wi)?;
-        crate::formats::merl::prefetch_corners(&self.reference, &point.corners);
+        self.reference.prefetch(&point.axes);
         Some(point)
     }
 

@@ -108,41 +108,72 @@ pub fn continuous_coordinates(theta_h: f32, theta_d: f32, phi_d: f32) -> [f32; 3
     [uh, ud, up]
 }
 
-/// The 8 corners (within-channel indices) and trilinear weights around a continuous
-/// coordinate: θh and θd are clamped at the table's ends, φd wraps with period π.
-#[inline]
-pub fn trilinear_corners(theta_h: f32, theta_d: f32, phi_d: f32) -> ([usize; 8], [f32; 8]) {
-    let [uh, ud, up] = continuous_coordinates(theta_h, theta_d, phi_d);
-    let clamp_axis = |u: f32, n: usize| -> (usize, usize, f32) {
-        let u = if u.is_nan() {
-            0.0
-        } else {
-            u.clamp(0.0, (n - 1) as f32)
+/// Where a continuous coordinate falls between the table's bins, per axis: the two
+/// neighbouring bins and the weight of the second. θh and θd are clamped at the table's ends
+/// (both neighbours the end bin there), φd wraps with period π.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrilinearAxes {
+    /// θh bins and the weight of `theta_h[1]`.
+    pub theta_h: [usize; 2],
+    pub fh: f32,
+    /// θd bins and the weight of `theta_d[1]`.
+    pub theta_d: [usize; 2],
+    pub fd: f32,
+    /// φd bins and the weight of `phi_d[1]`.
+    pub phi_d: [usize; 2],
+    pub fp: f32,
+}
+
+impl TrilinearAxes {
+    /// The neighbouring bins of the isotropic angles (radians).
+    #[inline]
+    pub fn new(theta_h: f32, theta_d: f32, phi_d: f32) -> Self {
+        let [uh, ud, up] = continuous_coordinates(theta_h, theta_d, phi_d);
+        let clamp_axis = |u: f32, n: usize| -> ([usize; 2], f32) {
+            let u = if u.is_nan() {
+                0.0
+            } else {
+                u.clamp(0.0, (n - 1) as f32)
+            };
+            let i0 = (u as usize).min(n - 1);
+            let i1 = (i0 + 1).min(n - 1);
+            ([i0, i1], u - i0 as f32)
         };
-        let i0 = (u as usize).min(n - 1);
-        let i1 = (i0 + 1).min(n - 1);
-        (i0, i1, u - i0 as f32)
-    };
-    let (h0, h1, fh) = clamp_axis(uh, THETA_H_BINS);
-    let (d0, d1, fd) = clamp_axis(ud, THETA_D_BINS);
-    let up = if up.is_nan() { 0.0 } else { up };
-    let pf = up.floor();
-    let fp = up - pf;
-    let p0 = (pf as i64).rem_euclid(PHI_D_BINS as i64) as usize;
-    let p1 = (p0 + 1) % PHI_D_BINS;
-    let mut idx = [0usize; 8];
-    let mut w = [0f32; 8];
-    let mut k = 0;
-    for (ih, wh) in [(h0, 1.0 - fh), (h1, fh)] {
-        for (id, wd) in [(d0, 1.0 - fd), (d1, fd)] {
-            for (ip, wp) in [(p0, 1.0 - fp), (p1, fp)] {
-                idx[k] = bin_index(ih, id, ip);
-                w[k] = wh * wd * wp;
-                k += 1;
+        let (theta_h, fh) = clamp_axis(uh, THETA_H_BINS);
+        let (theta_d, fd) = clamp_axis(ud, THETA_D_BINS);
+        let up = if up.is_nan() { 0.0 } else { up };
+        let pf = up.floor();
+        let fp = up - pf;
+        let p0 = (pf as i64).rem_euclid(PHI_D_BINS as i64) as usize;
+        let p1 = (p0 + 1) % PHI_D_BINS;
+        TrilinearAxes { theta_h, fh, theta_d, fd, phi_d: [p0, p1], fp }
+    }
+
+    /// The 8 corners (within-channel indices) and their trilinear weights, θh outermost and
+    /// φd innermost.
+    #[inline]
+    pub fn corners(&self) -> ([usize; 8], [f32; 8]) {
+        let mut idx = [0usize; 8];
+        let mut w = [0f32; 8];
+        let mut k = 0;
+        for (ih, wh) in [(self.theta_h[0], 1.0 - self.fh), (self.theta_h[1], self.fh)] {
+            for (id, wd) in [(self.theta_d[0], 1.0 - self.fd), (self.theta_d[1], self.fd)] {
+                for (ip, wp) in [(self.phi_d[0], 1.0 - self.fp), (self.phi_d[1], self.fp)] {
+                    idx[k] = bin_index(ih, id, ip);
+                    w[k] = wh * wd * wp;
+                    k += 1;
+                }
             }
         }
+        (idx, w)
     }
-    (idx, w)
+}
+
+/// The 8 corners (within-channel indices) and trilinear weights around a continuous
+/// coordinate ([`TrilinearAxes`]).
+#[inline]
+pub fn trilinear_corners(theta_h: f32, theta_d: f32, phi_d: f32) -> ([usize; 8], [f32; 8]) {
+    TrilinearAxes::new(theta_h, theta_d, phi_d).corners()
 }
 
 /// Trilinear look-up in per-bin f32 RGB values (within-channel index order, a negative

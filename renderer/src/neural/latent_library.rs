@@ -12,10 +12,10 @@
 use crate::bsdf::neural::{NeuralBsdf, ReferenceValues};
 use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use crate::formats::latent_file::LatentFile;
+use crate::neural::reference::ReferenceTable;
 use crate::material::Binding;
 use crate::scene::{SceneDescription, SurfaceModel};
 use crate::{Error, Result};
-use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 
@@ -220,7 +220,7 @@ impl LatentLibrary {
         }
         let reference = f
             .reference
-            .get_or_init(|| Arc::new(file.f_ref.par_iter().map(|v| v.map(|h| h.to_f32())).collect()))
+            .get_or_init(|| Arc::new(ReferenceTable::new(&file.f_ref)))
             .clone();
         NeuralBsdf::new(label, file.decode(&code.z, code.offset, &code.residual), reference, file.mapping, file.epsilon, &TabulatedSamplerConfig::default())
             .map_err(|e| Error::invalid_file(&f.path, format!("decoding '{label}': {e}")))

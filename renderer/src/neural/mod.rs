@@ -6,4 +6,5 @@ pub mod latent_library;
 pub mod mapping;
 pub mod mlp;
 pub mod nbrdf;
+pub mod reference;
 pub mod target_net;
