@@ -254,6 +254,17 @@ pub fn parse_resolution(s: &str) -> std::result::Result<(u32, u32), String> {
 mod tests {
     use super::*;
 
+    /// A table on huge pages holds exactly the values asked for, below and above the size
+    /// from which huge pages are asked for (and whether the kernel grants them or not).
+    #[test]
+    fn tables_on_huge_pages_hold_their_values() {
+        for len in [0, 1, 1000, HUGE_PAGE_BYTES / 12 + 7, 3 * HUGE_PAGE_BYTES / 12] {
+            let table = collect_on_huge_pages(len, |i| [i as u32, (i as u32).wrapping_mul(2_654_435_761), !(i as u32)]);
+            assert_eq!(table.len(), len);
+            assert!(table.iter().enumerate().all(|(i, v)| *v == [i as u32, (i as u32).wrapping_mul(2_654_435_761), !(i as u32)]));
+        }
+    }
+
     /// CPUID is read right: every feature agrees with the kernel's own list in
     /// /proc/cpuinfo, the CPU running the tests has what the build assumes, and a CPU that
     /// lacks features gets a message naming them and how to rebuild.
