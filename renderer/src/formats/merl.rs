@@ -150,22 +150,36 @@ impl TrilinearAxes {
     }
 
     /// The 8 corners (within-channel indices) and their trilinear weights, θh outermost and
-    /// φd innermost.
+    /// φd innermost (the corner order of every look-up).
     #[inline]
     pub fn corners(&self) -> ([usize; 8], [f32; 8]) {
         let mut idx = [0usize; 8];
+        let mut k = 0;
+        for ih in self.theta_h {
+            for id in self.theta_d {
+                for ip in self.phi_d {
+                    idx[k] = bin_index(ih, id, ip);
+                    k += 1;
+                }
+            }
+        }
+        (idx, self.weights())
+    }
+
+    /// The trilinear weights of the 8 corners in [`Self::corners`]' order.
+    #[inline]
+    pub fn weights(&self) -> [f32; 8] {
         let mut w = [0f32; 8];
         let mut k = 0;
-        for (ih, wh) in [(self.theta_h[0], 1.0 - self.fh), (self.theta_h[1], self.fh)] {
-            for (id, wd) in [(self.theta_d[0], 1.0 - self.fd), (self.theta_d[1], self.fd)] {
-                for (ip, wp) in [(self.phi_d[0], 1.0 - self.fp), (self.phi_d[1], self.fp)] {
-                    idx[k] = bin_index(ih, id, ip);
+        for wh in [1.0 - self.fh, self.fh] {
+            for wd in [1.0 - self.fd, self.fd] {
+                for wp in [1.0 - self.fp, self.fp] {
                     w[k] = wh * wd * wp;
                     k += 1;
                 }
             }
         }
-        (idx, w)
+        w
     }
 }
 
@@ -189,10 +203,17 @@ pub fn lookup_trilinear_measured(values: &[[f32; 3]], theta_h: f32, theta_d: f32
 /// [`lookup_trilinear_measured`] at the corners and weights [`trilinear_corners`] found.
 #[inline]
 pub fn weigh_measured_corners(values: &[[f32; 3]], idx: &[usize; 8], w: &[f32; 8]) -> Option<[f32; 3]> {
+    weigh_measured(idx.iter().zip(w).map(|(&i, &wk)| (values[i], wk)))
+}
+
+/// The weighted mean of the corners' values (each with its weight, in
+/// [`TrilinearAxes::corners`]' order) over the measured ones (no negative channel) of
+/// positive weight; `None` when there are none.
+#[inline]
+pub fn weigh_measured(corners: impl IntoIterator<Item = ([f32; 3], f32)>) -> Option<[f32; 3]> {
     let mut acc = [0f32; 3];
     let mut wsum = 0f32;
-    for (&i, &wk) in idx.iter().zip(w) {
-        let v = values[i];
+    for (v, wk) in corners {
         if wk > 0.0 && v[0] >= 0.0 && v[1] >= 0.0 && v[2] >= 0.0 {
             for c in 0..3 {
                 acc[c] += wk * v[c];

@@ -15,7 +15,7 @@
 //! f_ref is the one [`crate::formats::merl::weigh_measured_corners`] gives over the f32 values,
 //! up to the order of summation.
 
-use crate::formats::merl::{bin_index, TrilinearAxes, BIN_COUNT, PHI_D_BINS, THETA_D_BINS};
+use crate::formats::merl::{bin_index, bin_indices, weigh_measured, TrilinearAxes, BIN_COUNT, THETA_D_BINS};
 use half::f16;
 
 /// f_ref per MERL bin with each bin's θd neighbour beside it (see the module docs).
@@ -40,9 +40,9 @@ impl ReferenceTable {
     pub fn new(values: &[[f16; 3]]) -> Self {
         assert_eq!(values.len(), BIN_COUNT, "one f_ref value per MERL bin");
         let entries = crate::support::collect_on_huge_pages(BIN_COUNT, |i| {
-            // The next bin along θd is one φd row further, but for the last θd bin.
-            let next_d = if (i / PHI_D_BINS) % THETA_D_BINS == THETA_D_BINS - 1 { i } else { i + PHI_D_BINS };
-            let [a, b] = [values[i], values[next_d]];
+            // The θd neighbour as the look-up clamps it: the bin itself at θd's end.
+            let (ih, id, ip) = bin_indices(i);
+            let [a, b] = [values[i], values[bin_index(ih, (id + 1).min(THETA_D_BINS - 1), ip)]];
             [a[0], a[1], a[2], b[0], b[1], b[2]]
         });
         ReferenceTable { entries }
@@ -81,30 +81,19 @@ impl ReferenceTable {
     /// the others' weights renormalised, 0 where no corner is measured.
     #[inline]
     pub fn lookup(&self, axes: &TrilinearAxes) -> [f32; 3] {
-        let mut acc = [0f32; 3];
-        let mut wsum = 0f32;
-        for (ih, wh) in [(axes.theta_h[0], 1.0 - axes.fh), (axes.theta_h[1], axes.fh)] {
+        // The eight corners' values in their order (θh, θd, then φd), from two pairs.
+        let mut corners = [[0f32; 3]; 8];
+        let mut k = 0;
+        for ih in axes.theta_h {
             let pair = self.pair(ih, axes);
-            // The corners in weigh_measured_corners' order (θh, θd, then φd), so the sums are
-            // the same.
-            for (half, wd) in [(0, 1.0 - axes.fd), (3, axes.fd)] {
-                for (entry, wp) in pair.into_iter().zip([1.0 - axes.fp, axes.fp]) {
-                    let v = [entry[half], entry[half + 1], entry[half + 2]].map(f16::to_f32);
-                    let w = wh * wd * wp;
-                    if w > 0.0 && v[0] >= 0.0 && v[1] >= 0.0 && v[2] >= 0.0 {
-                        for c in 0..3 {
-                            acc[c] += w * v[c];
-                        }
-                        wsum += w;
-                    }
+            for half in [0, 3] {
+                for entry in pair {
+                    corners[k] = [entry[half], entry[half + 1], entry[half + 2]].map(f16::to_f32);
+                    k += 1;
                 }
             }
         }
-        if wsum > 0.0 {
-            acc.map(|a| a / wsum)
-        } else {
-            [0.0; 3]
-        }
+        weigh_measured(corners.into_iter().zip(axes.weights())).unwrap_or([0.0; 3])
     }
 
     /// Starts fetching the entries [`Self::lookup`] reads at `axes` into the cache (the
@@ -123,7 +112,7 @@ impl ReferenceTable {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::merl::{lookup_trilinear_measured, THETA_H_BINS};
+    use crate::formats::merl::lookup_trilinear_measured;
 
     /// Every bin distinct and some unmeasured (a channel negative), as f16.
     fn table() -> Vec<[f16; 3]> {
@@ -160,6 +149,6 @@ mod tests {
         let unmeasured = vec![[f16::from_f32(-1.0); 3]; BIN_COUNT];
         let axes = TrilinearAxes::new(0.3, 0.4, 0.5);
         assert_eq!(ReferenceTable::new(&unmeasured).lookup(&axes), [0.0; 3]);
-        assert_eq!(THETA_H_BINS * THETA_D_BINS * PHI_D_BINS, reference.len());
+        assert_eq!(reference.len(), BIN_COUNT);
     }
 }
