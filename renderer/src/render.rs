@@ -504,15 +504,20 @@ mod tests {
         }
     }
 
+    /// A shipped scene ready to render, with its default camera.
+    fn shipped_scene(name: &str) -> (RenderScene, crate::scene::Camera) {
+        let path = format!(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/{}/scene.gltf"), name);
+        let description = SceneDescription::load(path.as_ref()).expect("shipped scene");
+        let camera = description.camera(None).expect("camera").clone();
+        (RenderScene::new(description).expect("scene"), camera)
+    }
+
     /// Cancelled from its progress callback after the first tile, a render stops within the
     /// tiles its threads had already taken: at most one per thread, each with all the pass's
     /// samples, and reports itself interrupted.
     #[test]
     fn cancelling_stops_after_the_tiles_in_flight() {
-        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/");
-        let description = SceneDescription::load(format!("{root}cornell-box/scene.gltf").as_ref()).expect("shipped scene");
-        let camera = description.camera(None).expect("camera").clone();
-        let scene = RenderScene::new(description).expect("scene");
+        let (scene, camera) = shipped_scene("cornell-box");
         let (w, h) = (64, 64);
         let renderer = Renderer {
             scene: &scene,
@@ -536,10 +541,7 @@ mod tests {
     /// tiles, single pixels and rows, and the bands `render --tile` makes.
     #[test]
     fn regions_equal_the_whole_render() {
-        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/");
-        let description = SceneDescription::load(format!("{root}material-preview/scene.gltf").as_ref()).expect("shipped scene");
-        let camera = description.camera(None).expect("camera").clone();
-        let scene = RenderScene::new(description).expect("scene");
+        let (scene, camera) = shipped_scene("material-preview");
         let (w, h, spp) = (37, 35, 3);
         let renderer = Renderer {
             scene: &scene,
