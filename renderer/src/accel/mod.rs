@@ -372,8 +372,8 @@ impl Bvh {
             let slot_base = self.bvh.nodes[index].primitive_base_idx;
             for k in (0..24).filter(|k| lanes & (1 << k) != 0) {
                 let slot = slot_base + k;
-                let pack = &self.packs[slot as usize / LANES];
-                if let Some((t, barycentric)) = pack.lane_hit(slot as usize % LANES, origin, direction, bvh_ray.tmax) {
+                let (pack, lane) = pack_and_lane(slot);
+                if let Some((t, barycentric)) = self.packs[pack].lane_hit(lane, origin, direction, bvh_ray.tmax) {
                     if accept(&Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE }) {
                         hit = true;
                         return true;
@@ -610,13 +610,19 @@ fn traverse_nodes(
     }
 }
 
+/// The pack and lane holding obvhs primitive slot `slot` ([`Bvh::packs`]).
+#[inline(always)]
+fn pack_and_lane(slot: u32) -> (usize, usize) {
+    (slot as usize / LANES, slot as usize % LANES)
+}
+
 /// Where the leaf slots `lanes` (bits from slot `slot_base`, a node's primitive base) lie in
 /// the packs: the first pack, its first slot, and the bits from that slot (one byte per pack).
 #[inline(always)]
 fn slots_in_packs(slot_base: u32, lanes: u32) -> (usize, u32, u32) {
-    let pack = slot_base as usize / LANES;
+    let (pack, lane) = pack_and_lane(slot_base);
     // 24 leaf bits shifted by at most 7: within the word.
-    (pack, (pack * LANES) as u32, lanes << (slot_base as usize % LANES))
+    (pack, (pack * LANES) as u32, lanes << lane)
 }
 
 /// Whether this CPU traces packets: of 16 rays with AVX-512F, else of 8 with AVX2 and FMA

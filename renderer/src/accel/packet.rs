@@ -536,11 +536,8 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
                 let first = (meta & 0b1_1111) as usize;
                 for local in first..first + (meta & 0b1110_0000).count_ones() as usize {
                     let slot = node.primitive_base_idx + local as u32;
-                    let triangle = LeafTriangle {
-                        pack: slot as usize / LANES,
-                        lane: slot as usize % LANES,
-                        slot,
-                    };
+                    let (pack, lane) = super::pack_and_lane(slot);
+                    let triangle = LeafTriangle { pack, lane, slot };
                     active = query.leaf(s, bvh, rays, triangle, hits & active, t_max) | (active & !hits);
                 }
             } else {
