@@ -487,10 +487,27 @@ fn node_frame<S: Simd>(s: S, node: &CwBvhNode, rays: &Rays<S>) -> ([S::F; 3], [S
     )
 }
 
-/// Walks the tree for the lanes in `active` (bit i: lane i), whose bounds are `t_max`.
+/// The traversal octant of a packet's rays in [`super::node::octant_inv4`]'s encoding (bit 2:
+/// x ≥ 0, bit 1: y ≥ 0, bit 0: z ≥ 0) by the sign most of the lanes in `active` have per
+/// axis: obvhs places a node's children so that, for rays of that octant, child `p ^ octant`
+/// lies before child `q ^ octant` where p > q (the single-ray walk's order).
+#[inline(always)]
+fn majority_octant<S: Simd>(s: S, rays: &Rays<S>, active: u32) -> usize {
+    let rays_in = active.count_ones();
+    (0..3).fold(0, |octant, axis| {
+        let negative = (s.bits(rays.negative[axis]) & active).count_ones();
+        octant | (usize::from(2 * negative < rays_in) << (2 - axis))
+    })
+}
+
+/// Walks the tree for the lanes in `active` (bit i: lane i), whose bounds are `t_max`, a
+/// node's children nearest first for the packet's majority octant, as the single-ray walk
+/// orders them for its ray's: leaf triangles near the rays' origins lower the bounds before
+/// farther children are tested, and the nearest crossed subtree is popped first.
 #[inline(always)]
 fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S::F, query: &mut impl PacketQuery<S>) {
     let nodes = &bvh.bvh.nodes;
+    let octant = majority_octant(s, rays, active);
     let mut stack = Stack::new();
     stack.push((0u32, active));
     while let Some((index, mask)) = stack.pop() {
@@ -518,7 +535,11 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
         let (adj_dir_inv, adj_orig) = node_frame(s, node, rays);
         // SAFETY: the token `s` exists only where AVX2 and FMA exist (see `Simd`).
         let crossed = if S::CHILDREN_AT_ONCE { unsafe { children_crossed(s, node, rays, lanes, *t_max) } } else { 0 };
-        for c in 0..8 {
+        // The inner children crossed, nearest first: (node index, lanes).
+        let mut inner = [(0u32, 0u32); 8];
+        let mut inner_len = 0;
+        for priority in (0..8).rev() {
+            let c = priority ^ octant;
             let meta = node.child_meta[c];
             if meta == 0 {
                 continue;
@@ -541,11 +562,15 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
                     active = query.leaf(s, bvh, rays, triangle, hits & active, t_max) | (active & !hits);
                 }
             } else {
-                stack.push((node.child_node_index(c), hits));
+                inner[inner_len] = (node.child_node_index(c), hits);
+                inner_len += 1;
             }
         }
         if active == 0 {
             return;
+        }
+        for &entry in inner[..inner_len].iter().rev() {
+            stack.push(entry);
         }
     }
 }
