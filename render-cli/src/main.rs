@@ -37,7 +37,8 @@ struct Args {
     /// Samples per pixel.
     #[arg(long, conflicts_with = "time", allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
-    /// Render for this many seconds (passes of one sample per pixel, at least one).
+    /// Render for this many seconds (at least one sample per pixel; passes of one sample at
+    /// first, growing to 16 as time allows).
     #[arg(long, allow_negative_numbers = true, value_parser = parse_seconds)]
     time: Option<f64>,
     /// Image size as WIDTHxHEIGHT (default: 512 wide, height from the camera's aspect ratio).

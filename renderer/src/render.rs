@@ -309,13 +309,16 @@ impl<'a> Renderer<'a> {
                 // faster in passes of 16 than of 8 (the neural preview the same within
                 // noise). The progress bar moves tile by tile either way.
                 Budget::Spp(spp) => (spp - done).min(spp.div_ceil(8).clamp(1, 16)),
-                // One sample per pass at first (a fine error log), then passes of up to 8
-                // as long as one fits in the time left (less overhead per sample).
+                // One sample per pass at first, then passes growing by a quarter of the
+                // samples done, up to the sample budget's 16, as long as one fits in the time
+                // left: an error log gets at least four rows per doubling of the samples (even
+                // on a log-scale time axis), and long renders run the larger batches that
+                // `Budget::Spp` runs.
                 Budget::Time(t) => {
                     let per_sample = start.elapsed().as_secs_f64() / done.max(1) as f64;
                     let left = t.as_secs_f64() - start.elapsed().as_secs_f64();
                     let fits = if done == 0 { 1 } else { (left / per_sample.max(1e-9)) as u32 };
-                    (done / 8).clamp(1, 8).min(fits.max(1))
+                    (done / 4).clamp(1, 16).min(fits.max(1))
                 }
             };
             if count == 0 {
