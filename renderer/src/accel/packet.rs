@@ -500,10 +500,11 @@ fn majority_octant<S: Simd>(s: S, rays: &Rays<S>, active: u32) -> usize {
     })
 }
 
-/// Walks the tree for the lanes in `active` (bit i: lane i), whose bounds are `t_max`, a
-/// node's children nearest first for the packet's majority octant, as the single-ray walk
-/// orders them for its ray's: leaf triangles near the rays' origins lower the bounds before
-/// farther children are tested, and the nearest crossed subtree is popped first.
+/// Walks the tree for the lanes in `active` (bit i: lane i), whose bounds are `t_max`. A
+/// node's crossed inner children are pushed so that they are popped nearest first for the
+/// packet's majority octant, as the single-ray walk orders them for its ray's (its leaves are
+/// tested in slot order: their triangles are tested for all the lanes crossing them in any
+/// order, and constant child indices keep the node test unrolled).
 #[inline(always)]
 fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S::F, query: &mut impl PacketQuery<S>) {
     let nodes = &bvh.bvh.nodes;
@@ -535,11 +536,11 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
         let (adj_dir_inv, adj_orig) = node_frame(s, node, rays);
         // SAFETY: the token `s` exists only where AVX2 and FMA exist (see `Simd`).
         let crossed = if S::CHILDREN_AT_ONCE { unsafe { children_crossed(s, node, rays, lanes, *t_max) } } else { 0 };
-        // The inner children crossed, nearest first: (node index, lanes).
+        // The inner children crossed, by their priority for the packet's octant (the
+        // highest nearest): (node index, lanes) at `priority`, bit `priority` of `crossed_inner`.
         let mut inner = [(0u32, 0u32); 8];
-        let mut inner_len = 0;
-        for priority in (0..8).rev() {
-            let c = priority ^ octant;
+        let mut crossed_inner = 0u32;
+        for c in 0..8 {
             let meta = node.child_meta[c];
             if meta == 0 {
                 continue;
@@ -562,15 +563,18 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
                     active = query.leaf(s, bvh, rays, triangle, hits & active, t_max) | (active & !hits);
                 }
             } else {
-                inner[inner_len] = (node.child_node_index(c), hits);
-                inner_len += 1;
+                let priority = c ^ octant;
+                inner[priority] = (node.child_node_index(c), hits);
+                crossed_inner |= 1 << priority;
             }
         }
         if active == 0 {
             return;
         }
-        for &entry in inner[..inner_len].iter().rev() {
-            stack.push(entry);
+        // Lowest priority first, so that the nearest is popped next.
+        while crossed_inner != 0 {
+            stack.push(inner[crossed_inner.trailing_zeros() as usize]);
+            crossed_inner &= crossed_inner - 1;
         }
     }
 }
