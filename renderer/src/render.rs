@@ -24,6 +24,10 @@ use std::time::{Duration, Instant};
 /// Edge length of a square tile in pixels.
 pub const TILE_SIZE: u32 = 16;
 
+/// The most samples per pixel one pass takes, with a sample or a time budget: Ctrl-C is
+/// answered within one tile of this many samples per pixel.
+const MAX_PASS_SAMPLES: u32 = 16;
+
 /// When to stop rendering.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Budget {
@@ -301,24 +305,24 @@ impl<'a> Renderer<'a> {
         let mut done = 0u32;
         loop {
             let count = match budget {
-                // At least 8 passes (an error log of 8 rows or more) of at most 16 samples
-                // (Ctrl-C is answered within one tile of 16 samples per pixel). Each tile's
-                // pass is one batch of paths, and more samples fill a batch's later, sparser
-                // bounces better: the README's 64-spp render ran 1–5 % faster in 8 passes of
-                // 8 than in 16 of 4, the GGX preview and the Cornell box at 256 spp 2–3 %
-                // faster in passes of 16 than of 8 (the neural preview the same within
-                // noise). The progress bar moves tile by tile either way.
-                Budget::Spp(spp) => (spp - done).min(spp.div_ceil(8).clamp(1, 16)),
+                // At least 8 passes (an error log of 8 rows or more) of at most
+                // MAX_PASS_SAMPLES. Each tile's pass is one batch of paths, and more samples
+                // fill a batch's later, sparser bounces better: the README's 64-spp render ran
+                // 1–5 % faster in 8 passes of 8 than in 16 of 4, the GGX preview and the
+                // Cornell box at 256 spp 2–3 % faster in passes of 16 than of 8 (the neural
+                // preview the same within noise). The progress bar moves tile by tile either
+                // way.
+                Budget::Spp(spp) => (spp - done).min(spp.div_ceil(8).clamp(1, MAX_PASS_SAMPLES)),
                 // One sample per pass at first, then passes growing by a quarter of the
-                // samples done, up to the sample budget's 16, as long as one fits in the time
-                // left: an error log gets at least four rows per doubling of the samples (even
-                // on a log-scale time axis), and long renders run the larger batches that
-                // `Budget::Spp` runs.
+                // samples done, up to MAX_PASS_SAMPLES as above, as long as one fits in the
+                // time left: an error log gets at least four rows per doubling of the samples
+                // (even on a log-scale time axis), and long renders run the larger batches
+                // that `Budget::Spp` runs.
                 Budget::Time(t) => {
                     let per_sample = start.elapsed().as_secs_f64() / done.max(1) as f64;
                     let left = t.as_secs_f64() - start.elapsed().as_secs_f64();
                     let fits = if done == 0 { 1 } else { (left / per_sample.max(1e-9)) as u32 };
-                    (done / 4).clamp(1, 16).min(fits.max(1))
+                    (done / 4).clamp(1, MAX_PASS_SAMPLES).min(fits.max(1))
                 }
             };
             if count == 0 {
