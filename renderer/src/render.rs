@@ -84,8 +84,9 @@ pub struct RenderStats {
     pub interrupted: bool,
     /// How closest-hit and occlusion rays were traced, per class of path depth (camera
     /// rays and their shadow rays, the first bounce, deeper bounces; see
-    /// [`crate::accel::DEPTH_CLASSES`]): "packets", "single rays", or "measuring" when the
-    /// render ended before the choice was made.
+    /// [`crate::accel::DEPTH_CLASSES`]): "packets", "single rays", or "no rays" for a class
+    /// that traced none (the first batch with rays is measured both ways, so every class
+    /// that traced rays has a choice).
     pub closest_traversal: [&'static str; DEPTH_CLASSES],
     pub occlusion_traversal: [&'static str; DEPTH_CLASSES],
 }
@@ -370,7 +371,7 @@ fn traversal_name(mode: Option<bool>) -> &'static str {
     match mode {
         Some(true) => "packets",
         Some(false) => "single rays",
-        None => "measuring",
+        None => "no rays",
     }
 }
 

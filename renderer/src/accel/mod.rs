@@ -239,7 +239,7 @@ impl Bvh {
     /// [`Bvh::intersect`] of `rays[i]`, traced in packets or one by one as the closest-hit
     /// [`TracePolicy`] of the depth's class ([`DEPTH_CLASSES`]) has found faster.
     pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, depth: usize) {
-        self.closest_policies[depth_class(depth)].trace(|packets| self.intersect_all_with(rays, out, packets));
+        self.closest_policies[depth_class(depth)].trace(rays.len(), |packets| self.intersect_all_with(rays, out, packets));
     }
 
     /// As [`Bvh::intersect_all`], in packets whenever the CPU has a packet kernel
@@ -283,7 +283,7 @@ impl Bvh {
     /// hits): `out[i]` = [`Bvh::occluded`] of `rays[i]`, traced in packets or one by one as
     /// the occlusion [`TracePolicy`] of the depth's class has found faster.
     pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>, depth: usize) {
-        self.occluded_policies[depth_class(depth)].trace(|packets| self.occluded_all_with(rays, out, packets));
+        self.occluded_policies[depth_class(depth)].trace(rays.len(), |packets| self.occluded_all_with(rays, out, packets));
     }
 
     /// Per class of depth ([`DEPTH_CLASSES`]), the traversal modes its closest-hit and
