@@ -28,6 +28,14 @@ pub const TILE_SIZE: u32 = 16;
 /// answered within one tile of this many samples per pixel.
 const MAX_PASS_SAMPLES: u32 = 16;
 
+/// Width and height in pixels of the blocks whose camera rays are made together and follow
+/// one another in a tile's batch, so that a packet of rays (16 with AVX-512, 8 with AVX2)
+/// holds a square of pixels (or half of one), not a row: a square's rays spread less and
+/// visit fewer nodes and leaves together. The glossy sphere's render: +6 % against rows of
+/// 16, its bounces following in the same order; the same image.
+const CAMERA_BLOCK: (u32, u32) = (4, 4);
+const _: () = assert!(CAMERA_BLOCK.0 * CAMERA_BLOCK.1 == LANES as u32 && TILE_SIZE % CAMERA_BLOCK.0 == 0 && TILE_SIZE % CAMERA_BLOCK.1 == 0);
+
 /// When to stop rendering.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Budget {
@@ -203,28 +211,36 @@ impl<'a> Renderer<'a> {
         owners.clear();
         active.clear();
         let scene = self.scene;
-        // j: the sample's index in the batch, sample-major then row by row. A row's camera
-        // rays are made LANES at a time (the same rays as one by one).
-        let mut j = 0u32;
+        // Camera rays are made LANES at a time (the same rays as one by one), one block of
+        // CAMERA_BLOCK pixels per group; a path's owner is its sample's index in the batch,
+        // sample-major then row by row.
         let origin = self.camera.origin();
         let mut film = Vec2s::default();
         let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| Sampler::new(0, 0, 0));
-        for s in samples {
-            for y in y0..y1 {
-                for xs in (x0..x1).step_by(LANES) {
-                    let group = xs..(xs + LANES as u32).min(x1);
-                    for (lane, x) in group.clone().enumerate() {
+        let (block_w, block_h) = CAMERA_BLOCK;
+        let mut pixels_of = [(0u32, 0u32); LANES];
+        for (k, s) in samples.enumerate() {
+            for by in (y0..y1).step_by(block_h as usize) {
+                for bx in (x0..x1).step_by(block_w as usize) {
+                    let mut count = 0;
+                    for y in by..(by + block_h).min(y1) {
+                        for x in bx..(bx + block_w).min(x1) {
+                            pixels_of[count] = (x, y);
+                            count += 1;
+                        }
+                    }
+                    for (lane, &(x, y)) in pixels_of[..count].iter().enumerate() {
                         let mut sampler = Sampler::new(self.seed, (x + y * w) as u64, s as u64);
                         film.set(lane, Vec2::new(x as f32, y as f32) + sampler.next_2d());
                         samplers[lane] = sampler;
                     }
                     let directions = self.camera.generate_directions(&film);
-                    for (lane, sampler) in samplers[..group.len()].iter().enumerate() {
+                    for (lane, sampler) in samplers[..count].iter().enumerate() {
                         if let Some(path) = self.integrator.start(Ray::new(origin, directions.get(lane)), sampler.clone()) {
+                            let (x, y) = pixels_of[lane];
                             paths.push(path);
-                            owners.push(j);
+                            owners.push(k as u32 * n as u32 + (y - y0) * tile_w + (x - x0));
                         }
-                        j += 1;
                     }
                 }
             }
