@@ -114,6 +114,8 @@ struct TileScratch<'s> {
     blocked: Vec<bool>,
     buffers: BatchBuffers<'s>,
     radiance: Vec<Rgb>,
+    /// Per pixel of the tile, row by row: its random streams' [`Sampler::pixel_key`].
+    keys: Vec<u64>,
 }
 
 /// What renders one image: scene, camera, integrator and seed.
@@ -206,6 +208,7 @@ impl<'a> Renderer<'a> {
             blocked,
             buffers,
             radiance,
+            keys,
         } = scratch;
         paths.clear();
         owners.clear();
@@ -219,6 +222,9 @@ impl<'a> Renderer<'a> {
         let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| Sampler::new(0, 0, 0));
         let (block_w, block_h) = CAMERA_BLOCK;
         let mut pixels_of = [(0u32, 0u32); LANES];
+        // The random streams' per-pixel part, once per tile rather than once per sample.
+        keys.clear();
+        keys.extend((y0..y1).flat_map(|y| (x0..x1).map(move |x| Sampler::pixel_key(self.seed, (x + y * w) as u64))));
         for (k, s) in samples.enumerate() {
             for by in (y0..y1).step_by(block_h as usize) {
                 for bx in (x0..x1).step_by(block_w as usize) {
@@ -230,7 +236,7 @@ impl<'a> Renderer<'a> {
                         }
                     }
                     for (lane, &(x, y)) in pixels_of[..count].iter().enumerate() {
-                        let mut sampler = Sampler::new(self.seed, (x + y * w) as u64, s as u64);
+                        let mut sampler = Sampler::of_pixel(keys[((y - y0) * tile_w + (x - x0)) as usize], s as u64);
                         film.set(lane, Vec2::new(x as f32, y as f32) + sampler.next_2d());
                         samplers[lane] = sampler;
                     }

@@ -33,9 +33,22 @@ impl Sampler {
     /// The stream of sample `sample_index` of pixel `pixel_index` under `seed`.
     #[inline]
     pub fn new(seed: u64, pixel_index: u64, sample_index: u64) -> Self {
-        let state = mix64(seed ^ mix64(pixel_index.wrapping_add(0x9e37_79b9_7f4a_7c15)));
+        Self::of_pixel(Self::pixel_key(seed, pixel_index), sample_index)
+    }
+
+    /// What the streams of pixel `pixel_index` under `seed` share: [`Sampler::of_pixel`] of
+    /// it is [`Sampler::new`], so a pixel's many samples need it once.
+    #[inline]
+    pub fn pixel_key(seed: u64, pixel_index: u64) -> u64 {
+        mix64(seed ^ mix64(pixel_index.wrapping_add(0x9e37_79b9_7f4a_7c15)))
+    }
+
+    /// The stream of sample `sample_index` of the pixel whose [`Sampler::pixel_key`] is
+    /// `key`.
+    #[inline]
+    pub fn of_pixel(key: u64, sample_index: u64) -> Self {
         Sampler {
-            rng: Pcg32::new(state, sample_index),
+            rng: Pcg32::new(key, sample_index),
         }
     }
 
