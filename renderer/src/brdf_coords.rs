@@ -15,7 +15,8 @@
 //!   coordinates reciprocal. [`isotropic_angles`] and [`network_input`] fold.
 //! - Angles are in radians.
 
-use crate::trig::atan2;
+use crate::lanes::{F32s, Vec3s};
+use crate::trig::{atan2, atan2_lanes};
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -173,6 +174,61 @@ pub fn network_input_and_angles(wi: Vec3, wo: Vec3) -> ([f32; 6], [f32; 3]) {
     let (sin_h, d) = sin_theta_h_and_folded_d(&hd);
     let angles = [atan2(sin_h, hd.h.z), polar_angle(d), fold_phi_d(atan2(d.y, d.x))];
     ([sin_h, 0.0, hd.h.z, d.x, d.y, d.z], angles)
+}
+
+/// [`network_input_and_angles`] of [`LANES`](crate::lanes::LANES) pairs at once, with the
+/// same operations per lane (the same bits), except that φd is folded for angles from
+/// [`crate::trig::atan2`] only ([`fold_phi_d_lanes`]).
+#[inline(always)]
+pub fn network_input_and_angles_lanes(wi: Vec3s, wo: Vec3s) -> ([F32s; 6], [F32s; 3]) {
+    let zero = F32s::splat(0.0);
+    let one = F32s::splat(1.0);
+    // half_diff
+    let s = wi + wo;
+    let len2 = s.dot(s);
+    let len = len2.sqrt();
+    let has_h = len2.gt(F32s::splat(1e-20));
+    let h = Vec3s {
+        x: has_h.select(s.x / len, zero),
+        y: has_h.select(s.y / len, zero),
+        z: has_h.select(s.z / len, one),
+    };
+    let sin_h = (h.x * h.x + h.y * h.y).sqrt();
+    let has_phi = sin_h.gt(F32s::splat(PHI_H_GUARD));
+    let (cp, sp) = (has_phi.select(h.x / sin_h, one), has_phi.select(h.y / sin_h, zero));
+    let x1 = cp * wi.x + sp * wi.y;
+    let y1 = -sp * wi.x + cp * wi.y;
+    let (ct, st) = (h.z, sin_h);
+    let d = Vec3s {
+        x: ct * x1 - st * wi.z,
+        y: y1,
+        z: st * x1 + ct * wi.z,
+    };
+    // sin_theta_h_and_folded_d (sin θh is the same expression as above)
+    let fold = d.y.lt(zero) | (d.y.eq(zero) & d.x.lt(zero));
+    let d = Vec3s {
+        x: fold.select(-d.x, d.x),
+        y: fold.select(-d.y, d.y),
+        z: d.z,
+    };
+    let angles = [
+        atan2_lanes(sin_h, h.z),
+        atan2_lanes((d.x * d.x + d.y * d.y).sqrt(), d.z),
+        fold_phi_d_lanes(atan2_lanes(d.y, d.x)),
+    ];
+    ([sin_h, zero, h.z, d.x, d.y, d.z], angles)
+}
+
+/// [`fold_phi_d`] per lane for |φd| < 2π or NaN, which every angle from
+/// [`crate::trig::atan2`] is: there `φd % π` is φd itself or φd ∓ π, which is exact
+/// (Sterbenz; the sign of a zero remainder is φd's, as `%` gives it), so the remainder needs
+/// no division.
+#[inline(always)]
+pub fn fold_phi_d_lanes(phi_d: F32s) -> F32s {
+    let pi = F32s::splat(PI);
+    let r = phi_d.abs().ge(pi).select((phi_d - pi.copysign(phi_d)).copysign(phi_d), phi_d);
+    let r = r.lt(F32s::splat(0.0)).select(r + PI, r);
+    r.ge(pi).select(r - PI, r)
 }
 
 /// Boxes that together hold every [`network_input`] of directions above the horizon: θh and
@@ -433,6 +489,56 @@ mod tests {
             let same = (3..6).all(|k| (x[k] - y[k]).abs() < 1e-4);
             let boundary = x[4] < 1e-4 && y[4] < 1e-4;
             prop_assert!(same || boundary, "{x:?} vs {y:?}");
+        }
+    }
+
+    /// The lane form gives the scalar bits in every lane, over random pairs, grazing ones,
+    /// mirror pairs (h = n up to rounding), equal and opposite directions, and pairs whose
+    /// difference vector lies on the fold's edge (d.y = 0).
+    #[test]
+    fn lanes_give_the_scalar_bits() {
+        use crate::lanes::LANES;
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(11);
+        let mut pairs: Vec<(Vec3, Vec3)> = Vec::new();
+        for k in 0..20_000 {
+            let theta_max = if k % 4 == 0 { FRAC_PI_2 * 1.01 } else { FRAC_PI_2 };
+            let draw = |rng: &mut rand_pcg::Pcg32| unit(rng.random_range(0.0..theta_max), rng.random_range(-PI..PI));
+            let wo = draw(&mut rng);
+            let wi = match k % 5 {
+                0 => Vec3::new(-wo.x, -wo.y, wo.z),
+                1 => wo,
+                2 => -wo,
+                3 => Vec3::new(wo.x, -wo.y, wo.z),
+                _ => draw(&mut rng),
+            };
+            pairs.push((wi, wo));
+        }
+        pairs.extend([(Vec3::Z, Vec3::Z), (Vec3::X, Vec3::Z), (Vec3::Z, Vec3::X), (Vec3::new(-1.0, 0.0, 0.0), Vec3::Z)]);
+        for chunk in pairs.chunks(LANES) {
+            let (mut wi, mut wo) = (Vec3s::splat(Vec3::Z), Vec3s::splat(Vec3::Z));
+            for (i, &(a, b)) in chunk.iter().enumerate() {
+                wi.set(i, a);
+                wo.set(i, b);
+            }
+            let (x, angles) = network_input_and_angles_lanes(wi, wo);
+            for (i, &(a, b)) in chunk.iter().enumerate() {
+                let (want_x, want_angles) = network_input_and_angles(a, b);
+                assert_eq!(x.map(|v| v.0[i].to_bits()), want_x.map(f32::to_bits), "input of ({a}, {b})");
+                assert_eq!(angles.map(|v| v.0[i].to_bits()), want_angles.map(f32::to_bits), "angles of ({a}, {b})");
+            }
+        }
+        // The fold alone over its whole range, zeros and ±π included.
+        let phis: Vec<f32> = (0..=8000).map(|k| -PI + k as f32 * (PI / 4000.0)).chain([PI, -PI, 0.0, -0.0, f32::NAN, 6.25, -6.25, 3.5, -3.5]).collect();
+        for chunk in phis.chunks(LANES) {
+            let mut v = F32s::splat(0.0);
+            for (i, &p) in chunk.iter().enumerate() {
+                v.0[i] = p;
+            }
+            let folded = fold_phi_d_lanes(v);
+            for (i, &p) in chunk.iter().enumerate() {
+                assert_eq!(folded.0[i].to_bits(), fold_phi_d(p).to_bits(), "fold of {p}");
+            }
         }
     }
 }

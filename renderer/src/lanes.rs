@@ -141,6 +141,24 @@ impl F32s {
     pub fn is_infinite(self) -> Mask {
         self.test(self, |a, _| a.is_infinite())
     }
+
+    /// `f32::is_sign_negative` per lane (NaNs and zeros by their sign bit).
+    #[inline(always)]
+    pub fn is_sign_negative(self) -> Mask {
+        self.test(self, |a, _| a.is_sign_negative())
+    }
+
+    /// `f32::copysign` per lane: the magnitude of `self` with the sign of `sign`.
+    #[inline(always)]
+    pub fn copysign(self, sign: Self) -> Self {
+        self.zip(sign, f32::copysign)
+    }
+
+    /// `f32::min` per lane (a NaN lane takes the other operand).
+    #[inline(always)]
+    pub fn min(self, o: Self) -> Self {
+        self.zip(o, f32::min)
+    }
 }
 
 impl Mask {

@@ -34,7 +34,7 @@ const MAX_PASS_SAMPLES: u32 = 16;
 /// visit fewer nodes and leaves together. The glossy sphere's render: +6 % against rows of
 /// 16, its bounces following in the same order; the same image.
 const CAMERA_BLOCK: (u32, u32) = (4, 4);
-const _: () = assert!(CAMERA_BLOCK.0 * CAMERA_BLOCK.1 == LANES as u32 && TILE_SIZE % CAMERA_BLOCK.0 == 0 && TILE_SIZE % CAMERA_BLOCK.1 == 0);
+const _: () = assert!(CAMERA_BLOCK.0 * CAMERA_BLOCK.1 == LANES as u32 && TILE_SIZE.is_multiple_of(CAMERA_BLOCK.0) && TILE_SIZE.is_multiple_of(CAMERA_BLOCK.1));
 
 /// When to stop rendering.
 #[derive(Clone, Copy, Debug, PartialEq)]

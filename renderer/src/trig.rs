@@ -6,7 +6,9 @@
 //! (The forward functions, sine and cosine of turns, live with the sampling code that uses
 //! them: [`crate::sampling::sin_cos_turns`].)
 
+use crate::lanes::F32s;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+use std::ops::{Add, Mul, Sub};
 
 /// tan(π/8): above it the reduced argument is moved to (a − 1)/(a + 1) about π/4.
 const TAN_PI_8: f32 = 0.414_213_57;
@@ -32,12 +34,42 @@ pub fn atan2(y: f32, x: f32) -> f32 {
     let (lo, hi) = if ax == f32::INFINITY && ay == f32::INFINITY { (1.0, 1.0) } else { (lo, hi) };
     let far = lo > TAN_PI_8 * hi;
     let (num, den) = if far { (lo - hi, lo + hi) } else { (lo, if hi == 0.0 { 1.0 } else { hi }) };
-    let t = num / den;
-    let z = t * t;
-    let poly = (((8.053_744_5e-2 * z - 1.387_768_6e-1) * z + 1.997_771_1e-1) * z - 3.333_295e-1) * z * t + t;
+    let poly = atan_reduced(num / den);
     let a = if far { (poly + FRAC_PI_4_LO) + FRAC_PI_4 } else { poly };
     let a = if ay > ax { (FRAC_PI_2_LO - a) + FRAC_PI_2 } else { a };
     let a = if x.is_sign_negative() { (PI_LO - a) + PI } else { a };
+    a.copysign(y)
+}
+
+/// arctan t for |t| ≤ tan(π/8): Cephes' odd polynomial, for `f32` and, with the same
+/// operations per lane, [`F32s`].
+#[inline(always)]
+fn atan_reduced<T>(t: T) -> T
+where
+    T: Copy + Add<T, Output = T> + Mul<T, Output = T> + Add<f32, Output = T> + Sub<f32, Output = T>,
+    f32: Mul<T, Output = T>,
+{
+    let z = t * t;
+    (((8.053_744_5e-2 * z - 1.387_768_6e-1) * z + 1.997_771_1e-1) * z - 3.333_295e-1) * z * t + t
+}
+
+/// [`atan2`] per lane, with the same operations (the same bits).
+#[inline(always)]
+pub fn atan2_lanes(y: F32s, x: F32s) -> F32s {
+    let (ax, ay) = (x.abs(), y.abs());
+    let swap = ay.gt(ax);
+    let (lo, hi) = (swap.select(ax, ay), swap.select(ay, ax));
+    let inf = F32s::splat(f32::INFINITY);
+    let both_infinite = ax.eq(inf) & ay.eq(inf);
+    let one = F32s::splat(1.0);
+    let (lo, hi) = (both_infinite.select(one, lo), both_infinite.select(one, hi));
+    let far = lo.gt(TAN_PI_8 * hi);
+    let num = far.select(lo - hi, lo);
+    let den = far.select(lo + hi, hi.eq(F32s::splat(0.0)).select(one, hi));
+    let poly = atan_reduced(num / den);
+    let a = far.select((poly + FRAC_PI_4_LO) + FRAC_PI_4, poly);
+    let a = swap.select((FRAC_PI_2_LO - a) + FRAC_PI_2, a);
+    let a = x.is_sign_negative().select((PI_LO - a) + PI, a);
     a.copysign(y)
 }
 
@@ -101,5 +133,34 @@ mod tests {
         assert_eq!(atan2(0.0, -1.0), PI);
         assert_eq!(atan2(-0.0, -1.0), -PI);
         assert_eq!(atan2(1.0, 0.0), FRAC_PI_2);
+    }
+
+    /// The lane form gives the scalar bits for every lane: a sweep of the plane at several
+    /// magnitudes, the axes, zeros of both signs, infinities and NaN.
+    #[test]
+    fn lanes_give_the_scalar_bits() {
+        let mut inputs: Vec<(f32, f32)> = Vec::new();
+        for k in 0..4000 {
+            let phi = (k as f32 + 0.5) / 4000.0 * std::f32::consts::TAU - PI;
+            for r in [1.0, 1e-30, 3e5] {
+                inputs.push((r * phi.sin(), r * phi.cos()));
+            }
+        }
+        let specials = [0.0, -0.0, 1.0, -1.0, TAN_PI_8, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1e-45];
+        for &y in &specials {
+            for &x in &specials {
+                inputs.push((y, x));
+            }
+        }
+        for chunk in inputs.chunks(crate::lanes::LANES) {
+            let (mut y, mut x) = (F32s::splat(0.0), F32s::splat(1.0));
+            for (i, &(yi, xi)) in chunk.iter().enumerate() {
+                (y.0[i], x.0[i]) = (yi, xi);
+            }
+            let lanes = atan2_lanes(y, x);
+            for (i, &(yi, xi)) in chunk.iter().enumerate() {
+                assert_eq!(lanes.0[i].to_bits(), atan2(yi, xi).to_bits(), "atan2({yi}, {xi})");
+            }
+        }
     }
 }

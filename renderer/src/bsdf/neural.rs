@@ -17,6 +17,7 @@ use crate::neural::reference::ReferenceTable;
 use crate::neural::target_net::{TargetNet, INPUTS};
 use crate::Result;
 use crate::Rgb;
+use crate::lanes::{Vec3s, LANES};
 use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -171,12 +172,68 @@ fn map_back(mapping: MappingForm, epsilon: f32, y: [f32; 3], f_ref: Rgb) -> (Rgb
     (Rgb::from_array(f), clamped)
 }
 
-/// One evaluation of a decoded net prepared without the net ([`BatchEval`]): its input and
-/// where f_ref is looked up (whose entries are already being fetched).
+/// The net's input at a point and where f_ref is looked up.
 #[derive(Clone, Copy, Debug)]
-pub struct NetPoint {
+struct NetPoint {
     x: [f32; INPUTS],
     axes: crate::formats::merl::TrilinearAxes,
+}
+
+/// One evaluation of a decoded net prepared without the net ([`BatchEval`]): its directions
+/// (local frame), both above the horizon. The net's inputs are computed in
+/// [`BatchEval::eval_prepared`], [`LANES`] points at a time.
+#[derive(Clone, Copy, Debug)]
+pub struct Directions {
+    wo: Vec3,
+    wi: Vec3,
+}
+
+/// [`net_point`] of every pair in `points` (all above the horizon), appended to `out`:
+/// [`LANES`] at a time with the same operations per lane (the same bits), compiled for
+/// AVX-512 or AVX2 where the CPU has them.
+fn net_points(points: &[Directions], out: &mut Vec<NetPoint>) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::support::cpu::has_avx512f() {
+            // SAFETY: the CPU has AVX-512F.
+            return unsafe { net_points_avx512(points, out) };
+        }
+        if crate::support::cpu::has_avx2() {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { net_points_avx2(points, out) };
+        }
+    }
+    net_points_lanes(points, out)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn net_points_avx512(points: &[Directions], out: &mut Vec<NetPoint>) {
+    net_points_lanes(points, out)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn net_points_avx2(points: &[Directions], out: &mut Vec<NetPoint>) {
+    net_points_lanes(points, out)
+}
+
+#[inline(always)]
+fn net_points_lanes(points: &[Directions], out: &mut Vec<NetPoint>) {
+    for chunk in points.chunks(LANES) {
+        // Lanes past the chunk repeat its first pair.
+        let (mut wo, mut wi) = (Vec3s::splat(chunk[0].wo), Vec3s::splat(chunk[0].wi));
+        for (lane, d) in chunk.iter().enumerate() {
+            wo.set(lane, d.wo);
+            wi.set(lane, d.wi);
+        }
+        let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles_lanes(wi, wo);
+        let coordinates = crate::formats::merl::continuous_coordinates_lanes(theta_h, theta_d, phi_d);
+        out.extend((0..chunk.len()).map(|lane| NetPoint {
+            x: x.map(|v| v.0[lane]),
+            axes: crate::formats::merl::TrilinearAxes::at(coordinates.map(|v| v.0[lane])),
+        }));
+    }
 }
 
 impl NeuralBsdf {
@@ -189,27 +246,29 @@ impl NeuralBsdf {
 }
 
 impl BatchEval for NeuralBsdf {
-    type Prepared = NetPoint;
+    type Prepared = Directions;
 
     #[inline]
-    fn prepare(&self, wo: Vec3, wi: Vec3) -> Option<NetPoint> {
-        let point = net_point(wo, wi)?;
-        self.reference.prefetch(&point.axes);
-        Some(point)
+    fn prepare(&self, wo: Vec3, wi: Vec3) -> Option<Directions> {
+        (wo.z > 0.0 && wi.z > 0.0).then_some(Directions { wo, wi })
     }
 
-    fn eval_prepared(&self, points: &[NetPoint], values: &mut [Rgb]) {
+    fn eval_prepared(&self, points: &[Directions], values: &mut [Rgb]) {
         assert_eq!(points.len(), values.len(), "one value per point");
-        // f_ref first, while the entries `prepare` prefetched are still in the cache (the
-        // forward passes stream the net's weights through it); `values` holds it meanwhile.
-        for (point, value) in points.iter().zip(values.iter_mut()) {
+        // The inputs of all points first, in lanes, then every point's f_ref entries
+        // prefetched, then f_ref looked up (`values` holds it meanwhile), then the net's
+        // forward passes, whose outputs are mapped back onto f_ref in place.
+        let mut net_points_of = Vec::with_capacity(points.len());
+        net_points(points, &mut net_points_of);
+        for point in &net_points_of {
+            self.reference.prefetch(&point.axes);
+        }
+        for (point, value) in net_points_of.iter().zip(values.iter_mut()) {
             *value = reference_at(&self.reference, point);
         }
-        // The net reads each point's input where it is and hands back each output, which is
-        // mapped back onto f_ref in place.
         self.net.forward_each(
-            points.len(),
-            |i| points[i].x,
+            net_points_of.len(),
+            |i| net_points_of[i].x,
             |i, y| {
                 let (f, clamped) = map_back(self.mapping, self.epsilon, y, values[i]);
                 if clamped {

@@ -13,6 +13,7 @@
 //! Bin centres are the midpoints in these index coordinates, e.g.
 //! θh = ((i + 0.5) / 90)² · π/2, so every centre indexes its own bin.
 
+use crate::lanes::F32s;
 use crate::{Error, Result, Rgb};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2 as FRAC_PI_2_F64, PI as PI_F64};
@@ -108,6 +109,17 @@ pub fn continuous_coordinates(theta_h: f32, theta_d: f32, phi_d: f32) -> [f32; 3
     [uh, ud, up]
 }
 
+/// [`continuous_coordinates`] per lane, with the same operations, for angles whose φd is
+/// already folded or comes from [`crate::trig::atan2`] ([`crate::brdf_coords::fold_phi_d_lanes`]).
+#[inline(always)]
+pub fn continuous_coordinates_lanes(theta_h: F32s, theta_d: F32s, phi_d: F32s) -> [F32s; 3] {
+    use std::f32::consts::{FRAC_PI_2, PI};
+    let uh = (theta_h.max(F32s::splat(0.0)) / FRAC_PI_2).sqrt() * THETA_H_BINS as f32 - 0.5;
+    let ud = theta_d / FRAC_PI_2 * THETA_D_BINS as f32 - 0.5;
+    let up = crate::brdf_coords::fold_phi_d_lanes(phi_d) / PI * PHI_D_BINS as f32 - 0.5;
+    [uh, ud, up]
+}
+
 /// Where a continuous coordinate falls between the table's bins, per axis: the two
 /// neighbouring bins and the weight of the second. θh and θd are clamped at the table's ends
 /// (both neighbours the end bin there), φd wraps with period π.
@@ -128,7 +140,12 @@ impl TrilinearAxes {
     /// The neighbouring bins of the isotropic angles (radians).
     #[inline]
     pub fn new(theta_h: f32, theta_d: f32, phi_d: f32) -> Self {
-        let [uh, ud, up] = continuous_coordinates(theta_h, theta_d, phi_d);
+        Self::at(continuous_coordinates(theta_h, theta_d, phi_d))
+    }
+
+    /// The neighbouring bins of continuous coordinates ([`continuous_coordinates`]).
+    #[inline]
+    pub fn at([uh, ud, up]: [f32; 3]) -> Self {
         let clamp_axis = |u: f32, n: usize| -> ([usize; 2], f32) {
             let u = if u.is_nan() {
                 0.0
