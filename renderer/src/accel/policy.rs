@@ -35,10 +35,9 @@ const SCORE_UNIT: f64 = 1e3;
 /// (parts of an image differ: rays under a ceiling light are not rays across the room), are
 /// traced both ways, which way first alternating, so the timings compare the same rays; the
 /// other batches use the mode that has won by more in the log of the time ratio, each
-/// comparison capped at [`MAX_LOG_RATIO`] (the geometric mean of the ratios, robust to an
-/// interrupted batch), weighted by the batch's rays. A sampled batch costs one extra
-/// traversal: about 1/32 more traversal time while the first [`SETTLED_AFTER`] comparisons
-/// are made, 1/1024 after.
+/// comparison capped at ln 4 and weighted by the batch's rays (a weighted geometric mean of
+/// the ratios, robust to an interrupted batch). A sampled batch costs one extra traversal:
+/// about 1/32 more traversal time until 32 comparisons are made, 1/1024 after.
 #[derive(Debug)]
 pub struct TracePolicy {
     packets_available: bool,

@@ -33,7 +33,8 @@
 //! The BRDF is never asked for a density: only its values enter the fit.
 
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, sin_cos_turns, Distribution1D, ONE_MINUS_EPSILON};
-use crate::trig::atan2;
+use crate::lanes::{F32s, Vec3s, LANES};
+use crate::trig::{atan2, atan2_lanes};
 use crate::bsdf::{BsdfSample, Bxdf};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -153,6 +154,16 @@ pub struct SamplerView {
     /// cos and sin of wo's azimuth.
     cos_phi: f32,
     sin_phi: f32,
+}
+
+/// Where a half vector falls in a [`TabulatedSampler`]'s tables: x = |φh − φo| / π, v = 1 −
+/// cos θh, √(θh / (π/2)) (the rows' coordinate), and wo · h.
+#[derive(Clone, Copy, Debug)]
+struct HalfAngles {
+    x: f32,
+    v: f32,
+    root_theta: f32,
+    cos_oh: f32,
 }
 
 /// A density over [0, 1] × [0, 1] ∋ (x, v), bilinear in each cell of a grid with equal
@@ -481,26 +492,73 @@ impl TabulatedSampler {
         let hx = c * h.x + s * h.y;
         let hy = -s * h.x + c * h.y;
         let sin2_h = hx * hx + hy * hy;
-        let theta_h = atan2(sin2_h.sqrt(), h.z);
-        let ny = self.row_v.len() - 1;
-        let row = (((theta_h / FRAC_PI_2).sqrt() * ny as f32) as usize).min(ny - 1);
+        let root_theta = (atan2(sin2_h.sqrt(), h.z) / FRAC_PI_2).sqrt();
         // 1 − cos θh as sin²θh / (1 + cos θh): no cancellation near h = n (h.z > 0 here).
         let v = sin2_h / (1.0 + h.z);
         let x = (atan2(hy, hx).abs() / PI).min(1.0);
+        self.table_pdf_at(view, HalfAngles { x, v, root_theta, cos_oh })
+    }
+
+    /// [`Self::table_pdf`] from the half vector's coordinates, `cos_oh` > 0.
+    #[inline]
+    fn table_pdf_at(&self, view: &SamplerView, a: HalfAngles) -> f32 {
+        let ny = self.row_v.len() - 1;
+        let row = ((a.root_theta * ny as f32) as usize).min(ny - 1);
         let (k, t) = (view.node, view.upper_weight);
-        let mut density =
-            (1.0 - t) * self.tables[k].density(x, v, row, self.phi_cells, &self.row_v);
+        let mut density = (1.0 - t) * self.tables[k].density(a.x, a.v, row, self.phi_cells, &self.row_v);
         if t > 0.0 {
-            density += t * self.tables[k + 1].density(x, v, row, self.phi_cells, &self.row_v);
+            density += t * self.tables[k + 1].density(a.x, a.v, row, self.phi_cells, &self.row_v);
         }
         // Per dx dv of one sign -> per solid angle of h over both signs (dωh = π dv dx, ½ per
         // sign) -> per solid angle of wi (dωh / dωi = 1 / (4 wo·h)).
-        let pdf = density / (2.0 * PI * 4.0 * cos_oh);
+        let pdf = density / (2.0 * PI * 4.0 * a.cos_oh);
         if pdf.is_finite() {
             pdf
         } else {
             0.0
         }
+    }
+
+    /// [`Self::pdf_in`] of [`LANES`] (view, `wi`) pairs at once, each lane with its own sampler
+    /// (`samplers[lane]`, lanes without one give 0): the half vector's coordinates in lanes with
+    /// the scalar operations, the tables read lane by lane — the same bits as `pdf_in`.
+    #[inline(always)]
+    pub fn pdf_in_lanes(samplers: &[Option<(&TabulatedSampler, SamplerView)>; LANES], wi: Vec3s) -> [f32; LANES] {
+        let mut wo = Vec3s::splat(Vec3::Z);
+        let (mut c, mut s) = (F32s::splat(1.0), F32s::splat(0.0));
+        for (lane, entry) in samplers.iter().enumerate() {
+            if let Some((_, view)) = entry {
+                wo.set(lane, view.wo);
+                (c.0[lane], s.0[lane]) = (view.cos_phi, view.sin_phi);
+            }
+        }
+        let sum = wo + wi;
+        let h = sum * (1.0 / sum.dot(sum).sqrt());
+        let cos_oh = wo.dot(h);
+        let hx = c * h.x + s * h.y;
+        let hy = -s * h.x + c * h.y;
+        let sin2_h = hx * hx + hy * hy;
+        let root_theta = (atan2_lanes(sin2_h.sqrt(), h.z) / FRAC_PI_2).sqrt();
+        let v = sin2_h / (1.0 + h.z);
+        let x = (atan2_lanes(hy, hx).abs() / PI).min(F32s::splat(1.0));
+        std::array::from_fn(|lane| match samplers[lane] {
+            Some((sampler, view)) => {
+                let wi_z = wi.z.0[lane];
+                if view.wo.z <= 0.0 || wi_z <= 0.0 {
+                    return 0.0;
+                }
+                let cos_oh = cos_oh.0[lane];
+                let table = if cos_oh.is_nan() || cos_oh <= 0.0 {
+                    0.0
+                } else {
+                    let a = HalfAngles { x: x.0[lane], v: v.0[lane], root_theta: root_theta.0[lane], cos_oh };
+                    sampler.table_pdf_at(&view, a)
+                };
+                let cf = sampler.cosine_fraction;
+                cf * cosine_hemisphere_pdf(wi_z) + (1.0 - cf) * table
+            }
+            None => 0.0,
+        })
     }
 
     /// The cosine-lobe probability in use.
@@ -758,5 +816,46 @@ mod tests {
             total > 0.1 && (total - rate).abs() < 5e-3,
             "∫pdf = {total}, sampled {rate}"
         );
+    }
+
+    /// `pdf_in_lanes` gives `pdf_in`'s bits in every lane: two samplers mixed across the
+    /// lanes, empty lanes, directions drawn from the sampler (h near n included), random
+    /// ones, below either horizon, grazing, and wi = −wo (no half vector).
+    #[test]
+    fn lanes_give_the_scalar_densities() {
+        use rand::{Rng, SeedableRng};
+        let config = TabulatedSamplerConfig { theta_o_nodes: 8, theta_h_cells: 16, phi_h_cells: 8, cosine_fraction: 0.1 };
+        let samplers = [TabulatedSampler::new(ggx_brdf(0.05), &config), TabulatedSampler::new(ggx_brdf(0.5), &config)];
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(5);
+        let direction = |rng: &mut rand_pcg::Pcg32, lower: f32| {
+            let z: f32 = rng.random_range(lower..1.0);
+            let phi: f32 = rng.random_range(0.0..std::f32::consts::TAU);
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        };
+        for round in 0..400 {
+            let mut lanes: [Option<(&TabulatedSampler, SamplerView)>; LANES] = [None; LANES];
+            let mut wi = Vec3s::default();
+            for lane in 0..LANES {
+                if (round + lane) % 7 == 0 {
+                    continue;
+                }
+                let sampler = &samplers[lane % 2];
+                let wo = direction(&mut rng, if lane % 5 == 0 { -0.2 } else { 1e-4 });
+                let view = sampler.view(wo);
+                let w = match lane % 4 {
+                    0 => sampler.sample_in(&view, Vec2::new(rng.random(), rng.random()), rng.random()).unwrap_or(Vec3::Z),
+                    1 => -wo,
+                    _ => direction(&mut rng, -0.3),
+                };
+                lanes[lane] = Some((sampler, view));
+                wi.set(lane, w);
+            }
+            let got = TabulatedSampler::pdf_in_lanes(&lanes, wi);
+            for lane in 0..LANES {
+                let want = lanes[lane].map_or(0.0, |(sampler, view)| sampler.pdf_in(&view, wi.get(lane)));
+                assert_eq!(got[lane].to_bits(), want.to_bits(), "lane {lane} of round {round}");
+            }
+        }
     }
 }

@@ -1,14 +1,18 @@
 //! Vertices on BSDFs whose values are evaluated in batches ([`BatchEval`]: the decoded
-//! neural materials, the NBRDF networks and the MERL tables), scattered together. Each vertex's light sample and
-//! BSDF sample are drawn one by one exactly as [`PathTracer::scatter`] draws them, and the two
+//! neural materials, the NBRDF networks and the MERL tables), scattered together. Each
+//! vertex's light sample and BSDF sample are drawn one by one exactly as
+//! [`PathTracer::scatter`] draws them; then the sampler's densities of all their directions
+//! are found sixteen at a time ([`TabulatedSampler::pdf_in_lanes`]: latency-bound arithmetic
+//! with two arctangents each, which one vertex at a time leaves the CPU waiting on); then the
 //! values they need are prepared (a net's input or a table's corners, the table entries
-//! prefetched); then every value of a material in the batch is evaluated in one call (one
+//! prefetched) and every value of a material in the batch is evaluated in one call (one
 //! batched forward pass of its net, many points per weight load); then each vertex is
 //! finished with its values. The result is the same, bit for bit, as scattering the vertices
 //! one by one.
 
 use super::{continuation, light_direction, PathTracer, Scattered, Vertex};
-use crate::bsdf::tabulated_sampling::TabulatedBrdf;
+use crate::bsdf::tabulated_sampling::{SamplerView, TabulatedBrdf, TabulatedSampler};
+use crate::lanes::{Vec3s, LANES};
 use crate::bsdf::{BatchEval, BsdfSample};
 use crate::lights::LightSample;
 use crate::render_scene::{RenderScene, SurfacePoint};
@@ -27,11 +31,34 @@ struct Slot {
 struct Pending {
     sp: SurfacePoint,
     beta: Rgb,
-    /// The light sample, its direction (local frame), the BSDF's density of that direction
-    /// and where its value will be.
-    light: Option<(LightSample, Vec3, f32, Slot)>,
-    /// The BSDF sample's direction (local frame), density and where its value will be.
-    sample: Option<(Vec3, f32, Slot)>,
+    wo: Vec3,
+    /// Index of its material in [`DeferredScatter::materials`], and the sampler's view of wo.
+    material: u32,
+    view: SamplerView,
+    light: Option<PendingLight>,
+    sample: Option<PendingSample>,
+}
+
+/// A vertex's light sample: its direction (local frame), whether MIS weighs it (and so needs
+/// the BSDF's density of that direction), and, filled in by [`DeferredScatter::scatter`], that
+/// density and where the BSDF's value is (`None`: zero, below the horizon).
+#[derive(Clone, Copy, Debug)]
+struct PendingLight {
+    ls: LightSample,
+    wi: Vec3,
+    weighed: bool,
+    pdf: f32,
+    slot: Option<Slot>,
+}
+
+/// A vertex's BSDF sample: its direction (local frame) and, filled in by
+/// [`DeferredScatter::scatter`], its density and where its value is (`None`: the sample is
+/// dropped, its density not positive and finite or its value zero).
+#[derive(Clone, Copy, Debug)]
+struct PendingSample {
+    wi: Vec3,
+    pdf: f32,
+    slot: Option<Slot>,
 }
 
 /// The points of one material in the batch and, once evaluated, their values.
@@ -72,7 +99,7 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
     }
 
     /// Draws vertex `v`'s light and BSDF samples (on `bsdf`, its BSDF) for a path of
-    /// throughput `beta` and prepares their values; [`Self::scatter`] finishes it.
+    /// throughput `beta`; [`Self::scatter`] finishes it.
     pub fn push(&mut self, tracer: &PathTracer, scene: &RenderScene, v: &Vertex, bsdf: &'s B, beta: Rgb) {
         let material = match self.materials.iter().position(|m| std::ptr::eq(m.bsdf, bsdf)) {
             Some(k) => k,
@@ -85,54 +112,102 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
                 self.materials.len() - 1
             }
         };
-        let mut add = |point: B::Prepared| {
-            let points = &mut self.materials[material].points;
-            points.push(point);
-            Slot {
-                material: material as u32,
-                point: points.len() as u32 - 1,
-            }
-        };
-        // As `PathTracer::light_term`: a value `prepare` leaves out is zero, which contributes
-        // nothing; the density is `Bxdf::pdf`, what `eval_pdf` gives for tabulated BSDFs, and
-        // is left out (0) where MIS does not use it (a point light's sample).
-        // Both read the sampler's view of wo, found once.
+        // As `PathTracer::light_term` and `Bxdf::sample` of a tabulated BSDF, with the
+        // densities (and the values) left to `scatter`. Both read the sampler's view of wo,
+        // found once.
         let sampler = bsdf.sampler();
         let view = sampler.view(v.wo);
         let light = tracer.light_sample(scene, v).and_then(|ls| {
             let wi = light_direction(&v.sp, &ls)?;
-            let pdf = if tracer.weighs_light_sample(&ls) { sampler.pdf_in(&view, wi) } else { 0.0 };
-            Some((ls, wi, pdf, add(bsdf.prepare(v.wo, wi)?)))
+            Some(PendingLight { ls, wi, weighed: tracer.weighs_light_sample(&ls), pdf: 0.0, slot: None })
         });
-        // As `Bxdf::sample` of a tabulated BSDF; a zero value ends the path in `continuation`.
-        let sample = sampler
-            .sample_with_pdf_in(&view, v.u, v.uc)
-            .and_then(|(wi, pdf)| Some((wi, pdf, add(bsdf.prepare(v.wo, wi)?))));
+        let sample = sampler.sample_in(&view, v.u, v.uc).map(|wi| PendingSample { wi, pdf: 0.0, slot: None });
         self.vertices.push(Pending {
             sp: v.sp,
             beta,
+            wo: v.wo,
+            material: material as u32,
+            view,
             light,
             sample,
         });
     }
 
-    /// Evaluates every prepared value, one call per material, and scatters the vertices
-    /// ([`Self::get`] then returns them).
+    /// The BSDF densities the vertices need (a weighed light sample's, the BSDF sample's),
+    /// [`LANES`] at a time ([`TabulatedSampler::pdf_in_lanes`]: the bits of `pdf_in`).
+    fn densities(&mut self) {
+        let Self { vertices, materials, .. } = self;
+        // (vertex, whether it is the light sample's) per lane of the next group.
+        let mut group: [(usize, bool); LANES] = [(0, false); LANES];
+        let mut samplers: [Option<(&TabulatedSampler, SamplerView)>; LANES] = [None; LANES];
+        let mut wi = Vec3s::default();
+        let mut filled = 0;
+        let flush = |vertices: &mut Vec<Pending>, samplers: &mut [Option<(&TabulatedSampler, SamplerView)>; LANES], wi: &Vec3s, group: &[(usize, bool)]| {
+            let pdfs = TabulatedSampler::pdf_in_lanes(samplers, *wi);
+            for (&(k, is_light), pdf) in group.iter().zip(pdfs) {
+                let p = &mut vertices[k];
+                match (is_light, &mut p.light, &mut p.sample) {
+                    (true, Some(light), _) => light.pdf = pdf,
+                    (false, _, Some(sample)) => sample.pdf = pdf,
+                    _ => unreachable!("a density is asked only for a sample that exists"),
+                }
+            }
+            *samplers = [None; LANES];
+        };
+        for k in 0..vertices.len() {
+            let p = vertices[k];
+            let sampler = materials[p.material as usize].bsdf.sampler();
+            let wanted = [p.light.filter(|l| l.weighed).map(|l| (true, l.wi)), p.sample.map(|s| (false, s.wi))];
+            for (is_light, direction) in wanted.into_iter().flatten() {
+                group[filled] = (k, is_light);
+                samplers[filled] = Some((sampler, p.view));
+                wi.set(filled, direction);
+                filled += 1;
+                if filled == LANES {
+                    flush(vertices, &mut samplers, &wi, &group);
+                    filled = 0;
+                }
+            }
+        }
+        if filled > 0 {
+            flush(vertices, &mut samplers, &wi, &group[..filled]);
+        }
+    }
+
+    /// Finds the densities, prepares and evaluates every value, one call per material, and
+    /// scatters the vertices ([`Self::get`] then returns them).
     pub fn scatter(&mut self, tracer: &PathTracer) {
-        for m in &mut self.materials {
+        self.densities();
+        let Self { vertices, materials, scattered } = self;
+        for p in vertices.iter_mut() {
+            let m = &mut materials[p.material as usize];
+            let mut add = |wi: Vec3| {
+                let point = m.bsdf.prepare(p.wo, wi)?;
+                m.points.push(point);
+                Some(Slot {
+                    material: p.material,
+                    point: m.points.len() as u32 - 1,
+                })
+            };
+            if let Some(light) = &mut p.light {
+                light.slot = add(light.wi);
+            }
+            if let Some(sample) = &mut p.sample {
+                sample.slot = if sample.pdf > 0.0 && sample.pdf.is_finite() { add(sample.wi) } else { None };
+            }
+        }
+        for m in materials.iter_mut() {
             m.values.clear();
             m.values.resize(m.points.len(), Rgb::ZERO);
             m.bsdf.eval_prepared(&m.points, &mut m.values);
         }
-        let value = |slot: Slot| self.materials[slot.material as usize].values[slot.point as usize];
-        self.scattered.clear();
-        self.scattered.extend(self.vertices.iter().map(|p| Scattered {
-            shadow: p
-                .light
-                .and_then(|(ls, wi, pdf, slot)| tracer.light_contribution(&p.sp, p.beta, &ls, wi, value(slot), pdf)),
+        let value = |slot: Slot| materials[slot.material as usize].values[slot.point as usize];
+        scattered.clear();
+        scattered.extend(vertices.iter().map(|p| Scattered {
+            shadow: p.light.and_then(|l| tracer.light_contribution(&p.sp, p.beta, &l.ls, l.wi, value(l.slot?), l.pdf)),
             next: p
                 .sample
-                .and_then(|(wi, pdf, slot)| continuation(&p.sp, &BsdfSample { wi, f: value(slot), pdf }, p.beta)),
+                .and_then(|s| continuation(&p.sp, &BsdfSample { wi: s.wi, f: value(s.slot?), pdf: s.pdf }, p.beta)),
         }));
     }
 
