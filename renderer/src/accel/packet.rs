@@ -335,14 +335,35 @@ fn single(rays: &[Ray], lane: usize) -> BvhRay {
     to_bvh_ray(lane_ray(rays, lane))
 }
 
-/// The lanes whose ray crosses child `c` of `node` within (T_MIN, t_max) (bit i: lane i):
-/// the arithmetic of [`super::node::intersect_avx2`] per lane.
+/// A node's quantised child faces as floats, decoded once per node visit (eight bytes to
+/// eight floats per face in one vector conversion): a child's test then broadcasts its face
+/// from memory rather than converting a byte per face and child. The conversion is exact, so
+/// the distances are those of a byte-by-byte decoding.
+struct ChildFaces {
+    /// Per axis (x, y, z), each child's low and high face.
+    lo: [[f32; 8]; 3],
+    hi: [[f32; 8]; 3],
+}
+
+impl ChildFaces {
+    #[inline(always)]
+    fn new(node: &CwBvhNode) -> Self {
+        let f = |b: [u8; 8]| b.map(f32::from);
+        ChildFaces {
+            lo: [f(node.child_min_x), f(node.child_min_y), f(node.child_min_z)],
+            hi: [f(node.child_max_x), f(node.child_max_y), f(node.child_max_z)],
+        }
+    }
+}
+
+/// The lanes whose ray crosses child `c` of the node whose faces are `faces` within (T_MIN,
+/// t_max) (bit i: lane i): the arithmetic of [`super::node::intersect_avx2`] per lane.
 #[inline(always)]
-fn child_hits<S: Simd>(s: S, node: &CwBvhNode, c: usize, rays: &Rays<S>, adj_dir_inv: &[S::F; 3], adj_orig: &[S::F; 3], t_max: S::F) -> u32 {
+fn child_hits<S: Simd>(s: S, faces: &ChildFaces, c: usize, rays: &Rays<S>, adj_dir_inv: &[S::F; 3], adj_orig: &[S::F; 3], t_max: S::F) -> u32 {
     const T_MIN: f32 = 1e-4;
-    let (near_x, far_x) = slab(s, node.child_min_x[c], node.child_max_x[c], rays.negative[0], adj_dir_inv[0], adj_orig[0]);
-    let (near_y, far_y) = slab(s, node.child_min_y[c], node.child_max_y[c], rays.negative[1], adj_dir_inv[1], adj_orig[1]);
-    let (near_z, far_z) = slab(s, node.child_min_z[c], node.child_max_z[c], rays.negative[2], adj_dir_inv[2], adj_orig[2]);
+    let (near_x, far_x) = slab(s, faces.lo[0][c], faces.hi[0][c], rays.negative[0], adj_dir_inv[0], adj_orig[0]);
+    let (near_y, far_y) = slab(s, faces.lo[1][c], faces.hi[1][c], rays.negative[1], adj_dir_inv[1], adj_orig[1]);
+    let (near_z, far_z) = slab(s, faces.lo[2][c], faces.hi[2][c], rays.negative[2], adj_dir_inv[2], adj_orig[2]);
     let t0 = s.max(s.max(near_x, near_y), s.max(near_z, s.splat(T_MIN)));
     let t1 = s.min(s.min(far_x, far_y), s.min(far_z, t_max));
     s.bits(s.cmp::<_CMP_LE_OQ>(t0, t1))
@@ -395,9 +416,9 @@ fn transpose_bits8(mut m: u64) -> u64 {
 /// The (near, far) distances of a child's quantised slab `lo`..`hi` along one axis, per
 /// lane.
 #[inline(always)]
-fn slab<S: Simd>(s: S, lo: u8, hi: u8, negative: S::M, adj_dir_inv: S::F, adj_orig: S::F) -> (S::F, S::F) {
-    let t_lo = s.fmadd(s.splat(lo as f32), adj_dir_inv, adj_orig);
-    let t_hi = s.fmadd(s.splat(hi as f32), adj_dir_inv, adj_orig);
+fn slab<S: Simd>(s: S, lo: f32, hi: f32, negative: S::M, adj_dir_inv: S::F, adj_orig: S::F) -> (S::F, S::F) {
+    let t_lo = s.fmadd(s.splat(lo), adj_dir_inv, adj_orig);
+    let t_hi = s.fmadd(s.splat(hi), adj_dir_inv, adj_orig);
     (s.blend(negative, t_lo, t_hi), s.blend(negative, t_hi, t_lo))
 }
 
@@ -536,6 +557,7 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
         let (adj_dir_inv, adj_orig) = node_frame(s, node, rays);
         // SAFETY: the token `s` exists only where AVX2 and FMA exist (see `Simd`).
         let crossed = if S::CHILDREN_AT_ONCE { unsafe { children_crossed(s, node, rays, lanes, *t_max) } } else { 0 };
+        let faces = if S::CHILDREN_AT_ONCE { None } else { Some(ChildFaces::new(node)) };
         // The inner children crossed, by their priority for the packet's octant (the
         // highest nearest): (node index, lanes) at `priority`, bit `priority` of `crossed_inner`.
         let mut inner = [(0u32, 0u32); 8];
@@ -548,7 +570,8 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
             let hits = if S::CHILDREN_AT_ONCE {
                 (crossed >> (8 * c)) as u32 & 0xff
             } else {
-                child_hits(s, node, c, rays, &adj_dir_inv, &adj_orig, *t_max)
+                // `faces` is decoded wherever children are tested one at a time.
+                faces.as_ref().map_or(0, |faces| child_hits(s, faces, c, rays, &adj_dir_inv, &adj_orig, *t_max))
             } & lanes
                 & active;
             if hits == 0 {
@@ -814,7 +837,7 @@ mod tests {
                 let crossed = unsafe { children_crossed(s, node, &r, lanes, t_max) };
                 let (adj_dir_inv, adj_orig) = node_frame(s, node, &r);
                 for c in (0..8).filter(|&c| node.child_meta[c] != 0) {
-                    let expected = child_hits(s, node, c, &r, &adj_dir_inv, &adj_orig, t_max) & lanes;
+                    let expected = child_hits(s, &ChildFaces::new(node), c, &r, &adj_dir_inv, &adj_orig, t_max) & lanes;
                     assert_eq!((crossed >> (8 * c)) as u32 & 0xff, expected, "packet {packet}, child {c}");
                     compared += expected.count_ones();
                 }
