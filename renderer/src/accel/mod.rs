@@ -23,8 +23,10 @@ use obvhs::BvhBuildParams;
 use std::mem::MaybeUninit;
 use std::time::Duration;
 
-/// A ray with a parametric interval.
+/// A ray with a parametric interval. Seven floats in declaration order (`repr(C)`), which
+/// the packet kernels gather lane by lane.
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub struct Ray {
     pub origin: Vec3,
     /// Unit direction for [`Bvh::intersect`]; [`Bvh::occluded`] also takes an unnormalised

@@ -69,10 +69,13 @@ trait Simd: Copy {
     fn bits(self, m: Self::M) -> u32;
     /// The lanes of `bits` (lane i: bit i).
     fn mask(self, bits: u32) -> Self::M;
-    /// The first [`Simd::WIDTH`] floats of `a`.
-    fn load(self, a: &[f32; MAX_WIDTH]) -> Self::F;
     /// `v` into the first [`Simd::WIDTH`] floats of `a`.
     fn store(self, v: Self::F, a: &mut [f32; MAX_WIDTH]);
+    /// Lane i: the float at `base + index[i]` (in floats).
+    ///
+    /// # Safety
+    /// Every `base + index[i]` for i < [`Simd::WIDTH`] must be a readable float.
+    unsafe fn gather(self, base: *const f32, index: &[i32; MAX_WIDTH]) -> Self::F;
 }
 
 // The walk below is generic and has no target features of its own: it is inlined, with
@@ -155,9 +158,9 @@ impl Simd for Avx512 {
     }
 
     #[inline(always)]
-    fn load(self, a: &[f32; MAX_WIDTH]) -> __m512 {
-        // SAFETY: as in `splat`; reads the 16 floats of `a`.
-        unsafe { _mm512_loadu_ps(a.as_ptr()) }
+    unsafe fn gather(self, base: *const f32, index: &[i32; MAX_WIDTH]) -> __m512 {
+        // SAFETY: the caller guarantees the addresses; AVX-512F as in `splat`.
+        unsafe { _mm512_i32gather_ps::<4>(_mm512_loadu_si512(index.as_ptr().cast()), base.cast()) }
     }
 
     #[inline(always)]
@@ -235,9 +238,9 @@ impl Simd for Avx2 {
     }
 
     #[inline(always)]
-    fn load(self, a: &[f32; MAX_WIDTH]) -> __m256 {
-        // SAFETY: as in `splat`; reads the first 8 of the 16 floats of `a`.
-        unsafe { _mm256_loadu_ps(a.as_ptr()) }
+    unsafe fn gather(self, base: *const f32, index: &[i32; MAX_WIDTH]) -> __m256 {
+        // SAFETY: the caller guarantees the addresses; AVX2 as in `splat`.
+        unsafe { _mm256_i32gather_ps::<4>(base, _mm256_loadu_si256(index.as_ptr().cast())) }
     }
 
     #[inline(always)]
@@ -276,18 +279,21 @@ struct Closest<S: Simd> {
 /// replaced by ±1/ε), so that the packet's rays are the single-ray walk's bit for bit.
 #[inline(always)]
 fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F) {
-    let mut a = [[0.0f32; MAX_WIDTH]; 7];
-    for (lane, r) in (0..S::WIDTH).map(|lane| lane_ray(rays, lane)).enumerate() {
-        for axis in 0..3 {
-            a[axis][lane] = r.origin[axis];
-            a[3 + axis][lane] = r.direction[axis];
-        }
-        a[6][lane] = r.t_max;
+    // Each of the seven floats of the lanes' rays in one gather (`Ray` is `repr(C)`, seven
+    // floats): scalar stores read back as vectors would wait for every store to retire.
+    const FLOATS: usize = std::mem::size_of::<Ray>() / 4;
+    const _: () = assert!(FLOATS == 7 && std::mem::align_of::<Ray>() == 4);
+    let mut index = [0i32; MAX_WIDTH];
+    for (lane, index) in index.iter_mut().enumerate().take(S::WIDTH) {
+        *index = (if lane < rays.len() { lane } else { 0 } * FLOATS) as i32;
     }
     let zero = s.splat(0.0);
     let mut v = [zero; 7];
-    for (v, a) in v.iter_mut().zip(&a) {
-        *v = s.load(a);
+    let base = rays.as_ptr().cast::<f32>();
+    for (k, v) in v.iter_mut().enumerate() {
+        // SAFETY: every index points at float k of one of `rays` (the first for lanes past
+        // them), a readable `f32` of a `repr(C)` struct of seven.
+        *v = unsafe { s.gather(base.add(k), &index) };
     }
     let (tiny, huge) = (s.splat(f32::EPSILON), s.splat(1.0 / f32::EPSILON));
     let mut d = [zero; 3];
@@ -305,7 +311,7 @@ fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F) {
         s.store(inv[axis], &mut inv_lanes[axis]);
     }
     let negative_bits = negative.map(|m| s.bits(m));
-    let mut rays = Rays {
+    let mut packet = Rays {
         o: [v[0], v[1], v[2]],
         d,
         inv,
@@ -315,11 +321,11 @@ fn load<S: Simd>(s: S, rays: &[Ray]) -> (Rays<S>, S::F) {
         lane_negative: [0; MAX_WIDTH],
     };
     for lane in (0..S::WIDTH).filter(|_| S::CHILDREN_AT_ONCE) {
-        rays.lane_origin[lane] = Vec3A::new(a[0][lane], a[1][lane], a[2][lane]);
-        rays.lane_inv[lane] = Vec3A::new(inv_lanes[0][lane], inv_lanes[1][lane], inv_lanes[2][lane]);
-        rays.lane_negative[lane] = (0..3).map(|axis| ((negative_bits[axis] >> lane) & 1) << axis).sum();
+        packet.lane_origin[lane] = Vec3A::from(lane_ray(rays, lane).origin);
+        packet.lane_inv[lane] = Vec3A::new(inv_lanes[0][lane], inv_lanes[1][lane], inv_lanes[2][lane]);
+        packet.lane_negative[lane] = (0..3).map(|axis| ((negative_bits[axis] >> lane) & 1) << axis).sum();
     }
-    (rays, v[6])
+    (packet, v[6])
 }
 
 /// The ray lane `lane` of a packet of `rays` holds: its own, or the first ray in lanes beyond
