@@ -40,7 +40,7 @@ trait Simd: Copy {
     /// Rays per packet (at most [`MAX_WIDTH`]).
     const WIDTH: usize;
     /// Whether a node's children are tested all at once for each ray ([`children_crossed`])
-    /// rather than one at a time for all rays ([`child_hits`]).
+    /// rather than one at a time for all rays ([`child_entry`]).
     const CHILDREN_AT_ONCE: bool;
     /// One float per lane.
     type F: Copy;
@@ -362,23 +362,26 @@ impl ChildFaces {
     }
 }
 
-/// The lanes whose ray crosses child `c` of the node whose faces are `faces` within (T_MIN,
-/// t_max) (bit i: lane i): the arithmetic of [`super::node::intersect_avx2`] per lane.
+/// The distances at which the lanes' rays enter child `c` of the node whose faces are
+/// `faces`, and the lanes whose ray crosses the child within (T_MIN, t_max) (bit i: lane i):
+/// the arithmetic of [`super::node::intersect_avx2`] per lane. For a lower bound t'_max ≤
+/// t_max, the lanes crossing within (T_MIN, t'_max) are those whose entry is also ≤ t'_max
+/// (the distances are finite, so the `min` of the far faces and the bound is exact).
 #[inline(always)]
-fn child_hits<S: Simd>(s: S, faces: &ChildFaces, c: usize, rays: &Rays<S>, adj_dir_inv: &[S::F; 3], adj_orig: &[S::F; 3], t_max: S::F) -> u32 {
+fn child_entry<S: Simd>(s: S, faces: &ChildFaces, c: usize, rays: &Rays<S>, adj_dir_inv: &[S::F; 3], adj_orig: &[S::F; 3], t_max: S::F) -> (S::F, u32) {
     const T_MIN: f32 = 1e-4;
     let (near_x, far_x) = slab(s, faces.lo[0][c], faces.hi[0][c], rays.negative[0], adj_dir_inv[0], adj_orig[0]);
     let (near_y, far_y) = slab(s, faces.lo[1][c], faces.hi[1][c], rays.negative[1], adj_dir_inv[1], adj_orig[1]);
     let (near_z, far_z) = slab(s, faces.lo[2][c], faces.hi[2][c], rays.negative[2], adj_dir_inv[2], adj_orig[2]);
     let t0 = s.max(s.max(near_x, near_y), s.max(near_z, s.splat(T_MIN)));
     let t1 = s.min(s.min(far_x, far_y), s.min(far_z, t_max));
-    s.bits(s.cmp::<_CMP_LE_OQ>(t0, t1))
+    (t0, s.bits(s.cmp::<_CMP_LE_OQ>(t0, t1)))
 }
 
 /// Per child c of `node`, the lanes of `lanes` whose ray crosses its box within (T_MIN,
 /// t_max) (byte c, bit i: lane i; up to 8 lanes): each ray tests the eight children at once
 /// with the arithmetic of [`super::node::intersect_avx2`], the boxes decoded once. Cheaper
-/// than [`child_hits`] where a node is entered by few of the packet's rays, which is the rule
+/// than [`child_entry`] where a node is entered by few of the packet's rays, which is the rule
 /// for rays scattered from a surface, and no dearer with all eight. All children see the
 /// bounds at the node's entry, as in the single-ray walk (a leaf child's hits lower them
 /// for the triangles tested after it, not for the boxes): a box admitted on a looser bound
@@ -558,7 +561,7 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
             continue;
         }
         let node = &nodes[index as usize];
-        // The per-lane node frame of `child_hits` (unused, and compiled out, where children
+        // The per-lane node frame of `child_entry` (unused, and compiled out, where children
         // are tested at once).
         let (adj_dir_inv, adj_orig) = node_frame(s, node, rays);
         // SAFETY: the token `s` exists only where AVX2 and FMA exist (see `Simd`).
@@ -568,18 +571,34 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
         // highest nearest): (node index, lanes) at `priority`, bit `priority` of `crossed_inner`.
         let mut inner = [(0u32, 0u32); 8];
         let mut crossed_inner = 0u32;
+        // Every child's box first, at the bounds of the node's entry, in a loop of its own
+        // (the leaves' triangle tests would otherwise crowd the boxes' registers out); a
+        // leaf's hits then cull its later siblings by their entry distances, as a test at
+        // the lowered bounds would.
+        let entry_t_max = *t_max;
+        let mut entry = [entry_t_max; 8];
+        let mut crossing = [0u32; 8];
+        for c in 0..8 {
+            if node.child_meta[c] != 0 {
+                crossing[c] = if S::CHILDREN_AT_ONCE {
+                    (crossed >> (8 * c)) as u32 & 0xff
+                } else {
+                    // `faces` is decoded wherever children are tested one at a time.
+                    faces.as_ref().map_or(0, |faces| {
+                        let (t0, hits) = child_entry(s, faces, c, rays, &adj_dir_inv, &adj_orig, entry_t_max);
+                        entry[c] = t0;
+                        hits
+                    })
+                } & lanes;
+            }
+        }
+        let mut lowered = false;
         for c in 0..8 {
             let meta = node.child_meta[c];
-            if meta == 0 {
-                continue;
+            let mut hits = crossing[c] & active;
+            if !S::CHILDREN_AT_ONCE && lowered && hits != 0 {
+                hits &= s.bits(s.cmp::<_CMP_LE_OQ>(entry[c], *t_max));
             }
-            let hits = if S::CHILDREN_AT_ONCE {
-                (crossed >> (8 * c)) as u32 & 0xff
-            } else {
-                // `faces` is decoded wherever children are tested one at a time.
-                faces.as_ref().map_or(0, |faces| child_hits(s, faces, c, rays, &adj_dir_inv, &adj_orig, *t_max))
-            } & lanes
-                & active;
             if hits == 0 {
                 continue;
             }
@@ -591,6 +610,7 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
                     let triangle = LeafTriangle { pack, lane, slot };
                     active = query.leaf(s, bvh, rays, triangle, hits & active, t_max) | (active & !hits);
                 }
+                lowered = true;
             } else {
                 let priority = c ^ octant;
                 inner[priority] = (node.child_node_index(c), hits);
@@ -843,7 +863,7 @@ mod tests {
                 let crossed = unsafe { children_crossed(s, node, &r, lanes, t_max) };
                 let (adj_dir_inv, adj_orig) = node_frame(s, node, &r);
                 for c in (0..8).filter(|&c| node.child_meta[c] != 0) {
-                    let expected = child_hits(s, &ChildFaces::new(node), c, &r, &adj_dir_inv, &adj_orig, t_max) & lanes;
+                    let expected = child_entry(s, &ChildFaces::new(node), c, &r, &adj_dir_inv, &adj_orig, t_max).1 & lanes;
                     assert_eq!((crossed >> (8 * c)) as u32 & 0xff, expected, "packet {packet}, child {c}");
                     compared += expected.count_ones();
                 }
