@@ -221,7 +221,8 @@ impl<'a> Renderer<'a> {
         let mut film = Vec2s::default();
         let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| Sampler::new(0, 0, 0));
         let (block_w, block_h) = CAMERA_BLOCK;
-        let mut pixels_of = [(0u32, 0u32); LANES];
+        // Per lane of a block: the pixel, and its index in the tile (row by row).
+        let mut pixels_of = [(0u32, 0u32, 0u32); LANES];
         // The random streams' per-pixel part, once per tile rather than once per sample.
         keys.clear();
         keys.extend((y0..y1).flat_map(|y| (x0..x1).map(move |x| Sampler::pixel_key(self.seed, (x + y * w) as u64))));
@@ -231,21 +232,20 @@ impl<'a> Renderer<'a> {
                     let mut count = 0;
                     for y in by..(by + block_h).min(y1) {
                         for x in bx..(bx + block_w).min(x1) {
-                            pixels_of[count] = (x, y);
+                            pixels_of[count] = (x, y, (y - y0) * tile_w + (x - x0));
                             count += 1;
                         }
                     }
-                    for (lane, &(x, y)) in pixels_of[..count].iter().enumerate() {
-                        let mut sampler = Sampler::of_pixel(keys[((y - y0) * tile_w + (x - x0)) as usize], s as u64);
+                    for (lane, &(x, y, local)) in pixels_of[..count].iter().enumerate() {
+                        let mut sampler = Sampler::of_pixel(keys[local as usize], s as u64);
                         film.set(lane, Vec2::new(x as f32, y as f32) + sampler.next_2d());
                         samplers[lane] = sampler;
                     }
                     let directions = self.camera.generate_directions(&film);
                     for (lane, sampler) in samplers[..count].iter().enumerate() {
                         if let Some(path) = self.integrator.start(Ray::new(origin, directions.get(lane)), sampler.clone()) {
-                            let (x, y) = pixels_of[lane];
                             paths.push(path);
-                            owners.push(k as u32 * n as u32 + (y - y0) * tile_w + (x - x0));
+                            owners.push(k as u32 * n as u32 + pixels_of[lane].2);
                         }
                     }
                 }

@@ -532,9 +532,9 @@ fn majority_octant<S: Simd>(s: S, rays: &Rays<S>, active: u32) -> usize {
 
 /// Walks the tree for the lanes in `active` (bit i: lane i), whose bounds are `t_max`. A
 /// node's crossed inner children are pushed so that they are popped nearest first for the
-/// packet's majority octant, as the single-ray walk orders them for its ray's (its leaves are
-/// tested in slot order: their triangles are tested for all the lanes crossing them in any
-/// order, and constant child indices keep the node test unrolled).
+/// packet's majority octant, as the single-ray walk orders them for its ray's; its leaves are
+/// tested in slot order (their triangles are tested for all the lanes crossing them in any
+/// order).
 #[inline(always)]
 fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S::F, query: &mut impl PacketQuery<S>) {
     let nodes = &bvh.bvh.nodes;

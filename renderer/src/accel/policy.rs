@@ -99,7 +99,8 @@ impl TracePolicy {
             for packets in [first, !first] {
                 nanos[packets as usize] = time(packets, &mut trace);
             }
-            // A clock that did not move (a coarse timer) says nothing.
+            // A reading of 0 (a coarse clock) counts as 1 ns, so the log stays finite; both 0
+            // say nothing.
             let [single, packets] = nanos.map(|t| t.max(1) as f64);
             let log_ratio = (single / packets).ln().clamp(-MAX_LOG_RATIO, MAX_LOG_RATIO);
             self.score.fetch_add((rays as f64 * log_ratio * SCORE_UNIT) as i64, Ordering::Relaxed);

@@ -134,11 +134,18 @@ fn eval_decoded(
     }
 }
 
+/// Whether wo or wi lies on or below the horizon, where f_r is 0 (a NaN component does not
+/// count: such a pair is evaluated, one point at a time and batched alike).
+#[inline]
+fn below_a_horizon(wo: Vec3, wi: Vec3) -> bool {
+    wo.z <= 0.0 || wi.z <= 0.0
+}
+
 /// The net's input at (wo, wi) and where f_ref is looked up; `None` below either horizon
 /// (f_r is 0).
 #[inline]
 fn net_point(wo: Vec3, wi: Vec3) -> Option<NetPoint> {
-    if wo.z <= 0.0 || wi.z <= 0.0 {
+    if below_a_horizon(wo, wi) {
         return None;
     }
     let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles(wi, wo);
@@ -250,7 +257,7 @@ impl BatchEval for NeuralBsdf {
 
     #[inline]
     fn prepare(&self, wo: Vec3, wi: Vec3) -> Option<Directions> {
-        (wo.z > 0.0 && wi.z > 0.0).then_some(Directions { wo, wi })
+        (!below_a_horizon(wo, wi)).then_some(Directions { wo, wi })
     }
 
     fn eval_prepared(&self, points: &[Directions], values: &mut [Rgb]) {

@@ -475,8 +475,15 @@ impl TabulatedSampler {
         if view.wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
+        self.mixture(wi.z, self.table_pdf(view, wi))
+    }
+
+    /// The sampling mixture's density (1/sr) at a direction of cos θi `wi_z` whose tabulated
+    /// part's density is `table`.
+    #[inline(always)]
+    fn mixture(&self, wi_z: f32, table: f32) -> f32 {
         let cf = self.cosine_fraction;
-        cf * cosine_hemisphere_pdf(wi.z) + (1.0 - cf) * self.table_pdf(view, wi)
+        cf * cosine_hemisphere_pdf(wi_z) + (1.0 - cf) * table
     }
 
     /// Density of the tabulated part alone (1/sr), both horizons already checked.
@@ -554,8 +561,7 @@ impl TabulatedSampler {
                     let a = HalfAngles { x: x.0[lane], v: v.0[lane], root_theta: root_theta.0[lane], cos_oh };
                     sampler.table_pdf_at(&view, a)
                 };
-                let cf = sampler.cosine_fraction;
-                cf * cosine_hemisphere_pdf(wi_z) + (1.0 - cf) * table
+                sampler.mixture(wi_z, table)
             }
             None => 0.0,
         })

@@ -155,12 +155,12 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             *samplers = [None; LANES];
         };
         for k in 0..vertices.len() {
-            let p = vertices[k];
-            let sampler = materials[p.material as usize].bsdf.sampler();
+            let p = &vertices[k];
+            let (sampler, view) = (materials[p.material as usize].bsdf.sampler(), p.view);
             let wanted = [p.light.filter(|l| l.weighed).map(|l| (true, l.wi)), p.sample.map(|s| (false, s.wi))];
             for (is_light, direction) in wanted.into_iter().flatten() {
                 group[filled] = (k, is_light);
-                samplers[filled] = Some((sampler, p.view));
+                samplers[filled] = Some((sampler, view));
                 wi.set(filled, direction);
                 filled += 1;
                 if filled == LANES {
