@@ -273,6 +273,14 @@ impl Distribution1D {
         self.func[i]
     }
 
+    /// Samples a cell index; returns it and its probability mass ([`Self::sample_discrete`]
+    /// without the remapped u, for callers that draw nothing more from it).
+    #[inline]
+    pub fn sample_cell(&self, u: f32) -> (usize, f32) {
+        let i = self.find_cell(u);
+        (i, self.pdf_cell(i))
+    }
+
     /// Samples a cell index; returns (index, its probability mass, u remapped to [0, 1)).
     pub fn sample_discrete(&self, u: f32) -> (usize, f32, f32) {
         let i = self.find_cell(u);
@@ -291,7 +299,7 @@ impl Distribution1D {
         self.cdf[i + 1] - self.cdf[i]
     }
 
-    #[inline]
+    #[inline(always)]
     fn find_cell(&self, u: f32) -> usize {
         // Last index with cdf[i] <= u, skipping zero-mass cells. A few cells (a scene's
         // lights) are counted without branches; many are searched between the guide table's

@@ -137,7 +137,7 @@ impl LightSet {
     /// when the scene has no emitter.
     #[inline]
     pub fn choose(&self, u_select: f32) -> Option<(u32, f32)> {
-        let (index, select_pdf, _) = self.selection.as_ref()?.sample_discrete(u_select);
+        let (index, select_pdf) = self.selection.as_ref()?.sample_cell(u_select);
         (select_pdf > 0.0).then_some((index as u32, select_pdf))
     }
 
