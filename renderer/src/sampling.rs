@@ -4,7 +4,7 @@
 
 use glam::{Vec2, Vec3};
 use std::ops::{Add, Mul, Sub};
-use crate::lanes::{F32s, Vec2s, Vec3s};
+use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4};
 
 /// The largest f32 below 1: where a number drawn in [0, 1) is clamped.
@@ -411,6 +411,24 @@ fn sample_alias(entries: &[AliasEntry], u: f32) -> (usize, f32) {
     (cell, ((r - low) / width).min(ONE_MINUS_EPSILON))
 }
 
+/// [`sample_alias`] per lane, with the same operations (so the same bits): lane k draws
+/// from the table of `n` entries starting at `entries[offsets[k]]`, and gets a cell of that
+/// table. Any u reads in bounds (indices are clamped as the scalar draw clamps them), so
+/// lanes whose u is stale may be drawn and ignored.
+#[inline(always)]
+fn sample_alias_lanes(entries: &[AliasEntry], n: usize, offsets: [usize; LANES], u: F32s) -> ([usize; LANES], F32s) {
+    let x = u * n as f32;
+    let index: [usize; LANES] = std::array::from_fn(|k| (x.0[k] as usize).min(n - 1));
+    let r = F32s(std::array::from_fn(|k| (x.0[k] - index[k] as f32).clamp(0.0, ONE_MINUS_EPSILON)));
+    let drawn: [AliasEntry; LANES] = std::array::from_fn(|k| entries[offsets[k] + index[k]]);
+    let threshold = F32s(drawn.map(|e| e.threshold));
+    let keep = r.lt(threshold);
+    let cell = std::array::from_fn(|k| if keep.0[k] { index[k] } else { drawn[k].alias as usize });
+    let low = keep.select(F32s::splat(0.0), threshold);
+    let width = keep.select(threshold, 1.0 - threshold);
+    (cell, ((r - low) / width).min(F32s::splat(ONE_MINUS_EPSILON)))
+}
+
 /// A piecewise-constant density on [0, 1)² given on a `width × height` grid (row-major,
 /// row = v), sampled as a marginal in v and a conditional in u, each by an alias table: a
 /// sample is two look-ups, not two searches. Each cell carries a payload `T` (an
@@ -512,6 +530,24 @@ impl<T: Copy> Distribution2D<T> {
         let cell = &self.cells[col + row * w];
         let p = Vec2::new((col as f32 + du) / w as f32, (row as f32 + dv) / h as f32).min(Vec2::splat(ONE_MINUS_EPSILON));
         (p, cell.density, cell.payload)
+    }
+
+    /// [`Self::sample_continuous`] per lane, with the same operations (so the same bits);
+    /// every lane is drawn, whatever its u.
+    #[inline(always)]
+    pub fn sample_continuous_lanes(&self, u: Vec2s) -> (Vec2s, F32s, [T; LANES]) {
+        let (w, h) = (self.width, self.height);
+        let (row, dv) = sample_alias_lanes(&self.marginal, h, [0; LANES], u.y);
+        let (col, du) = sample_alias_lanes(&self.conditional, w, row.map(|r| r * w), u.x);
+        let cells: [&Cell<T>; LANES] = std::array::from_fn(|k| &self.cells[col[k] + row[k] * w]);
+        let one_minus = F32s::splat(ONE_MINUS_EPSILON);
+        let column = F32s(col.map(|c| c as f32));
+        let row = F32s(row.map(|r| r as f32));
+        let p = Vec2s {
+            x: ((column + du) / w as f32).min(one_minus),
+            y: ((row + dv) / h as f32).min(one_minus),
+        };
+        (p, F32s(cells.map(|c| c.density)), cells.map(|c| c.payload))
     }
 
     /// Starts fetching the alias entry that [`Self::sample_continuous`] of `u` reads in its

@@ -52,7 +52,7 @@ pub struct BatchBuffers<'s> {
     positions: Vec<Vec3>,
     scattered: Vec<Scattered>,
     diffuse: LaneGroups<DiffuseLanes>,
-    glossy: LaneGroups<GlossyLanes>,
+    glossy: LaneGroups<GlossyLanes<'s>>,
     neural: DeferredScatter<'s, NeuralBsdf>,
     nbrdf: DeferredScatter<'s, NbrdfBsdf>,
     merl: DeferredScatter<'s, MerlBsdf>,

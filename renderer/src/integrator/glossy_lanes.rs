@@ -1,16 +1,17 @@
 //! [`PathTracer::scatter`] for [`LANES`] vertices at once on metallic-roughness surfaces
 //! (GGX visible-normal sampling, Smith, Schlick), lit by any light.
 //!
-//! Each vertex's light sample is drawn one by one as `scatter` draws it (an environment
-//! map's CDF walk, a punctual light, a triangle: memory-bound or cheap work that lanes would
-//! not speed up) and pushed with the vertex, except a constant environment's: its uniform
-//! direction on the sphere (a sine and cosine) is drawn in the kernel, all lanes at once
-//! ([`LaneLight`]). The kernel then does the rest of `scatter` for
-//! all lanes together — the BSDF's value and density toward the light, the multiple
-//! importance weight, the shadow ray, the BSDF sample with its value and density, and the
-//! continuation — with [`MetallicRoughnessLanes`], the scalar formulas per lane. Each lane's
-//! result is bit for bit what `scatter` gives (tested below and by the batched render test).
-//! Compiled for AVX-512 or AVX2 where the CPU has them ([`super::scattered_lanes::scatter`]).
+//! A vertex's sample of a punctual or triangle light is drawn one by one as `scatter` draws
+//! it (short work) and pushed with the vertex; the environment's samples, constant or map,
+//! are drawn in the kernel, all lanes at once ([`LaneLight::Environment`],
+//! [`Environment::sample_lanes`]: a map's alias-table look-ups of sixteen draws issued
+//! together rather than one draw's dependent misses after another's). The kernel then does
+//! the rest of `scatter` for all lanes together — the BSDF's value and density toward the
+//! light, the multiple importance weight, the shadow ray, the BSDF sample with its value and
+//! density, and the continuation — with [`MetallicRoughnessLanes`], the scalar formulas per
+//! lane. Each lane's result is bit for bit what `scatter` gives (tested below and by the
+//! batched render test). Compiled for AVX-512 or AVX2 where the CPU has them
+//! ([`super::scattered_lanes::scatter`]).
 //!
 //! [`PathTracer::scatter`]: super::PathTracer
 
@@ -21,30 +22,30 @@ use crate::bsdf::MetallicRoughness;
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::lights::LightSample;
 use crate::render_scene::RenderScene;
-use crate::sampling::sample_uniform_sphere_lanes;
+use crate::lights::environment::Environment;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
 /// The light sample of a glossy vertex as it is pushed.
 #[derive(Clone, Copy, Debug)]
-pub(crate) enum LaneLight {
+pub(crate) enum LaneLight<'s> {
     /// No light sample contributes (no light, or one `scatter` would not sample).
     None,
     /// Drawn one by one, as `scatter` draws it.
     Sampled(LightSample),
-    /// A constant environment's uniform sample, drawn by the kernel from `u`: the sample
-    /// `scatter` would draw, with radiance `radiance` and density `pdf` (selection included).
-    UniformSphere { u: Vec2, radiance: Rgb, pdf: f32 },
+    /// The environment's sample, drawn by the kernel from `u`: the sample `scatter` would
+    /// draw, its density times `select_pdf`.
+    Environment { environment: &'s Environment, u: Vec2, select_pdf: f32 },
 }
 
 impl PathTracer {
-    /// What vertex `v` pushes into [`GlossyLanes`] as its light: a constant environment's
-    /// sample left to the kernel, any other drawn now ([`PathTracer::light_sample`]).
+    /// What vertex `v` pushes into [`GlossyLanes`] as its light: the environment's sample
+    /// left to the kernel, any other drawn now ([`PathTracer::light_sample`]).
     #[inline]
-    pub(crate) fn lane_light(&self, scene: &RenderScene, v: &Vertex) -> LaneLight {
+    pub(crate) fn lane_light<'s>(&self, scene: &'s RenderScene, v: &Vertex) -> LaneLight<'s> {
         if let Some((index, select_pdf)) = v.light.filter(|_| self.strategy != Strategy::BsdfOnly) {
-            if let Some((radiance, pdf)) = scene.lights.constant_environment(index, select_pdf) {
-                return LaneLight::UniformSphere { u: v.u_light, radiance, pdf };
+            if let Some(environment) = scene.lights.environment_of(index) {
+                return LaneLight::Environment { environment, u: v.u_light, select_pdf };
             }
         }
         self.light_sample(scene, v).map_or(LaneLight::None, LaneLight::Sampled)
@@ -54,8 +55,10 @@ impl PathTracer {
 /// Up to [`LANES`] metallic-roughness vertices with their light samples, in
 /// structure-of-arrays form.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct GlossyLanes {
+pub(crate) struct GlossyLanes<'s> {
     len: usize,
+    /// The scene's environment, where a lane samples it.
+    environment: Option<&'s Environment>,
     bsdf: MetallicRoughnessLanes,
     p: Vec3s,
     p_error: Vec3s,
@@ -69,10 +72,11 @@ pub(crate) struct GlossyLanes {
     beta: Vec3s,
     u: Vec2s,
     uc: F32s,
-    /// The light sample where there is one (`light_ok`), its direction drawn by the kernel
-    /// from `light_u` where `light_uniform`.
+    /// The light sample where there is one (`light_ok`), drawn by the kernel from
+    /// `environment` with `light_u` where `light_environment` (`light_pdf` holds the
+    /// selection probability there until then).
     light_ok: [bool; LANES],
-    light_uniform: [bool; LANES],
+    light_environment: [bool; LANES],
     light_u: Vec2s,
     light_direction: Vec3s,
     light_radiance: Vec3s,
@@ -83,14 +87,14 @@ pub(crate) struct GlossyLanes {
     light_target: Vec3s,
 }
 
-impl GlossyLanes {
+impl<'s> GlossyLanes<'s> {
     /// Appends a vertex on `bsdf` with throughput `beta` and its light sample
     /// ([`PathTracer::lane_light`]).
     ///
     /// # Panics
     /// When all lanes are filled.
     #[inline]
-    pub fn push(&mut self, vertex: &Vertex, bsdf: &MetallicRoughness, beta: Rgb, light: LaneLight) {
+    pub fn push(&mut self, vertex: &Vertex, bsdf: &MetallicRoughness, beta: Rgb, light: LaneLight<'s>) {
         let i = self.len;
         assert!(i < LANES, "glossy lanes are full");
         let sp = &vertex.sp;
@@ -106,7 +110,7 @@ impl GlossyLanes {
         self.u.set(i, vertex.u);
         self.uc.0[i] = vertex.uc;
         self.light_ok[i] = !matches!(light, LaneLight::None);
-        self.light_uniform[i] = matches!(light, LaneLight::UniformSphere { .. });
+        self.light_environment[i] = matches!(light, LaneLight::Environment { .. });
         match light {
             LaneLight::None => {}
             LaneLight::Sampled(ls) => {
@@ -117,10 +121,10 @@ impl GlossyLanes {
                 self.light_has_target[i] = ls.shadow_target.is_some();
                 self.light_target.set(i, ls.shadow_target.unwrap_or(Vec3::ZERO));
             }
-            LaneLight::UniformSphere { u, radiance, pdf } => {
+            LaneLight::Environment { environment, u, select_pdf } => {
+                self.environment = Some(environment);
                 self.light_u.set(i, u);
-                self.light_radiance.set(i, radiance);
-                self.light_pdf.0[i] = pdf;
+                self.light_pdf.0[i] = select_pdf;
                 self.light_delta[i] = false;
                 self.light_has_target[i] = false;
             }
@@ -129,7 +133,7 @@ impl GlossyLanes {
     }
 }
 
-impl LaneKernel for GlossyLanes {
+impl LaneKernel for GlossyLanes<'_> {
     fn len(&self) -> usize {
         self.len
     }
@@ -151,27 +155,35 @@ impl LaneKernel for GlossyLanes {
             z: v.dot(self.n),
         };
 
-        // Next-event estimation (PathTracer::light_term and light_contribution).
-        let uniform = Mask(self.light_uniform);
-        let direction = if uniform.0.iter().any(|&u| u) {
-            uniform.select3(sample_uniform_sphere_lanes(self.light_u), self.light_direction)
-        } else {
-            self.light_direction
+        // The environment's samples (LightSet::sample_chosen), where lanes draw them.
+        let drawn = Mask(self.light_environment);
+        let (light_ok, direction, radiance, light_pdf) = match self.environment {
+            Some(environment) if drawn.0.iter().any(|&d| d) => {
+                let e = environment.sample_lanes(self.light_u);
+                (
+                    Mask(self.light_ok) & (!drawn | e.ok),
+                    drawn.select3(e.direction, self.light_direction),
+                    drawn.select3(e.radiance, self.light_radiance),
+                    drawn.select(e.pdf * self.light_pdf, self.light_pdf),
+                )
+            }
+            _ => (Mask(self.light_ok), self.light_direction, self.light_radiance, self.light_pdf),
         };
+
+        // Next-event estimation (PathTracer::light_term and light_contribution).
         let wi = to_local(direction);
         let p_specular = self.bsdf.specular_probability(wo);
         let (f, bsdf_pdf) = self.bsdf.eval_pdf(p_specular, wo, wi);
-        let shadow_ok =
-            Mask(self.light_ok) & direction.dot(ng).gt(zero) & wi.z.gt(zero) & f.max_element().gt(zero);
+        let shadow_ok = light_ok & direction.dot(ng).gt(zero) & wi.z.gt(zero) & f.max_element().gt(zero);
         let origin = offset_ray_origin(p, p_error, ng, direction);
         let unweighted = Mask(self.light_delta) | Mask([light_only; LANES]);
-        let w = unweighted.select(F32s::splat(1.0), power_heuristic(self.light_pdf, bsdf_pdf));
+        let w = unweighted.select(F32s::splat(1.0), power_heuristic(light_pdf, bsdf_pdf));
         let has_target = Mask(self.light_has_target);
         out.shadow_ok = shadow_ok.0;
         out.shadow_origin = origin;
         out.shadow_direction = has_target.select3(self.light_target - origin, direction);
         out.shadow_t_max = has_target.select(F32s::splat(1.0 - SHADOW_EPSILON), F32s::splat(f32::MAX));
-        out.contribution = beta * f * self.light_radiance * (wi.z * w / self.light_pdf);
+        out.contribution = beta * f * radiance * (wi.z * w / light_pdf);
 
         // BSDF sampling and continuation().
         let sample = self.bsdf.sample(p_specular, wo, self.u, self.uc);
@@ -200,8 +212,9 @@ mod tests {
 
     /// Every lane gives what the scalar `scatter` gives for its vertex, bit for bit, on the
     /// material-preview's metallic-roughness surfaces lit by its point light and by its
-    /// environment map or, in place of the map, a constant environment (whose samples the
-    /// kernel draws), for full and partial groups, every strategy and zero throughputs.
+    /// environment map or, in place of the map, a constant environment (the environment's
+    /// samples drawn by the kernel), for full and partial groups, every strategy and zero
+    /// throughputs.
     #[test]
     fn lanes_equal_scalar_scatter_bit_for_bit() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/material-preview/scene.gltf");
@@ -209,12 +222,12 @@ mod tests {
         let mut constant = description.clone();
         let spec = constant.environment.as_mut().expect("the preview has an environment");
         spec.source = EnvironmentSource::Constant(Rgb::new(0.8, 1.0, 1.3));
-        for (description, is_constant) in [(description, false), (constant, true)] {
-            lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"), is_constant);
+        for description in [description, constant] {
+            lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"));
         }
     }
 
-    fn lanes_equal_scalar_scatter_in(scene: &RenderScene, is_constant: bool) {
+    fn lanes_equal_scalar_scatter_in(scene: &RenderScene) {
         let mut rng = Sampler::new(5, 2, 7);
         for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
             let tracer = PathTracer {
@@ -236,13 +249,13 @@ mod tests {
                 }
             }
             let (mut lanes, mut out) = (GlossyLanes::default(), ScatteredLanes::default());
-            let (mut shadows, mut continued, mut delta, mut uniform) = (0, 0, 0, 0);
+            let (mut shadows, mut continued, mut delta, mut environment) = (0, 0, 0, 0);
             for group in cases.chunks(LANES) {
                 lanes.clear();
                 for (vertex, bsdf, beta) in group {
                     let light = tracer.lane_light(scene, vertex);
                     delta += matches!(light, LaneLight::Sampled(l) if l.is_delta) as usize;
-                    uniform += matches!(light, LaneLight::UniformSphere { .. }) as usize;
+                    environment += matches!(light, LaneLight::Environment { .. }) as usize;
                     lanes.push(vertex, bsdf, *beta, light);
                 }
                 crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
@@ -255,8 +268,8 @@ mod tests {
             }
             assert!(shadows > 0 && shadows < cases.len(), "{strategy:?}: lit and unlit lanes: {shadows}");
             assert!(delta > 0, "{strategy:?}: the point light is sampled");
-            let kernel_draws = is_constant && strategy != Strategy::BsdfOnly;
-            assert_eq!(uniform > 0, kernel_draws, "{strategy:?}: {uniform} constant-environment samples drawn in lanes");
+            let kernel_draws = strategy != Strategy::BsdfOnly;
+            assert_eq!(environment > 0, kernel_draws, "{strategy:?}: {environment} environment samples drawn in lanes");
             assert!(continued > cases.len() / 2 && continued < cases.len(), "{strategy:?}: {continued} continue");
         }
     }

@@ -9,7 +9,10 @@
 
 use crate::color::luminance;
 use crate::error::{Error, Result};
-use crate::sampling::{sample_uniform_sphere, sin_cos_turns, uniform_sphere_pdf, Distribution2D};
+use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
+use crate::sampling::{
+    sample_uniform_sphere, sample_uniform_sphere_lanes, sin_cos_turns, sin_cos_turns_lanes, uniform_sphere_pdf, Distribution2D,
+};
 use crate::scene::{EnvironmentSource, EnvironmentSpec};
 use crate::trig::atan2;
 use crate::Rgb;
@@ -22,6 +25,18 @@ pub struct Environment {
     kind: Kind,
     /// cos and sin of the rotation about +y.
     rotation: (f32, f32),
+}
+
+impl std::fmt::Debug for Environment {
+    /// The kind and rotation, not the map's tables.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("Environment");
+        match &self.kind {
+            Kind::Constant(radiance) => d.field("constant", radiance),
+            Kind::Image(distribution) => d.field("image_size", &distribution.size()),
+        };
+        d.field("rotation", &self.rotation).finish()
+    }
 }
 
 enum Kind {
@@ -49,6 +64,17 @@ pub struct EnvironmentSample {
     pub radiance: Rgb,
     /// Solid-angle density, 1/sr.
     pub pdf: f32,
+}
+
+/// [`EnvironmentSample`]s of [`LANES`] draws ([`Environment::sample_lanes`]), structure of
+/// arrays.
+#[derive(Clone, Copy, Debug)]
+pub struct EnvironmentSamples {
+    /// Lanes that drew a sample (the others' values are meaningless).
+    pub ok: Mask,
+    pub direction: Vec3s,
+    pub radiance: Vec3s,
+    pub pdf: F32s,
 }
 
 impl Environment {
@@ -82,17 +108,6 @@ impl Environment {
         Environment {
             kind: Kind::Constant(radiance),
             rotation: (1.0, 0.0),
-        }
-    }
-
-    /// For a constant environment (`None` for an image), the radiance and density (1/sr) of
-    /// every sample [`Self::sample`] draws, a uniform direction on the sphere: what lane
-    /// kernels need to draw the direction themselves.
-    #[inline]
-    pub fn uniform_sample_terms(&self) -> Option<(Rgb, f32)> {
-        match self.kind {
-            Kind::Constant(c) => Some((c, uniform_sphere_pdf())),
-            Kind::Image { .. } => None,
         }
     }
 
@@ -181,10 +196,10 @@ impl Environment {
     /// Draws a direction toward the environment.
     pub fn sample(&self, u: Vec2) -> Option<EnvironmentSample> {
         match &self.kind {
-            Kind::Constant(_) => self.uniform_sample_terms().map(|(radiance, pdf)| EnvironmentSample {
+            &Kind::Constant(radiance) => Some(EnvironmentSample {
                 direction: sample_uniform_sphere(u),
                 radiance,
-                pdf,
+                pdf: uniform_sphere_pdf(),
             }),
             Kind::Image(distribution) => {
                 let (uv, map_pdf, radiance) = distribution.sample_continuous(u);
@@ -204,6 +219,44 @@ impl Environment {
                     radiance,
                     pdf: map_pdf / (2.0 * PI * PI * sin_theta),
                 })
+            }
+        }
+    }
+
+    /// [`Self::sample`] of each lane's u, with the same operations (so the same bits): lane
+    /// k's sample is `sample(u_k)` where `ok` is set, and `sample(u_k)` is `None` elsewhere.
+    /// The draws of all lanes are made together, their table look-ups independent of one
+    /// another.
+    #[inline(always)]
+    pub fn sample_lanes(&self, u: Vec2s) -> EnvironmentSamples {
+        match &self.kind {
+            &Kind::Constant(radiance) => EnvironmentSamples {
+                ok: Mask([true; LANES]),
+                direction: sample_uniform_sphere_lanes(u),
+                radiance: Vec3s::splat(radiance),
+                pdf: F32s::splat(uniform_sphere_pdf()),
+            },
+            Kind::Image(distribution) => {
+                let (uv, map_pdf, texels) = distribution.sample_continuous_lanes(u);
+                let local = uv_to_direction_lanes(uv);
+                let zero = F32s::splat(0.0);
+                let sin_theta = (1.0 - local.y * local.y).max(zero).sqrt();
+                let mut radiance = Vec3s::default();
+                for (k, &texel) in texels.iter().enumerate() {
+                    radiance.set(k, texel);
+                }
+                let (c, s) = self.rotation;
+                EnvironmentSamples {
+                    ok: !map_pdf.le(zero) & !sin_theta.le(zero),
+                    // map_to_world per lane.
+                    direction: Vec3s {
+                        x: c * local.x + s * local.z,
+                        y: local.y,
+                        z: -s * local.x + c * local.z,
+                    },
+                    radiance,
+                    pdf: map_pdf / (2.0 * PI * PI * sin_theta),
+                }
             }
         }
     }
@@ -241,6 +294,18 @@ pub fn uv_to_direction(uv: Vec2) -> Vec3 {
     let (s, c) = sin_cos_turns(uv.x);
     // sin φ = −sin 2πu and cos φ = −cos 2πu.
     Vec3::new(st * -s, ct, st * c)
+}
+
+/// [`uv_to_direction`] per lane, with the same operations (so the same bits).
+#[inline(always)]
+pub fn uv_to_direction_lanes(uv: Vec2s) -> Vec3s {
+    let (st, ct) = sin_cos_turns_lanes(uv.y * 0.5);
+    let (s, c) = sin_cos_turns_lanes(uv.x);
+    Vec3s {
+        x: st * -s,
+        y: ct,
+        z: st * c,
+    }
 }
 
 /// Reads an .exr or .hdr image as linear RGB radiance; rejects non-finite or negative texels.

@@ -160,17 +160,11 @@ impl LightSet {
         }
     }
 
-    /// Where light `index` is a constant environment, chosen with probability `select_pdf`:
-    /// the radiance and density (1/sr, selection included) of the uniform sample on the
-    /// sphere [`Self::sample_chosen`] draws, for lane kernels that draw the direction
-    /// themselves.
+    /// The environment, where light `index` is the environment.
     #[inline]
-    pub fn constant_environment(&self, index: u32, select_pdf: f32) -> Option<(Rgb, f32)> {
-        match &self.lights[index as usize] {
-            Light::Environment => {
-                let (radiance, pdf) = self.environment.as_ref()?.uniform_sample_terms()?;
-                Some((radiance, pdf * select_pdf))
-            }
+    pub fn environment_of(&self, index: u32) -> Option<&Environment> {
+        match self.lights.get(index as usize) {
+            Some(Light::Environment) => self.environment.as_ref(),
             _ => None,
         }
     }
