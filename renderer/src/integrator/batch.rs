@@ -1,10 +1,9 @@
-//! [`PathTracer::step`] for a batch of paths: the vertices are begun one by one, the common
-//! diffuse-surface-lit-by-a-triangle ones scattered [`LANES`](crate::lanes::LANES) at a time
-//! ([`DiffuseLanes`]), so are the metallic-roughness ones under any light ([`GlossyLanes`]),
-//! those on decoded neural materials, NBRDF networks and MERL tables with their values
-//! evaluated together after all were sampled ([`DeferredScatter`]: one batched forward pass
-//! per net, table entries prefetched), the others one by one, and all advanced in the
-//! batch's order.
+//! [`PathTracer::step`] for a batch of paths: the vertices are begun one by one, those on
+//! Lambertian and metallic-roughness surfaces scattered [`LANES`](crate::lanes::LANES) at a
+//! time under any light ([`DiffuseLanes`], [`GlossyLanes`]), those on decoded neural
+//! materials, NBRDF networks and MERL tables with their values evaluated together after all
+//! were sampled ([`DeferredScatter`]: one batched forward pass per net, table entries
+//! prefetched), the others one by one, and all advanced in the batch's order.
 
 use super::deferred::DeferredScatter;
 use super::diffuse_lanes::DiffuseLanes;
@@ -51,7 +50,7 @@ pub struct BatchBuffers<'s> {
     outcomes: Vec<Outcome>,
     positions: Vec<Vec3>,
     scattered: Vec<Scattered>,
-    diffuse: LaneGroups<DiffuseLanes>,
+    diffuse: LaneGroups<DiffuseLanes<'s>>,
     glossy: LaneGroups<GlossyLanes<'s>>,
     neural: DeferredScatter<'s, NeuralBsdf>,
     nbrdf: DeferredScatter<'s, NbrdfBsdf>,
@@ -84,7 +83,6 @@ impl PathTracer {
         let StepResults { shadows, next } = results;
         shadows.clear();
         next.clear();
-        let lanes_apply = self.strategy != Strategy::BsdfOnly;
         let light_only = self.strategy == Strategy::LightOnly;
         let BatchBuffers {
             outcomes,
@@ -133,14 +131,8 @@ impl PathTracer {
                     continue;
                 };
                 positions.push(v.sp.p);
-                let diffuse_triangle = match (&v.bsdf, v.light) {
-                    (Bsdf::Lambert(b), Some((light, select_pdf))) if lanes_apply => {
-                        scene.lights.triangle(light).filter(|t| t.texture.is_none()).map(|t| (b.albedo, t, select_pdf))
-                    }
-                    _ => None,
-                };
-                if let Some((albedo, light, select_pdf)) = diffuse_triangle {
-                    let slot = diffuse.push(light_only, |lanes| lanes.push(&v, albedo, path.beta, light, select_pdf));
+                if let Bsdf::Lambert(b) = &v.bsdf {
+                    let slot = diffuse.push(light_only, |lanes| lanes.push(&v, b.albedo, path.beta, self.lane_light(scene, &v)));
                     outcomes.push(Outcome::Diffuse(slot));
                 } else if let Bsdf::MetallicRoughness(bsdf) = &v.bsdf {
                     let slot = glossy.push(light_only, |lanes| lanes.push(&v, bsdf, path.beta, self.lane_light(scene, &v)));

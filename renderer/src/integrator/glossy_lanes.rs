@@ -1,64 +1,29 @@
 //! [`PathTracer::scatter`] for [`LANES`] vertices at once on metallic-roughness surfaces
-//! (GGX visible-normal sampling, Smith, Schlick), lit by any light.
+//! (GGX visible-normal sampling, Smith, Schlick), lit by any light ([`super::light_lanes`]:
+//! triangles' and the environment's samples drawn by the kernel).
 //!
-//! A vertex's sample of a punctual or triangle light is drawn one by one as `scatter` draws
-//! it (short work) and pushed with the vertex; the environment's samples, constant or map,
-//! are drawn in the kernel, all lanes at once ([`LaneLight::Environment`],
-//! [`Environment::sample_lanes`]: a map's alias-table look-ups of sixteen draws issued
-//! together rather than one draw's dependent misses after another's). The kernel then does
-//! the rest of `scatter` for all lanes together — the BSDF's value and density toward the
-//! light, the multiple importance weight, the shadow ray, the BSDF sample with its value and
-//! density, and the continuation — with [`MetallicRoughnessLanes`], the scalar formulas per
-//! lane. Each lane's result is bit for bit what `scatter` gives (tested below and by the
-//! batched render test). Compiled for AVX-512 or AVX2 where the CPU has them
-//! ([`super::scattered_lanes::scatter`]).
+//! The kernel does all of `scatter` for all lanes together — the light samples, the BSDF's
+//! value and density toward the light, the multiple importance weight, the shadow ray, the
+//! BSDF sample with its value and density, and the continuation — with
+//! [`MetallicRoughnessLanes`], the scalar formulas per lane. Each lane's result is bit for
+//! bit what `scatter` gives (tested below and by the batched render test). Compiled for
+//! AVX-512 or AVX2 where the CPU has them ([`super::scattered_lanes::scatter`]).
 //!
 //! [`PathTracer::scatter`]: super::PathTracer
 
-use super::scattered_lanes::{offset_ray_origin, power_heuristic, LaneKernel, ScatteredLanes};
-use super::{PathTracer, Strategy, Vertex, SHADOW_EPSILON};
+use super::light_lanes::{next_event, LaneLight, LightLanes};
+use super::scattered_lanes::{offset_ray_origin, LaneKernel, ScatteredLanes};
+use super::Vertex;
 use crate::bsdf::metallic_roughness_lanes::MetallicRoughnessLanes;
 use crate::bsdf::MetallicRoughness;
-use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
-use crate::lights::LightSample;
-use crate::render_scene::RenderScene;
-use crate::lights::environment::Environment;
+use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
 use crate::Rgb;
-use glam::{Vec2, Vec3};
-
-/// The light sample of a glossy vertex as it is pushed.
-#[derive(Clone, Copy, Debug)]
-pub(crate) enum LaneLight<'s> {
-    /// No light sample contributes (no light, or one `scatter` would not sample).
-    None,
-    /// Drawn one by one, as `scatter` draws it.
-    Sampled(LightSample),
-    /// The environment's sample, drawn by the kernel from `u`: the sample `scatter` would
-    /// draw, its density times `select_pdf`.
-    Environment { environment: &'s Environment, u: Vec2, select_pdf: f32 },
-}
-
-impl PathTracer {
-    /// What vertex `v` pushes into [`GlossyLanes`] as its light: the environment's sample
-    /// left to the kernel, any other drawn now ([`PathTracer::light_sample`]).
-    #[inline]
-    pub(crate) fn lane_light<'s>(&self, scene: &'s RenderScene, v: &Vertex) -> LaneLight<'s> {
-        if let Some((index, select_pdf)) = v.light.filter(|_| self.strategy != Strategy::BsdfOnly) {
-            if let Some(environment) = scene.lights.environment_of(index) {
-                return LaneLight::Environment { environment, u: v.u_light, select_pdf };
-            }
-        }
-        self.light_sample(scene, v).map_or(LaneLight::None, LaneLight::Sampled)
-    }
-}
 
 /// Up to [`LANES`] metallic-roughness vertices with their light samples, in
 /// structure-of-arrays form.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct GlossyLanes<'s> {
     len: usize,
-    /// The scene's environment, where a lane samples it.
-    environment: Option<&'s Environment>,
     bsdf: MetallicRoughnessLanes,
     p: Vec3s,
     p_error: Vec3s,
@@ -72,24 +37,12 @@ pub(crate) struct GlossyLanes<'s> {
     beta: Vec3s,
     u: Vec2s,
     uc: F32s,
-    /// The light sample where there is one (`light_ok`), drawn by the kernel from
-    /// `environment` with `light_u` where `light_environment` (`light_pdf` holds the
-    /// selection probability there until then).
-    light_ok: [bool; LANES],
-    light_environment: [bool; LANES],
-    light_u: Vec2s,
-    light_direction: Vec3s,
-    light_radiance: Vec3s,
-    light_pdf: F32s,
-    light_delta: [bool; LANES],
-    /// Where the shadow ray ends, where it does not go to infinity (`light_has_target`).
-    light_has_target: [bool; LANES],
-    light_target: Vec3s,
+    light: LightLanes<'s>,
 }
 
 impl<'s> GlossyLanes<'s> {
     /// Appends a vertex on `bsdf` with throughput `beta` and its light sample
-    /// ([`PathTracer::lane_light`]).
+    /// ([`PathTracer::lane_light`](super::PathTracer::lane_light)).
     ///
     /// # Panics
     /// When all lanes are filled.
@@ -109,26 +62,7 @@ impl<'s> GlossyLanes<'s> {
         self.beta.set(i, beta);
         self.u.set(i, vertex.u);
         self.uc.0[i] = vertex.uc;
-        self.light_ok[i] = !matches!(light, LaneLight::None);
-        self.light_environment[i] = matches!(light, LaneLight::Environment { .. });
-        match light {
-            LaneLight::None => {}
-            LaneLight::Sampled(ls) => {
-                self.light_direction.set(i, ls.direction);
-                self.light_radiance.set(i, ls.radiance);
-                self.light_pdf.0[i] = ls.pdf;
-                self.light_delta[i] = ls.is_delta;
-                self.light_has_target[i] = ls.shadow_target.is_some();
-                self.light_target.set(i, ls.shadow_target.unwrap_or(Vec3::ZERO));
-            }
-            LaneLight::Environment { environment, u, select_pdf } => {
-                self.environment = Some(environment);
-                self.light_u.set(i, u);
-                self.light_pdf.0[i] = select_pdf;
-                self.light_delta[i] = false;
-                self.light_has_target[i] = false;
-            }
-        }
+        self.light.set(i, light);
         self.len += 1;
     }
 }
@@ -155,35 +89,12 @@ impl LaneKernel for GlossyLanes<'_> {
             z: v.dot(self.n),
         };
 
-        // The environment's samples (LightSet::sample_chosen), where lanes draw them.
-        let drawn = Mask(self.light_environment);
-        let (light_ok, direction, radiance, light_pdf) = match self.environment {
-            Some(environment) if drawn.0.iter().any(|&d| d) => {
-                let e = environment.sample_lanes(self.light_u);
-                (
-                    Mask(self.light_ok) & (!drawn | e.ok),
-                    drawn.select3(e.direction, self.light_direction),
-                    drawn.select3(e.radiance, self.light_radiance),
-                    drawn.select(e.pdf * self.light_pdf, self.light_pdf),
-                )
-            }
-            _ => (Mask(self.light_ok), self.light_direction, self.light_radiance, self.light_pdf),
-        };
-
         // Next-event estimation (PathTracer::light_term and light_contribution).
-        let wi = to_local(direction);
+        let light = self.light.samples(p);
+        let wi = to_local(light.direction);
         let p_specular = self.bsdf.specular_probability(wo);
         let (f, bsdf_pdf) = self.bsdf.eval_pdf(p_specular, wo, wi);
-        let shadow_ok = light_ok & direction.dot(ng).gt(zero) & wi.z.gt(zero) & f.max_element().gt(zero);
-        let origin = offset_ray_origin(p, p_error, ng, direction);
-        let unweighted = Mask(self.light_delta) | Mask([light_only; LANES]);
-        let w = unweighted.select(F32s::splat(1.0), power_heuristic(light_pdf, bsdf_pdf));
-        let has_target = Mask(self.light_has_target);
-        out.shadow_ok = shadow_ok.0;
-        out.shadow_origin = origin;
-        out.shadow_direction = has_target.select3(self.light_target - origin, direction);
-        out.shadow_t_max = has_target.select(F32s::splat(1.0 - SHADOW_EPSILON), F32s::splat(f32::MAX));
-        out.contribution = beta * f * radiance * (wi.z * w / light_pdf);
+        next_event(&light, p, p_error, ng, wi.z, f, bsdf_pdf, beta, light_only, out);
 
         // BSDF sampling and continuation().
         let sample = self.bsdf.sample(p_specular, wo, self.u, self.uc);

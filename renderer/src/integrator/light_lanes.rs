@@ -1,0 +1,238 @@
+//! The light samples of a lane kernel's vertices ([`super::diffuse_lanes`],
+//! [`super::glossy_lanes`]) and their next-event estimation, per lane with the scalar code's
+//! operations (so the same bits).
+//!
+//! A vertex pushes its chosen light as a [`LaneLight`]: an untextured emissive triangle or
+//! the environment (constant or map) is sampled by the kernel, all lanes at once — the
+//! triangle's point (Heitz's mapping) and solid-angle density, the environment's draw with
+//! its sixteen alias-table look-ups issued together rather than one draw's dependent misses
+//! after another's; a punctual light or a textured triangle is drawn one by one as
+//! [`PathTracer::scatter`] draws it (short work) and pushed drawn.
+//!
+//! [`PathTracer::scatter`]: super::PathTracer
+
+use super::scattered_lanes::{offset_ray_origin, power_heuristic, ScatteredLanes};
+use super::{PathTracer, Strategy, Vertex, SHADOW_EPSILON};
+use crate::accel::gamma;
+use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
+use crate::lights::area::TriangleLight;
+use crate::lights::environment::Environment;
+use crate::lights::LightSample;
+use crate::render_scene::RenderScene;
+use glam::{Vec2, Vec3};
+
+/// The light sample of a lane vertex as it is pushed.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum LaneLight<'s> {
+    /// No light sample contributes (no light, or one `scatter` would not sample).
+    None,
+    /// Drawn one by one, as `scatter` draws it.
+    Sampled(LightSample),
+    /// An untextured emissive triangle chosen with probability `select_pdf`, sampled by the
+    /// kernel from `u` as `TriangleLight::sample` samples it.
+    Triangle { light: &'s TriangleLight, u: Vec2, select_pdf: f32 },
+    /// The environment's sample, drawn by the kernel from `u`: the sample `scatter` would
+    /// draw, its density times `select_pdf`.
+    Environment { environment: &'s Environment, u: Vec2, select_pdf: f32 },
+}
+
+impl PathTracer {
+    /// What vertex `v` pushes into a lane kernel as its light: an untextured triangle's or
+    /// the environment's sample left to the kernel, any other drawn now
+    /// ([`PathTracer::light_sample`]).
+    #[inline(always)]
+    pub(crate) fn lane_light<'s>(&self, scene: &'s RenderScene, v: &Vertex) -> LaneLight<'s> {
+        if let Some((index, select_pdf)) = v.light.filter(|_| self.strategy != Strategy::BsdfOnly) {
+            if let Some(light) = scene.lights.triangle(index).filter(|t| t.texture.is_none()) {
+                return LaneLight::Triangle { light, u: v.u_light, select_pdf };
+            }
+            if let Some(environment) = scene.lights.environment_of(index) {
+                return LaneLight::Environment { environment, u: v.u_light, select_pdf };
+            }
+        }
+        self.light_sample(scene, v).map_or(LaneLight::None, LaneLight::Sampled)
+    }
+}
+
+/// The [`LaneLight`]s of up to [`LANES`] vertices, structure of arrays.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct LightLanes<'s> {
+    /// The scene's environment, where a lane samples it.
+    environment: Option<&'s Environment>,
+    /// Lanes with a light sample, drawn or to draw.
+    ok: [bool; LANES],
+    /// Lanes the kernel samples: a triangle or the environment, from `u`.
+    triangle: [bool; LANES],
+    from_environment: [bool; LANES],
+    u: Vec2s,
+    /// The triangles' corners, unit normals and areas.
+    corners: [Vec3s; 3],
+    normal: Vec3s,
+    area: F32s,
+    /// Drawn samples; the triangles' radiance; the selection probability where the kernel
+    /// samples.
+    direction: Vec3s,
+    radiance: Vec3s,
+    pdf: F32s,
+    delta: [bool; LANES],
+    /// Where the shadow ray ends, where it does not go to infinity (`has_target`).
+    has_target: [bool; LANES],
+    target: Vec3s,
+}
+
+/// The light samples of [`LANES`] vertices ([`LightLanes::samples`]): per lane what
+/// [`LightSample`] holds, where `ok`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LightSamples {
+    pub ok: Mask,
+    /// World-space unit direction toward the light.
+    pub direction: Vec3s,
+    pub radiance: Vec3s,
+    /// Solid-angle density (1/sr), selection included.
+    pub pdf: F32s,
+    pub delta: Mask,
+    pub has_target: Mask,
+    pub target: Vec3s,
+}
+
+impl<'s> LightLanes<'s> {
+    /// Sets lane `i` to `light`.
+    #[inline(always)]
+    pub fn set(&mut self, i: usize, light: LaneLight<'s>) {
+        self.ok[i] = !matches!(light, LaneLight::None);
+        self.triangle[i] = matches!(light, LaneLight::Triangle { .. });
+        self.from_environment[i] = matches!(light, LaneLight::Environment { .. });
+        match light {
+            LaneLight::None => {}
+            LaneLight::Sampled(ls) => {
+                self.direction.set(i, ls.direction);
+                self.radiance.set(i, ls.radiance);
+                self.pdf.0[i] = ls.pdf;
+                self.delta[i] = ls.is_delta;
+                self.has_target[i] = ls.shadow_target.is_some();
+                self.target.set(i, ls.shadow_target.unwrap_or(Vec3::ZERO));
+            }
+            LaneLight::Triangle { light, u, select_pdf } => {
+                for (c, &corner) in self.corners.iter_mut().zip(&light.corners) {
+                    c.set(i, corner);
+                }
+                self.normal.set(i, light.normal);
+                self.area.0[i] = light.area;
+                self.radiance.set(i, light.radiance);
+                self.u.set(i, u);
+                self.pdf.0[i] = select_pdf;
+                self.delta[i] = false;
+                self.has_target[i] = true;
+            }
+            LaneLight::Environment { environment, u, select_pdf } => {
+                self.environment = Some(environment);
+                self.u.set(i, u);
+                self.pdf.0[i] = select_pdf;
+                self.delta[i] = false;
+                self.has_target[i] = false;
+            }
+        }
+    }
+
+    /// Every lane's sample for shading points `p`: the triangles' and the environment's
+    /// drawn here, the others as pushed.
+    #[inline(always)]
+    pub fn samples(&self, p: Vec3s) -> LightSamples {
+        if self.triangle == [true; LANES] {
+            // Triangles only (a box lit by its ceiling): nothing pushed drawn to merge.
+            let (ok, direction, pdf, target) = self.triangle_samples(p);
+            return LightSamples {
+                ok,
+                direction,
+                radiance: self.radiance,
+                pdf: pdf * self.pdf,
+                delta: Mask([false; LANES]),
+                has_target: Mask([true; LANES]),
+                target,
+            };
+        }
+        let mut samples = LightSamples {
+            ok: Mask(self.ok),
+            direction: self.direction,
+            radiance: self.radiance,
+            pdf: self.pdf,
+            delta: Mask(self.delta),
+            has_target: Mask(self.has_target),
+            target: self.target,
+        };
+        let triangle = Mask(self.triangle);
+        if triangle.0.iter().any(|&t| t) {
+            let (ok, direction, pdf, target) = self.triangle_samples(p);
+            samples.ok = samples.ok & (!triangle | ok);
+            samples.direction = triangle.select3(direction, samples.direction);
+            samples.pdf = triangle.select(pdf * self.pdf, samples.pdf);
+            samples.target = triangle.select3(target, samples.target);
+        }
+        let from_environment = Mask(self.from_environment);
+        if let Some(environment) = self.environment.filter(|_| from_environment.0.iter().any(|&e| e)) {
+            let e = environment.sample_lanes(self.u);
+            samples.ok = samples.ok & (!from_environment | e.ok);
+            samples.direction = from_environment.select3(e.direction, samples.direction);
+            samples.radiance = from_environment.select3(e.radiance, samples.radiance);
+            samples.pdf = from_environment.select(e.pdf * self.pdf, samples.pdf);
+        }
+        samples
+    }
+
+    /// `TriangleLight::sample` from `p` per lane (uniform by area, Heitz's mapping): whether
+    /// it gives a sample, its direction, solid-angle density (without the selection) and
+    /// shadow target.
+    #[inline(always)]
+    fn triangle_samples(&self, p: Vec3s) -> (Mask, Vec3s, F32s, Vec3s) {
+        let zero = F32s::splat(0.0);
+        let (ux, uy) = (self.u.x, self.u.y);
+        let lower = ux.lt(uy);
+        let b0 = lower.select(ux * 0.5, ux - uy * 0.5);
+        let b1 = lower.select(uy - ux * 0.5, uy * 0.5);
+        let (bx, by) = (b1, 1.0 - b0 - b1);
+        let w0 = 1.0 - bx - by;
+        let [v0, v1, v2] = self.corners;
+        let q = v0 * w0 + v1 * bx + v2 * by;
+        let q_error = ((v0 * w0).abs() + (v1 * bx).abs() + (v2 * by).abs()) * gamma(7.0);
+        let to = q - p;
+        let d2 = to.dot(to);
+        let distance = d2.sqrt();
+        let direction = to / distance;
+        let cos_light = -direction.dot(self.normal);
+        let pdf = d2 / (cos_light * self.area);
+        let ok = !d2.le(zero) & !cos_light.le(zero) & pdf.is_finite();
+        (ok, direction, pdf, offset_ray_origin(q, q_error, self.normal, -direction))
+    }
+}
+
+/// Next-event estimation (`PathTracer::light_term` and `light_contribution`) into `out`'s
+/// shadow rays, per lane: light samples `l` at points `p` (with rounding bounds `p_error`)
+/// whose geometric normals facing the arriving rays are `ng`, where the BSDF's value toward
+/// the light is `f` (1/sr), its density `bsdf_pdf`, and the light's direction has local z
+/// `wi_z`; `beta` the throughputs. `light_only` weighs samples by 1 instead of the power
+/// heuristic (as delta lights always are).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn next_event(
+    l: &LightSamples,
+    p: Vec3s,
+    p_error: Vec3s,
+    ng: Vec3s,
+    wi_z: F32s,
+    f: Vec3s,
+    bsdf_pdf: F32s,
+    beta: Vec3s,
+    light_only: bool,
+    out: &mut ScatteredLanes,
+) {
+    let zero = F32s::splat(0.0);
+    let shadow_ok = l.ok & l.direction.dot(ng).gt(zero) & wi_z.gt(zero) & f.max_element().gt(zero);
+    let origin = offset_ray_origin(p, p_error, ng, l.direction);
+    let unweighted = l.delta | Mask([light_only; LANES]);
+    let w = unweighted.select(F32s::splat(1.0), power_heuristic(l.pdf, bsdf_pdf));
+    out.shadow_ok = shadow_ok.0;
+    out.shadow_origin = origin;
+    out.shadow_direction = l.has_target.select3(l.target - origin, l.direction);
+    out.shadow_t_max = l.has_target.select(F32s::splat(1.0 - SHADOW_EPSILON), F32s::splat(f32::MAX));
+    out.contribution = beta * f * l.radiance * (wi_z * w / l.pdf);
+}
