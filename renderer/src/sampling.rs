@@ -550,17 +550,6 @@ impl<T: Copy> Distribution2D<T> {
         (p, F32s(cells.map(|c| c.density)), cells.map(|c| c.payload))
     }
 
-    /// Starts fetching the alias entry that [`Self::sample_continuous`] of `u` reads in its
-    /// row (the row's marginal entry is read now: it is small and cached), so that work
-    /// done in between overlaps the miss. No effect on values.
-    #[inline]
-    pub fn prefetch_sample(&self, u: Vec2) {
-        let w = self.width;
-        let (row, _) = sample_alias(&self.marginal, u.y);
-        let (col, _) = alias_entry(w, u.x);
-        crate::support::prefetch(&self.conditional[row * w + col]);
-    }
-
     /// Density at a point of [0, 1)² of [`Self::sample_continuous`], and the payload of the
     /// cell there.
     #[inline]
@@ -756,7 +745,6 @@ mod tests {
         for i in 0..n {
             for j in 0..n {
                 let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
-                d.prefetch_sample(u);
                 let (p, pdf, cell) = d.sample_continuous(u);
                 assert!(p.cmpge(Vec2::ZERO).all() && p.cmplt(Vec2::ONE).all(), "{p}");
                 assert_eq!(cell, (p.x * w as f32) as usize + w * (p.y * h as f32) as usize, "{u}: {p}");
@@ -770,9 +758,28 @@ mod tests {
             let frequency = count as f64 / (n * n) as f64;
             assert!((frequency - expected).abs() < 2e-3, "cell {cell}: {frequency} vs {expected}");
         }
-        // Prefetches of the extreme samples stay within the tables.
-        for u in [Vec2::ZERO, Vec2::splat(ONE_MINUS_EPSILON), Vec2::ONE] {
-            d.prefetch_sample(u);
+        // Sixteen draws at once are the draws one by one, bit for bit, the extreme u (in and
+        // out of [0, 1), NaN) included.
+        let extremes = [0.0, ONE_MINUS_EPSILON, 1.0, -0.5, 2.0, f32::NAN, f32::INFINITY];
+        for group in 0..40 {
+            let u: [Vec2; LANES] = std::array::from_fn(|k| {
+                let i = group * LANES + k;
+                match i % 9 {
+                    0 => Vec2::new(extremes[i % 7], extremes[(i / 7) % 7]),
+                    _ => Vec2::new((i as f32 * 0.618_034).fract(), (i as f32 * 0.414_213_5).fract()),
+                }
+            });
+            let mut lanes = Vec2s::default();
+            for (k, &u) in u.iter().enumerate() {
+                lanes.set(k, u);
+            }
+            let (p, pdf, cells) = d.sample_continuous_lanes(lanes);
+            for (k, &u) in u.iter().enumerate() {
+                let (expected_p, expected_pdf, expected_cell) = d.sample_continuous(u);
+                let got = (p.x.0[k].to_bits(), p.y.0[k].to_bits(), pdf.0[k].to_bits(), cells[k]);
+                let expected = (expected_p.x.to_bits(), expected_p.y.to_bits(), expected_pdf.to_bits(), expected_cell);
+                assert_eq!(got, expected, "u = {u}");
+            }
         }
         // All-zero weights: uniform.
         let uniform = Distribution2D::new(&[0.0; 6], 3, 2);

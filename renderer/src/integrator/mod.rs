@@ -213,14 +213,10 @@ impl PathTracer {
             return None;
         };
         // The vertex's samples are drawn first (a path that ends here draws nothing more, so
-        // drawing them early changes nothing) and the chosen light's sample starts fetching
-        // what it reads, while the surface point is found.
+        // drawing them early changes nothing).
         let [u_select, u_light_x, u_light_y, uc, u_x, u_y] = path.sampler.next_block();
         let (u_light, u) = (Vec2::new(u_light_x, u_light_y), Vec2::new(u_x, u_y));
         let light = scene.lights.choose(u_select);
-        if let Some((index, _)) = light {
-            scene.lights.prefetch_sample(index, u_light);
-        }
         let sp = scene.surface_point(&hit, ray.direction)?;
         let le = scene.emission(&sp);
         if le.max_element() > 0.0 {

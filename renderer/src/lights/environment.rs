@@ -261,15 +261,6 @@ impl Environment {
         }
     }
 
-    /// Starts fetching the first record [`Self::sample`] of `u` reads (the alias entry of
-    /// its row); the work done before the sample overlaps the miss. No effect on values.
-    #[inline]
-    pub fn prefetch_sample(&self, u: Vec2) {
-        if let Kind::Image(distribution) = &self.kind {
-            distribution.prefetch_sample(u);
-        }
-    }
-
     /// Solid-angle density (1/sr) with which [`Self::sample`] draws world direction `d`.
     #[inline]
     pub fn pdf(&self, d: Vec3) -> f32 {

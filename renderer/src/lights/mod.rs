@@ -141,16 +141,6 @@ impl LightSet {
         (select_pdf > 0.0).then_some((index as u32, select_pdf))
     }
 
-    /// Starts fetching what [`Self::sample_chosen`] of light `index` with `u` reads first
-    /// where that is far in memory (an environment map's alias entry), so that the work
-    /// done before the sample overlaps the miss. No effect on values.
-    #[inline]
-    pub fn prefetch_sample(&self, index: u32, u: Vec2) {
-        if let (Some(Light::Environment), Some(env)) = (self.lights.get(index as usize), &self.environment) {
-            env.prefetch_sample(u);
-        }
-    }
-
     /// The emissive triangle that light `index` is, if it is one.
     #[inline]
     pub fn triangle(&self, index: u32) -> Option<&TriangleLight> {
