@@ -472,8 +472,8 @@ mod tests {
             ("material-preview", 5, Strategy::BsdfOnly, Sphere::Merl, false),
             ("material-preview", 6, Strategy::Mis, Sphere::Nbrdf, false),
             ("material-preview", 5, Strategy::LightOnly, Sphere::Nbrdf, false),
-            // The preview's environment map replaced by a constant one, which the glossy lanes
-            // sample themselves.
+            // The preview's environment map replaced by a constant one (the lane kernels and the
+            // deferred vertices draw either kind's samples in lanes).
             ("material-preview", 6, Strategy::Mis, Sphere::Gltf, true),
             ("material-preview", 5, Strategy::LightOnly, Sphere::Gltf, true),
         ];

@@ -1,7 +1,9 @@
 //! Vertices on BSDFs whose values are evaluated in batches ([`BatchEval`]: the decoded
 //! neural materials, the NBRDF networks and the MERL tables), scattered together. Each
 //! vertex's light sample and BSDF sample are drawn one by one exactly as
-//! [`PathTracer::scatter`] draws them; then the sampler's densities of all their directions
+//! [`PathTracer::scatter`] draws them, except the environment's light samples, drawn
+//! [`LANES`] at a time afterwards ([`Environment::sample_lanes`]: the same bits, the table
+//! look-ups of many draws issued together); then the sampler's densities of all their directions
 //! are found sixteen at a time ([`TabulatedSampler::pdf_in_lanes`]: latency-bound arithmetic
 //! with two arctangents each, which one vertex at a time leaves the CPU waiting on); then the
 //! values they need are prepared (a net's input or a table's corners, the table entries
@@ -10,14 +12,16 @@
 //! finished with its values. The result is the same, bit for bit, as scattering the vertices
 //! one by one.
 
+use super::light_lanes::environment_light_sample;
 use super::{continuation, light_direction, PathTracer, Scattered, Vertex};
 use crate::bsdf::tabulated_sampling::{SamplerView, TabulatedBrdf, TabulatedSampler};
-use crate::lanes::{Vec3s, LANES};
+use crate::lanes::{Vec2s, Vec3s, LANES};
+use crate::lights::environment::Environment;
 use crate::bsdf::{BatchEval, BsdfSample};
 use crate::lights::LightSample;
 use crate::render_scene::{RenderScene, SurfacePoint};
 use crate::Rgb;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// Where a prepared value lies: the material and the index among its points.
 #[derive(Clone, Copy, Debug)]
@@ -36,6 +40,9 @@ struct Pending {
     material: u32,
     view: SamplerView,
     light: Option<PendingLight>,
+    /// The u and selection probability of an environment sample still to draw (`light` is
+    /// `None` until then).
+    environment_draw: Option<(Vec2, f32)>,
     sample: Option<PendingSample>,
 }
 
@@ -71,6 +78,8 @@ struct Material<'s, B: BatchEval> {
 /// Vertices of one BSDF type scattered together (see the module documentation).
 pub(super) struct DeferredScatter<'s, B: BatchEval> {
     vertices: Vec<Pending>,
+    /// The scene's environment, where a vertex samples it.
+    environment: Option<&'s Environment>,
     /// The distinct materials of the batch (usually one or two: a linear search finds them).
     materials: Vec<Material<'s, B>>,
     /// The scattered vertices, in the order they were pushed (after [`Self::scatter`]).
@@ -81,6 +90,7 @@ impl<B: BatchEval> Default for DeferredScatter<'_, B> {
     fn default() -> Self {
         DeferredScatter {
             vertices: Vec::new(),
+            environment: None,
             materials: Vec::new(),
             scattered: Vec::new(),
         }
@@ -100,7 +110,7 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
 
     /// Draws vertex `v`'s light and BSDF samples (on `bsdf`, its BSDF) for a path of
     /// throughput `beta`; [`Self::scatter`] finishes it.
-    pub fn push(&mut self, tracer: &PathTracer, scene: &RenderScene, v: &Vertex, bsdf: &'s B, beta: Rgb) {
+    pub fn push(&mut self, tracer: &PathTracer, scene: &'s RenderScene, v: &Vertex, bsdf: &'s B, beta: Rgb) {
         let material = match self.materials.iter().position(|m| std::ptr::eq(m.bsdf, bsdf)) {
             Some(k) => k,
             None => {
@@ -117,10 +127,14 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         // found once.
         let sampler = bsdf.sampler();
         let view = sampler.view(v.wo);
-        let light = tracer.light_sample(scene, v).and_then(|ls| {
-            let wi = light_direction(&v.sp, &ls)?;
-            Some(PendingLight { ls, wi, weighed: tracer.weighs_light_sample(&ls), pdf: 0.0, slot: None })
-        });
+        let environment_draw = tracer.environment_draw(scene, v);
+        let light = match environment_draw {
+            Some((environment, ..)) => {
+                self.environment = Some(environment);
+                None
+            }
+            None => tracer.light_sample(scene, v).and_then(|ls| pending_light(tracer, &v.sp, ls)),
+        };
         let sample = sampler.sample_in(&view, v.u, v.uc).map(|wi| PendingSample { wi, pdf: 0.0, slot: None });
         self.vertices.push(Pending {
             sp: v.sp,
@@ -129,8 +143,40 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             material: material as u32,
             view,
             light,
+            environment_draw: environment_draw.map(|(_, u, select_pdf)| (u, select_pdf)),
             sample,
         });
+    }
+
+    /// Draws the environment's light samples of the vertices that have one to draw,
+    /// [`LANES`] at a time.
+    fn draw_environment(&mut self, tracer: &PathTracer) {
+        let Some(environment) = self.environment else { return };
+        let mut group = [0usize; LANES];
+        let (mut u, mut select_pdf) = (Vec2s::default(), [0.0f32; LANES]);
+        let mut filled = 0;
+        let flush = |vertices: &mut Vec<Pending>, u: &Vec2s, select_pdf: &[f32; LANES], group: &[usize]| {
+            let e = environment.sample_lanes(*u);
+            for (lane, &k) in group.iter().enumerate() {
+                let p = &mut vertices[k];
+                p.light = environment_light_sample(&e, lane, select_pdf[lane]).and_then(|ls| pending_light(tracer, &p.sp, ls));
+            }
+        };
+        for k in 0..self.vertices.len() {
+            if let Some((draw_u, draw_select_pdf)) = self.vertices[k].environment_draw {
+                group[filled] = k;
+                u.set(filled, draw_u);
+                select_pdf[filled] = draw_select_pdf;
+                filled += 1;
+                if filled == LANES {
+                    flush(&mut self.vertices, &u, &select_pdf, &group);
+                    filled = 0;
+                }
+            }
+        }
+        if filled > 0 {
+            flush(&mut self.vertices, &u, &select_pdf, &group[..filled]);
+        }
     }
 
     /// The BSDF densities the vertices need (a weighed light sample's, the BSDF sample's),
@@ -177,8 +223,9 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
     /// Finds the densities, prepares and evaluates every value, one call per material, and
     /// scatters the vertices ([`Self::get`] then returns them).
     pub fn scatter(&mut self, tracer: &PathTracer) {
+        self.draw_environment(tracer);
         self.densities();
-        let Self { vertices, materials, scattered } = self;
+        let Self { vertices, materials, scattered, .. } = self;
         for p in vertices.iter_mut() {
             let m = &mut materials[p.material as usize];
             let mut add = |wi: Vec3| {
@@ -216,4 +263,12 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
     pub fn get(&self, k: u32) -> Scattered {
         self.scattered[k as usize]
     }
+}
+
+/// The pending light sample of light sample `ls` at `sp` (`PathTracer::light_term` up to
+/// the BSDF's value and density); `None` where the light is below the geometric surface.
+#[inline]
+fn pending_light(tracer: &PathTracer, sp: &SurfacePoint, ls: LightSample) -> Option<PendingLight> {
+    let wi = light_direction(sp, &ls)?;
+    Some(PendingLight { ls, wi, weighed: tracer.weighs_light_sample(&ls), pdf: 0.0, slot: None })
 }

@@ -16,7 +16,7 @@ use super::{PathTracer, Strategy, Vertex, SHADOW_EPSILON};
 use crate::accel::gamma;
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::lights::area::TriangleLight;
-use crate::lights::environment::Environment;
+use crate::lights::environment::{Environment, EnvironmentSamples};
 use crate::lights::LightSample;
 use crate::render_scene::RenderScene;
 use glam::{Vec2, Vec3};
@@ -46,12 +46,35 @@ impl PathTracer {
             if let Some(light) = scene.lights.triangle(index).filter(|t| t.texture.is_none()) {
                 return LaneLight::Triangle { light, u: v.u_light, select_pdf };
             }
-            if let Some(environment) = scene.lights.environment_of(index) {
-                return LaneLight::Environment { environment, u: v.u_light, select_pdf };
-            }
         }
-        self.light_sample(scene, v).map_or(LaneLight::None, LaneLight::Sampled)
+        match self.environment_draw(scene, v) {
+            Some((environment, u, select_pdf)) => LaneLight::Environment { environment, u, select_pdf },
+            None => self.light_sample(scene, v).map_or(LaneLight::None, LaneLight::Sampled),
+        }
     }
+
+    /// Where vertex `v`'s light sample is the environment's: the environment, the sample's
+    /// u and the selection probability, for a draw in lanes ([`Environment::sample_lanes`];
+    /// [`PathTracer::light_sample`] would draw it from `u`).
+    #[inline(always)]
+    pub(crate) fn environment_draw<'s>(&self, scene: &'s RenderScene, v: &Vertex) -> Option<(&'s Environment, Vec2, f32)> {
+        let (index, select_pdf) = v.light.filter(|_| self.strategy != Strategy::BsdfOnly)?;
+        Some((scene.lights.environment_of(index)?, v.u_light, select_pdf))
+    }
+}
+
+/// The light sample `LightSet::sample_chosen` makes of lane `k` of an environment's samples
+/// `e` drawn with selection probability `select_pdf`; `None` where the lane drew nothing.
+#[inline(always)]
+pub(crate) fn environment_light_sample(e: &EnvironmentSamples, k: usize, select_pdf: f32) -> Option<LightSample> {
+    e.ok.0[k].then(|| LightSample {
+        direction: e.direction.get(k),
+        distance: f32::INFINITY,
+        radiance: e.radiance.get(k),
+        pdf: e.pdf.0[k] * select_pdf,
+        is_delta: false,
+        shadow_target: None,
+    })
 }
 
 /// The [`LaneLight`]s of up to [`LANES`] vertices, structure of arrays.
