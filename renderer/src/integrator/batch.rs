@@ -17,6 +17,7 @@ use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::Bsdf;
 use crate::lights::environment::MapPoint;
 use crate::render_scene::RenderScene;
+use crate::lanes::{Vec3s, LANES};
 use glam::Vec3;
 
 /// Vertices begun and scattered together: small enough that their records stay in cache.
@@ -104,19 +105,34 @@ impl PathTracer {
             neural.clear();
             nbrdf.clear();
             merl.clear();
-            // Rays that left the scene first: all located in the environment (which
-            // prefetches their image records), then all looked up, so that their cache
-            // misses overlap; the hits' triangle records are prefetched on the way.
+            // Rays that left the scene first: all located in the environment, sixteen at a
+            // time (which prefetches their image records), then all looked up, so that their
+            // cache misses overlap; the hits' triangle records are prefetched on the way.
             escapes.clear();
+            let mut missed = [0u32; LANES];
+            let mut directions = Vec3s::default();
+            let mut filled = 0;
+            let locate = |missed: &[u32], directions: Vec3s, escapes: &mut Vec<(u32, MapPoint)>| {
+                if let Some(at) = scene.lights.locate_environment_lanes(directions) {
+                    escapes.extend(missed.iter().copied().zip(at));
+                }
+            };
             for (&i, hit) in chunk.iter().zip(chunk_hits) {
                 match hit {
                     Some(hit) => scene.prefetch_hit(hit),
                     None => {
-                        if let Some(at) = scene.lights.locate_environment(paths[i as usize].ray.direction) {
-                            escapes.push((i, at));
+                        missed[filled] = i;
+                        directions.set(filled, paths[i as usize].ray.direction);
+                        filled += 1;
+                        if filled == LANES {
+                            locate(&missed, directions, escapes);
+                            filled = 0;
                         }
                     }
                 }
+            }
+            if filled > 0 {
+                locate(&missed[..filled], directions, escapes);
             }
             for &(i, at) in escapes.iter() {
                 self.escape_at(scene, &mut paths[i as usize], at);

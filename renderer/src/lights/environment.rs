@@ -14,7 +14,7 @@ use crate::sampling::{
     sample_uniform_sphere, sample_uniform_sphere_lanes, sin_cos_turns, sin_cos_turns_lanes, uniform_sphere_pdf, Distribution2D,
 };
 use crate::scene::{EnvironmentSource, EnvironmentSpec};
-use crate::trig::atan2;
+use crate::trig::{atan2, atan2_lanes};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -179,6 +179,31 @@ impl Environment {
         }
     }
 
+    /// [`Self::locate`] of each lane's direction, with the same operations (so the same
+    /// bits), every lane's cell record prefetched.
+    #[inline]
+    pub fn locate_lanes(&self, d: Vec3s) -> [MapPoint; LANES] {
+        match &self.kind {
+            Kind::Constant(_) => [MapPoint { uv: Vec2::ZERO, sin_theta: 1.0 }; LANES],
+            Kind::Image(distribution) => {
+                let (c, s) = self.rotation;
+                // world_to_map per lane.
+                let local = Vec3s {
+                    x: c * d.x - s * d.z,
+                    y: d.y,
+                    z: s * d.x + c * d.z,
+                };
+                let uv = direction_to_uv_lanes(local);
+                let sin_theta = (1.0 - local.y * local.y).max(F32s::splat(0.0)).sqrt();
+                std::array::from_fn(|k| {
+                    let uv = Vec2::new(uv.x.0[k], uv.y.0[k]);
+                    distribution.prefetch_at(uv);
+                    MapPoint { uv, sin_theta: sin_theta.0[k] }
+                })
+            }
+        }
+    }
+
     /// The second half of [`Self::radiance_pdf`]: radiance and solid-angle density at a
     /// point that [`Self::locate`] found.
     #[inline]
@@ -276,6 +301,22 @@ pub fn direction_to_uv(d: Vec3) -> Vec2 {
     Vec2::new(u.rem_euclid(1.0), v)
 }
 
+/// [`direction_to_uv`] per lane, with the same operations (so the same bits): the arccosine
+/// is libm's, lane by lane, and the remainder's `%` (a call of `fmodf`) is x − trunc(x) with
+/// x's sign, which is exactly fmod(x, 1) for finite |x| < 2³¹.
+#[inline(always)]
+pub fn direction_to_uv_lanes(d: Vec3s) -> Vec2s {
+    let u = 0.5 + atan2_lanes(d.x, -d.z) * (0.5 / PI);
+    let v = F32s(d.y.0.map(|y| y.clamp(-1.0, 1.0).acos())) / PI;
+    // f32::rem_euclid(u, 1.0).
+    let r = (u - u.truncate()).copysign(u);
+    let zero = F32s::splat(0.0);
+    Vec2s {
+        x: r.lt(zero).select(r + 1.0, r),
+        y: v,
+    }
+}
+
 /// Direction in the map's frame of image coordinates (inverse of [`direction_to_uv`]):
 /// θ = πv and φ = 2π(u − 0.5), whose sines and cosines are [`sin_cos_turns`] of v/2 and the
 /// negated ones of u (about one ulp, several times faster than libm's).
@@ -334,6 +375,57 @@ mod tests {
         for d in [Vec3::new(0.3, 0.4, -0.5), Vec3::new(-0.9, -0.1, 0.2), Vec3::new(0.1, 0.9, 0.8)] {
             let d = d.normalize();
             assert!((uv_to_direction(direction_to_uv(d)) - d).length() < 1e-5);
+        }
+    }
+
+    /// [`Environment::sample_lanes`] and [`Environment::locate_lanes`] give every lane what
+    /// `sample` and `locate` give it, bit for bit: a rotated map (a zero-weight row and
+    /// column included) and a constant environment; u at the unit square's edges, directions
+    /// along the axes, at the seam behind the map (u = 0 and 1) and at the poles.
+    #[test]
+    fn lanes_equal_scalar_samples_and_locations() {
+        let (w, h) = (16, 8);
+        let texels: Vec<Rgb> = (0..w * h)
+            .map(|i| if i % w == 3 || i / w == 5 { Rgb::ZERO } else { Rgb::new(0.2 + (i % 5) as f32, 1.0, 0.5 + (i % 3) as f32) })
+            .collect();
+        let map = Environment::from_texels(w, h, texels, 0.7);
+        let constant = Environment::load(&EnvironmentSpec {
+            source: EnvironmentSource::Constant(Rgb::new(0.5, 1.0, 2.0)),
+            strength: 1.5,
+            rotation: 0.5,
+        })
+        .expect("constant environment");
+        let seam = Vec3::new(-(0.7f32.sin()), 0.0, 0.7f32.cos());
+        let special = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z, seam, -seam, Vec3::new(-0.0, 0.0, -1.0)];
+        for env in [&map, &constant] {
+            for group in 0..32 {
+                let u: [Vec2; LANES] = std::array::from_fn(|k| {
+                    let i = (group * LANES + k) as f32;
+                    match k {
+                        0 => Vec2::ZERO,
+                        1 => Vec2::splat(crate::sampling::ONE_MINUS_EPSILON),
+                        _ => Vec2::new((i * 0.618_034).fract(), (i * 0.414_213_5).fract()),
+                    }
+                });
+                let d: [Vec3; LANES] = std::array::from_fn(|k| match special.get(k + group) {
+                    Some(&d) => d,
+                    None => sample_uniform_sphere(u[k]),
+                });
+                let (mut u_lanes, mut d_lanes) = (Vec2s::default(), Vec3s::default());
+                for k in 0..LANES {
+                    u_lanes.set(k, u[k]);
+                    d_lanes.set(k, d[k]);
+                }
+                let samples = env.sample_lanes(u_lanes);
+                let located = env.locate_lanes(d_lanes);
+                for k in 0..LANES {
+                    let got = samples.ok.0[k].then(|| (samples.direction.get(k), samples.radiance.get(k), samples.pdf.0[k]));
+                    let expected = env.sample(u[k]).map(|s| (s.direction, s.radiance, s.pdf));
+                    assert_eq!(format!("{got:?}"), format!("{expected:?}"), "sample of {}", u[k]);
+                    let (got, expected) = (located[k], env.locate(d[k]));
+                    assert_eq!((got.uv.x.to_bits(), got.uv.y.to_bits(), got.sin_theta.to_bits()), (expected.uv.x.to_bits(), expected.uv.y.to_bits(), expected.sin_theta.to_bits()), "location of {}", d[k]);
+                }
+            }
         }
     }
 

@@ -12,6 +12,7 @@ pub mod environment;
 pub mod punctual;
 
 use crate::color::luminance;
+use crate::lanes::{Vec3s, LANES};
 use crate::sampling::Distribution1D;
 use crate::scene::{PunctualLight, Texture};
 use crate::Rgb;
@@ -208,6 +209,12 @@ impl LightSet {
     #[inline]
     pub fn locate_environment(&self, d: Vec3) -> Option<MapPoint> {
         Some(self.environment.as_ref()?.locate(d))
+    }
+
+    /// [`Self::locate_environment`] of each lane's world direction (unit).
+    #[inline]
+    pub fn locate_environment_lanes(&self, d: Vec3s) -> Option<[MapPoint; LANES]> {
+        Some(self.environment.as_ref()?.locate_lanes(d))
     }
 
     /// The environment's radiance in the direction [`Self::locate_environment`] found at
