@@ -418,12 +418,19 @@ fn sample_alias(entries: &[AliasEntry], u: f32) -> (usize, f32) {
 #[inline(always)]
 fn sample_alias_lanes(entries: &[AliasEntry], n: usize, offsets: [usize; LANES], u: F32s) -> ([usize; LANES], F32s) {
     let x = u * n as f32;
-    let index: [usize; LANES] = std::array::from_fn(|k| (x.0[k] as usize).min(n - 1));
-    let r = F32s(std::array::from_fn(|k| (x.0[k] - index[k] as f32).clamp(0.0, ONE_MINUS_EPSILON)));
-    let drawn: [AliasEntry; LANES] = std::array::from_fn(|k| entries[offsets[k] + index[k]]);
-    let threshold = F32s(drawn.map(|e| e.threshold));
+    let (mut index, mut r) = ([0usize; LANES], F32s::splat(0.0));
+    let (mut threshold, mut alias) = (F32s::splat(0.0), [0usize; LANES]);
+    for k in 0..LANES {
+        index[k] = (x.0[k] as usize).min(n - 1);
+        r.0[k] = (x.0[k] - index[k] as f32).clamp(0.0, ONE_MINUS_EPSILON);
+        let entry = entries[offsets[k] + index[k]];
+        (threshold.0[k], alias[k]) = (entry.threshold, entry.alias as usize);
+    }
     let keep = r.lt(threshold);
-    let cell = std::array::from_fn(|k| if keep.0[k] { index[k] } else { drawn[k].alias as usize });
+    let mut cell = [0usize; LANES];
+    for k in 0..LANES {
+        cell[k] = if keep.0[k] { index[k] } else { alias[k] };
+    }
     let low = keep.select(F32s::splat(0.0), threshold);
     let width = keep.select(threshold, 1.0 - threshold);
     (cell, ((r - low) / width).min(F32s::splat(ONE_MINUS_EPSILON)))
@@ -539,7 +546,13 @@ impl<T: Copy> Distribution2D<T> {
         let (w, h) = (self.width, self.height);
         let (row, dv) = sample_alias_lanes(&self.marginal, h, [0; LANES], u.y);
         let (col, du) = sample_alias_lanes(&self.conditional, w, row.map(|r| r * w), u.x);
-        let cells: [&Cell<T>; LANES] = std::array::from_fn(|k| &self.cells[col[k] + row[k] * w]);
+        let mut density = F32s::splat(0.0);
+        let mut payload = [self.cells[0].payload; LANES];
+        for k in 0..LANES {
+            let cell = &self.cells[col[k] + row[k] * w];
+            density.0[k] = cell.density;
+            payload[k] = cell.payload;
+        }
         let one_minus = F32s::splat(ONE_MINUS_EPSILON);
         let column = F32s(col.map(|c| c as f32));
         let row = F32s(row.map(|r| r as f32));
@@ -547,7 +560,7 @@ impl<T: Copy> Distribution2D<T> {
             x: ((column + du) / w as f32).min(one_minus),
             y: ((row + dv) / h as f32).min(one_minus),
         };
-        (p, F32s(cells.map(|c| c.density)), cells.map(|c| c.payload))
+        (p, density, payload)
     }
 
     /// Density at a point of [0, 1)² of [`Self::sample_continuous`], and the payload of the

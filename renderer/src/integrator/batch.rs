@@ -112,11 +112,6 @@ impl PathTracer {
             let mut missed = [0u32; LANES];
             let mut directions = Vec3s::default();
             let mut filled = 0;
-            let locate = |missed: &[u32], directions: Vec3s, escapes: &mut Vec<(u32, MapPoint)>| {
-                if let Some(at) = scene.lights.locate_environment_lanes(directions) {
-                    escapes.extend(missed.iter().copied().zip(at));
-                }
-            };
             for (&i, hit) in chunk.iter().zip(chunk_hits) {
                 match hit {
                     Some(hit) => scene.prefetch_hit(hit),
@@ -125,14 +120,14 @@ impl PathTracer {
                         directions.set(filled, paths[i as usize].ray.direction);
                         filled += 1;
                         if filled == LANES {
-                            locate(&missed, directions, escapes);
+                            locate(scene, &missed, directions, escapes);
                             filled = 0;
                         }
                     }
                 }
             }
             if filled > 0 {
-                locate(&missed[..filled], directions, escapes);
+                locate(scene, &missed[..filled], directions, escapes);
             }
             for &(i, at) in escapes.iter() {
                 self.escape_at(scene, &mut paths[i as usize], at);
@@ -190,5 +185,14 @@ impl PathTracer {
                 }
             }
         }
+    }
+}
+
+/// Appends the paths `missed` whose rays left the scene in directions `directions` (lane k
+/// for path k) with where they fall in the environment, if there is one.
+#[inline(always)]
+fn locate(scene: &RenderScene, missed: &[u32], directions: Vec3s, escapes: &mut Vec<(u32, MapPoint)>) {
+    if let Some(at) = scene.lights.locate_environment_lanes(directions) {
+        escapes.extend(missed.iter().copied().zip(at));
     }
 }

@@ -181,7 +181,7 @@ impl Environment {
 
     /// [`Self::locate`] of each lane's direction, with the same operations (so the same
     /// bits), every lane's cell record prefetched.
-    #[inline]
+    #[inline(always)]
     pub fn locate_lanes(&self, d: Vec3s) -> [MapPoint; LANES] {
         match &self.kind {
             Kind::Constant(_) => [MapPoint { uv: Vec2::ZERO, sin_theta: 1.0 }; LANES],
@@ -195,11 +195,13 @@ impl Environment {
                 };
                 let uv = direction_to_uv_lanes(local);
                 let sin_theta = (1.0 - local.y * local.y).max(F32s::splat(0.0)).sqrt();
-                std::array::from_fn(|k| {
+                let mut points = [MapPoint { uv: Vec2::ZERO, sin_theta: 0.0 }; LANES];
+                for (k, point) in points.iter_mut().enumerate() {
                     let uv = Vec2::new(uv.x.0[k], uv.y.0[k]);
                     distribution.prefetch_at(uv);
-                    MapPoint { uv, sin_theta: sin_theta.0[k] }
-                })
+                    *point = MapPoint { uv, sin_theta: sin_theta.0[k] };
+                }
+                points
             }
         }
     }

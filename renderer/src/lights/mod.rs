@@ -212,7 +212,7 @@ impl LightSet {
     }
 
     /// [`Self::locate_environment`] of each lane's world direction (unit).
-    #[inline]
+    #[inline(always)]
     pub fn locate_environment_lanes(&self, d: Vec3s) -> Option<[MapPoint; LANES]> {
         Some(self.environment.as_ref()?.locate_lanes(d))
     }
