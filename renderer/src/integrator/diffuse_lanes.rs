@@ -157,12 +157,13 @@ mod tests {
                 }
             }
             let (mut lanes, mut out) = (DiffuseLanes::default(), ScatteredLanes::default());
-            let (mut shadows, mut ended, mut drawn_by_kernel) = (0, 0, 0);
+            let (mut shadows, mut ended, mut drawn_by_kernel, mut points) = (0, 0, 0, 0);
             for group in cases.chunks(LANES) {
                 lanes.clear();
                 for (vertex, albedo, beta) in group {
                     let light = tracer.lane_light(scene, vertex);
                     drawn_by_kernel += matches!(light, LaneLight::Triangle { .. } | LaneLight::Environment { .. }) as usize;
+                    points += matches!(light, LaneLight::Point { .. }) as usize;
                     lanes.push(vertex, *albedo, *beta, light);
                 }
                 crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
@@ -180,6 +181,9 @@ mod tests {
                 assert!(drawn_by_kernel > cases.len() / 4, "{strategy:?}: {drawn_by_kernel} samples drawn in lanes");
             }
             assert!(ended >= cases.len() / 8, "{strategy:?}: zero throughputs end: {ended}");
+            // The preview's key light is a point light, illuminating under every strategy.
+            let has_point_light = (0..scene.lights.len() as u32).any(|l| scene.lights.point(l).is_some());
+            assert_eq!(points > 0, has_point_light, "{strategy:?}: {points} lanes lit by a point light");
         }
     }
 }

@@ -165,7 +165,7 @@ mod tests {
                 lanes.clear();
                 for (vertex, bsdf, beta) in group {
                     let light = tracer.lane_light(scene, vertex);
-                    delta += matches!(light, LaneLight::Sampled(l) if l.is_delta) as usize;
+                    delta += matches!(light, LaneLight::Point { .. }) as usize;
                     environment += matches!(light, LaneLight::Environment { .. }) as usize;
                     lanes.push(vertex, bsdf, *beta, light);
                 }
@@ -178,7 +178,7 @@ mod tests {
                 }
             }
             assert!(shadows > 0 && shadows < cases.len(), "{strategy:?}: lit and unlit lanes: {shadows}");
-            assert!(delta > 0, "{strategy:?}: the point light is sampled");
+            assert!(delta > 0, "{strategy:?}: the point light illuminates lanes");
             let kernel_draws = strategy != Strategy::BsdfOnly;
             assert_eq!(environment > 0, kernel_draws, "{strategy:?}: {environment} environment samples drawn in lanes");
             assert!(continued > cases.len() / 2 && continued < cases.len(), "{strategy:?}: {continued} continue");

@@ -3,11 +3,12 @@
 //! operations (so the same bits).
 //!
 //! A vertex pushes its chosen light as a [`LaneLight`]: an untextured emissive triangle or
-//! the environment (constant or map) is sampled by the kernel, all lanes at once — the
-//! triangle's point (Heitz's mapping) and solid-angle density, the environment's draw with
-//! its sixteen alias-table look-ups issued together rather than one draw's dependent misses
-//! after another's; a punctual light or a textured triangle is drawn one by one as
-//! [`PathTracer::scatter`] draws it (short work) and pushed drawn.
+//! the environment (constant or map) is sampled by the kernel and a point light illuminates
+//! the vertex there, all lanes at once — the triangle's point (Heitz's mapping) and
+//! solid-angle density, the environment's draw with its sixteen alias-table look-ups issued
+//! together rather than one draw's dependent misses after another's; a spot or directional
+//! light or a textured triangle is drawn one by one as [`PathTracer::scatter`] draws it
+//! (short work) and pushed drawn.
 //!
 //! [`PathTracer::scatter`]: super::PathTracer
 
@@ -19,6 +20,7 @@ use crate::lights::area::TriangleLight;
 use crate::lights::environment::{Environment, EnvironmentSamples};
 use crate::lights::LightSample;
 use crate::render_scene::RenderScene;
+use crate::Rgb;
 use glam::{Vec2, Vec3};
 
 /// The light sample of a lane vertex as it is pushed.
@@ -34,6 +36,9 @@ pub(crate) enum LaneLight<'s> {
     /// The environment's sample, drawn by the kernel from `u`: the sample `scatter` would
     /// draw, its density times `select_pdf`.
     Environment { environment: &'s Environment, u: Vec2, select_pdf: f32 },
+    /// A point light at `position` of intensity `intensity` (W/sr) chosen with probability
+    /// `select_pdf`, illuminating the vertex as `punctual::illuminate` finds in the kernel.
+    Point { position: Vec3, intensity: Rgb, select_pdf: f32 },
 }
 
 impl PathTracer {
@@ -42,8 +47,13 @@ impl PathTracer {
     /// ([`PathTracer::light_sample`]).
     #[inline(always)]
     pub(crate) fn lane_light<'s>(&self, scene: &'s RenderScene, v: &Vertex) -> LaneLight<'s> {
-        if let Some((index, select_pdf)) = v.light.filter(|_| self.strategy != Strategy::BsdfOnly) {
-            if let Some(light) = scene.lights.triangle(index).filter(|t| t.texture.is_none()) {
+        if let Some((index, select_pdf)) = v.light {
+            // Delta lights are sampled under every strategy, the others where light sampling
+            // is (as `light_sample` filters them).
+            if let Some((position, intensity)) = scene.lights.point(index) {
+                return LaneLight::Point { position, intensity, select_pdf };
+            }
+            if let Some(light) = scene.lights.triangle(index).filter(|t| t.texture.is_none() && self.strategy != Strategy::BsdfOnly) {
                 return LaneLight::Triangle { light, u: v.u_light, select_pdf };
             }
         }
@@ -84,16 +94,19 @@ pub(crate) struct LightLanes<'s> {
     environment: Option<&'s Environment>,
     /// Lanes with a light sample, drawn or to draw.
     ok: [bool; LANES],
-    /// Lanes the kernel samples: a triangle or the environment, from `u`.
+    /// Lanes the kernel samples: a triangle or the environment, from `u`; lanes it
+    /// illuminates from a point light at `position`.
     triangle: [bool; LANES],
     from_environment: [bool; LANES],
+    point: [bool; LANES],
+    position: Vec3s,
     u: Vec2s,
     /// The triangles' corners, unit normals and areas.
     corners: [Vec3s; 3],
     normal: Vec3s,
     area: F32s,
-    /// Drawn samples; the triangles' radiance; the selection probability where the kernel
-    /// samples.
+    /// Drawn samples; the triangles' radiance and the point lights' intensity; the
+    /// selection probability where the kernel samples.
     direction: Vec3s,
     radiance: Vec3s,
     pdf: F32s,
@@ -125,6 +138,7 @@ impl<'s> LightLanes<'s> {
         self.ok[i] = !matches!(light, LaneLight::None);
         self.triangle[i] = matches!(light, LaneLight::Triangle { .. });
         self.from_environment[i] = matches!(light, LaneLight::Environment { .. });
+        self.point[i] = matches!(light, LaneLight::Point { .. });
         match light {
             LaneLight::None => {}
             LaneLight::Sampled(ls) => {
@@ -146,6 +160,12 @@ impl<'s> LightLanes<'s> {
                 self.pdf.0[i] = select_pdf;
                 self.delta[i] = false;
                 self.has_target[i] = true;
+            }
+            LaneLight::Point { position, intensity, select_pdf } => {
+                self.position.set(i, position);
+                self.radiance.set(i, intensity);
+                self.pdf.0[i] = select_pdf;
+                self.delta[i] = true;
             }
             LaneLight::Environment { environment, u, select_pdf } => {
                 self.environment = Some(environment);
@@ -190,6 +210,19 @@ impl<'s> LightLanes<'s> {
             samples.direction = triangle.select3(direction, samples.direction);
             samples.pdf = triangle.select(pdf * self.pdf, samples.pdf);
             samples.target = triangle.select3(target, samples.target);
+        }
+        let point = Mask(self.point);
+        if point.0.iter().any(|&l| l) {
+            // punctual::illuminate of a point light, and LightSet::sample_chosen's target.
+            let to = self.position - p;
+            let d2 = to.dot(to);
+            let distance = d2.sqrt();
+            let direction = to / distance;
+            samples.ok = samples.ok & (!point | d2.gt(F32s::splat(0.0)));
+            samples.direction = point.select3(direction, samples.direction);
+            samples.radiance = point.select3(self.radiance / d2, samples.radiance);
+            samples.has_target = samples.has_target & !point | (point & distance.is_finite());
+            samples.target = point.select3(p + direction * distance, samples.target);
         }
         let from_environment = Mask(self.from_environment);
         if let Some(environment) = self.environment.filter(|_| from_environment.0.iter().any(|&e| e)) {

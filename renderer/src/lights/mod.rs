@@ -160,6 +160,15 @@ impl LightSet {
         }
     }
 
+    /// The position and radiant intensity (W/sr) of light `index`, where it is a point light.
+    #[inline]
+    pub fn point(&self, index: u32) -> Option<(Vec3, Rgb)> {
+        match self.lights.get(index as usize) {
+            Some(&Light::Punctual(PunctualLight::Point { position, intensity })) => Some((position, intensity)),
+            _ => None,
+        }
+    }
+
     /// Samples light `index`, chosen with probability `select_pdf` by [`Self::choose`], from
     /// shading point `p`.
     #[inline]
