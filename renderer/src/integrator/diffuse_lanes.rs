@@ -1,6 +1,6 @@
 //! [`PathTracer::scatter`] for [`LANES`] vertices at once on Lambertian surfaces, lit by
-//! any light ([`super::light_lanes`]: triangles' and the environment's samples drawn by the
-//! kernel).
+//! any light ([`super::light_lanes`]: triangles', the environment's and point lights'
+//! samples drawn by the kernel).
 //!
 //! The kernel evaluates the very formulas of the scalar path — the light's sample,
 //! [`Lambert`]'s `eval_pdf` and `sample`, the power heuristic, [`offset_ray_origin`], the
@@ -113,13 +113,14 @@ mod tests {
     use crate::render_scene::RenderScene;
     use crate::sampler::Sampler;
     use crate::sampling::sample_uniform_sphere;
-    use crate::scene::{EnvironmentSource, SceneDescription};
+    use crate::scene::{EnvironmentSource, PunctualLight, SceneDescription};
 
     /// Every lane gives what the scalar `scatter` gives for its vertex, bit for bit, for
     /// full and partial groups, every strategy, lights behind the surface and zero
     /// throughputs: in the Cornell box (triangle lights) and on the material-preview's
     /// diffuse ground (a point light and an environment map or, in place of the map, a
-    /// constant environment).
+    /// constant environment; or, in place of the point light, a spot light, whose samples
+    /// are pushed drawn).
     #[test]
     fn lanes_equal_scalar_scatter_bit_for_bit() {
         let load = |name: &str| {
@@ -130,12 +131,24 @@ mod tests {
         let mut constant = preview.clone();
         let spec = constant.environment.as_mut().expect("the preview has an environment");
         spec.source = EnvironmentSource::Constant(Rgb::new(0.8, 1.0, 1.3));
-        for description in [load("cornell-box"), preview, constant] {
-            lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"));
+        let mut spot = preview.clone();
+        for light in &mut spot.lights {
+            if let PunctualLight::Point { position, intensity } = *light {
+                *light = PunctualLight::Spot {
+                    position,
+                    direction: -position.normalize(),
+                    intensity,
+                    cos_inner: 0.9,
+                    cos_outer: 0.2,
+                };
+            }
+        }
+        for (description, spot_light) in [(load("cornell-box"), false), (preview, false), (constant, false), (spot, true)] {
+            lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"), spot_light);
         }
     }
 
-    fn lanes_equal_scalar_scatter_in(scene: &RenderScene) {
+    fn lanes_equal_scalar_scatter_in(scene: &RenderScene, spot_light: bool) {
         let mut rng = Sampler::new(3, 1, 4);
         for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
             let tracer = PathTracer {
@@ -157,13 +170,14 @@ mod tests {
                 }
             }
             let (mut lanes, mut out) = (DiffuseLanes::default(), ScatteredLanes::default());
-            let (mut shadows, mut ended, mut drawn_by_kernel, mut points) = (0, 0, 0, 0);
+            let (mut shadows, mut ended, mut drawn_by_kernel, mut points, mut pushed_drawn) = (0, 0, 0, 0, 0);
             for group in cases.chunks(LANES) {
                 lanes.clear();
                 for (vertex, albedo, beta) in group {
                     let light = tracer.lane_light(scene, vertex);
                     drawn_by_kernel += matches!(light, LaneLight::Triangle { .. } | LaneLight::Environment { .. }) as usize;
                     points += matches!(light, LaneLight::Point { .. }) as usize;
+                    pushed_drawn += matches!(light, LaneLight::Sampled(_)) as usize;
                     lanes.push(vertex, *albedo, *beta, light);
                 }
                 crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
@@ -184,6 +198,7 @@ mod tests {
             // The preview's key light is a point light, illuminating under every strategy.
             let has_point_light = (0..scene.lights.len() as u32).any(|l| scene.lights.point(l).is_some());
             assert_eq!(points > 0, has_point_light, "{strategy:?}: {points} lanes lit by a point light");
+            assert_eq!(pushed_drawn > 0, spot_light, "{strategy:?}: {pushed_drawn} spot-light samples pushed drawn");
         }
     }
 }

@@ -1,6 +1,6 @@
 //! [`PathTracer::scatter`] for [`LANES`] vertices at once on metallic-roughness surfaces
 //! (GGX visible-normal sampling, Smith, Schlick), lit by any light ([`super::light_lanes`]:
-//! triangles' and the environment's samples drawn by the kernel).
+//! triangles', the environment's and point lights' samples drawn by the kernel).
 //!
 //! The kernel does all of `scatter` for all lanes together — the light samples, the BSDF's
 //! value and density toward the light, the multiple importance weight, the shadow ray, the

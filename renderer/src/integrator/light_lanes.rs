@@ -43,8 +43,8 @@ pub(crate) enum LaneLight<'s> {
 
 impl PathTracer {
     /// What vertex `v` pushes into a lane kernel as its light: an untextured triangle's or
-    /// the environment's sample left to the kernel, any other drawn now
-    /// ([`PathTracer::light_sample`]).
+    /// the environment's sample, or a point light's illumination, left to the kernel; any
+    /// other drawn now ([`PathTracer::light_sample`]).
     #[inline(always)]
     pub(crate) fn lane_light<'s>(&self, scene: &'s RenderScene, v: &Vertex) -> LaneLight<'s> {
         if let Some((index, select_pdf)) = v.light {
