@@ -389,7 +389,7 @@ fn push_alias_table(weights: &[f32], entries: &mut Vec<AliasEntry>) -> f64 {
 }
 
 /// The entry of an alias table of `n` entries that [`sample_alias`] of `u` reads, and u · n.
-#[inline]
+#[inline(always)]
 fn alias_entry(n: usize, u: f32) -> (usize, f32) {
     let x = u * n as f32;
     ((x as usize).min(n - 1), x)
@@ -417,12 +417,12 @@ fn sample_alias(entries: &[AliasEntry], u: f32) -> (usize, f32) {
 /// lanes whose u is stale may be drawn and ignored.
 #[inline(always)]
 fn sample_alias_lanes(entries: &[AliasEntry], n: usize, offsets: [usize; LANES], u: F32s) -> ([usize; LANES], F32s) {
-    let x = u * n as f32;
     let (mut index, mut r) = ([0usize; LANES], F32s::splat(0.0));
     let (mut threshold, mut alias) = (F32s::splat(0.0), [0usize; LANES]);
     for k in 0..LANES {
-        index[k] = (x.0[k] as usize).min(n - 1);
-        r.0[k] = (x.0[k] - index[k] as f32).clamp(0.0, ONE_MINUS_EPSILON);
+        let (i, x) = alias_entry(n, u.0[k]);
+        index[k] = i;
+        r.0[k] = (x - i as f32).clamp(0.0, ONE_MINUS_EPSILON);
         let entry = entries[offsets[k] + index[k]];
         (threshold.0[k], alias[k]) = (entry.threshold, entry.alias as usize);
     }

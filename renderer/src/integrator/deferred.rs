@@ -12,7 +12,6 @@
 //! finished with its values. The result is the same, bit for bit, as scattering the vertices
 //! one by one.
 
-use super::light_lanes::environment_light_sample;
 use super::{continuation, light_direction, PathTracer, Scattered, Vertex};
 use crate::bsdf::tabulated_sampling::{SamplerView, TabulatedBrdf, TabulatedSampler};
 use crate::lanes::{Vec2s, Vec3s, LANES};
@@ -159,7 +158,7 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             let e = environment.sample_lanes(*u);
             for (lane, &k) in group.iter().enumerate() {
                 let p = &mut vertices[k];
-                p.light = environment_light_sample(&e, lane, select_pdf[lane]).and_then(|ls| pending_light(tracer, &p.sp, ls));
+                p.light = e.get(lane).and_then(|s| pending_light(tracer, &p.sp, s.with_selection(select_pdf[lane])));
             }
         };
         for k in 0..self.vertices.len() {

@@ -17,7 +17,7 @@ use super::{PathTracer, Strategy, Vertex, SHADOW_EPSILON};
 use crate::accel::gamma;
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::lights::area::TriangleLight;
-use crate::lights::environment::{Environment, EnvironmentSamples};
+use crate::lights::environment::Environment;
 use crate::lights::LightSample;
 use crate::render_scene::RenderScene;
 use crate::Rgb;
@@ -71,20 +71,6 @@ impl PathTracer {
         let (index, select_pdf) = v.light.filter(|_| self.strategy != Strategy::BsdfOnly)?;
         Some((scene.lights.environment_of(index)?, v.u_light, select_pdf))
     }
-}
-
-/// The light sample `LightSet::sample_chosen` makes of lane `k` of an environment's samples
-/// `e` drawn with selection probability `select_pdf`; `None` where the lane drew nothing.
-#[inline(always)]
-pub(crate) fn environment_light_sample(e: &EnvironmentSamples, k: usize, select_pdf: f32) -> Option<LightSample> {
-    e.ok.0[k].then(|| LightSample {
-        direction: e.direction.get(k),
-        distance: f32::INFINITY,
-        radiance: e.radiance.get(k),
-        pdf: e.pdf.0[k] * select_pdf,
-        is_delta: false,
-        shadow_target: None,
-    })
 }
 
 /// The [`LaneLight`]s of up to [`LANES`] vertices, structure of arrays.
@@ -177,23 +163,10 @@ impl<'s> LightLanes<'s> {
         }
     }
 
-    /// Every lane's sample for shading points `p`: the triangles' and the environment's
-    /// drawn here, the others as pushed.
+    /// Every lane's sample for shading points `p`: the triangles', the point lights' and the
+    /// environment's found here, the others as pushed.
     #[inline(always)]
     pub fn samples(&self, p: Vec3s) -> LightSamples {
-        if self.triangle == [true; LANES] {
-            // Triangles only (a box lit by its ceiling): nothing pushed drawn to merge.
-            let (ok, direction, pdf, target) = self.triangle_samples(p);
-            return LightSamples {
-                ok,
-                direction,
-                radiance: self.radiance,
-                pdf: pdf * self.pdf,
-                delta: Mask([false; LANES]),
-                has_target: Mask([true; LANES]),
-                target,
-            };
-        }
         let mut samples = LightSamples {
             ok: Mask(self.ok),
             direction: self.direction,

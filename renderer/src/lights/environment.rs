@@ -13,6 +13,7 @@ use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::sampling::{
     sample_uniform_sphere, sample_uniform_sphere_lanes, sin_cos_turns, sin_cos_turns_lanes, uniform_sphere_pdf, Distribution2D,
 };
+use super::LightSample;
 use crate::scene::{EnvironmentSource, EnvironmentSpec};
 use crate::trig::{atan2, atan2_lanes};
 use crate::Rgb;
@@ -66,6 +67,22 @@ pub struct EnvironmentSample {
     pub pdf: f32,
 }
 
+impl EnvironmentSample {
+    /// The sample as a [`LightSample`] of the environment chosen with probability
+    /// `select_pdf`.
+    #[inline]
+    pub fn with_selection(self, select_pdf: f32) -> LightSample {
+        LightSample {
+            direction: self.direction,
+            distance: f32::INFINITY,
+            radiance: self.radiance,
+            pdf: self.pdf * select_pdf,
+            is_delta: false,
+            shadow_target: None,
+        }
+    }
+}
+
 /// [`EnvironmentSample`]s of [`LANES`] draws ([`Environment::sample_lanes`]), structure of
 /// arrays.
 #[derive(Clone, Copy, Debug)]
@@ -75,6 +92,18 @@ pub struct EnvironmentSamples {
     pub direction: Vec3s,
     pub radiance: Vec3s,
     pub pdf: F32s,
+}
+
+impl EnvironmentSamples {
+    /// Lane `k`'s sample, `None` where it drew none.
+    #[inline(always)]
+    pub fn get(&self, k: usize) -> Option<EnvironmentSample> {
+        self.ok.0[k].then(|| EnvironmentSample {
+            direction: self.direction.get(k),
+            radiance: self.radiance.get(k),
+            pdf: self.pdf.0[k],
+        })
+    }
 }
 
 impl Environment {
@@ -421,9 +450,7 @@ mod tests {
                 let samples = env.sample_lanes(u_lanes);
                 let located = env.locate_lanes(d_lanes);
                 for k in 0..LANES {
-                    let got = samples.ok.0[k].then(|| (samples.direction.get(k), samples.radiance.get(k), samples.pdf.0[k]));
-                    let expected = env.sample(u[k]).map(|s| (s.direction, s.radiance, s.pdf));
-                    assert_eq!(format!("{got:?}"), format!("{expected:?}"), "sample of {}", u[k]);
+                    assert_eq!(format!("{:?}", samples.get(k)), format!("{:?}", env.sample(u[k])), "sample of {}", u[k]);
                     let (got, expected) = (located[k], env.locate(d[k]));
                     assert_eq!((got.uv.x.to_bits(), got.uv.y.to_bits(), got.sin_theta.to_bits()), (expected.uv.x.to_bits(), expected.uv.y.to_bits(), expected.sin_theta.to_bits()), "location of {}", d[k]);
                 }

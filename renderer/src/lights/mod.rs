@@ -185,14 +185,7 @@ impl LightSet {
             }),
             Light::Environment => {
                 let env = self.environment.as_ref()?;
-                env.sample(u).map(|s| LightSample {
-                    direction: s.direction,
-                    distance: f32::INFINITY,
-                    radiance: s.radiance,
-                    pdf: s.pdf * select_pdf,
-                    is_delta: false,
-                    shadow_target: None,
-                })
+                env.sample(u).map(|s| s.with_selection(select_pdf))
             }
         }
     }
