@@ -3,12 +3,14 @@
 //! time under any light ([`DiffuseLanes`], [`GlossyLanes`]), those on decoded neural
 //! materials, NBRDF networks and MERL tables with their values evaluated together after all
 //! were sampled ([`DeferredScatter`]: one batched forward pass per net, table entries
-//! prefetched), the others one by one, and all advanced in the batch's order.
+//! prefetched), the others one by one. Each vertex's path is advanced as soon as its
+//! vertex is scattered (a lane group's paths right after the group), while its result is
+//! still in cache.
 
 use super::deferred::DeferredScatter;
 use super::diffuse_lanes::DiffuseLanes;
 use super::glossy_lanes::GlossyLanes;
-use super::scattered_lanes::LaneGroups;
+use super::scattered_lanes::LaneGroup;
 use super::{PathState, PathTracer, Scattered, ShadowTest, Strategy};
 use crate::accel::Hit;
 use crate::bsdf::merl::MerlBsdf;
@@ -20,39 +22,16 @@ use crate::render_scene::RenderScene;
 use crate::lanes::{Vec3s, LANES};
 use glam::Vec3;
 
-/// Vertices begun and scattered together: small enough that their records stay in cache.
+/// Vertices begun together, and the deferred ones among them scattered together: small
+/// enough that their records stay in cache. Lane groups fill across chunks (fewer partial
+/// groups).
 const CHUNK: usize = 256;
-
-/// Where a vertex's scattering result is.
-#[derive(Clone, Copy, Debug)]
-enum Outcome {
-    /// The path ended at the vertex.
-    Ended,
-    /// Scattered alone: index into [`BatchBuffers::scattered`].
-    Alone(u32),
-    /// Scattered in diffuse lanes: group and lane in [`BatchBuffers::diffuse`].
-    Diffuse((u32, u32)),
-    /// Scattered in glossy lanes: group and lane in [`BatchBuffers::glossy`].
-    Glossy((u32, u32)),
-    /// A decoded neural vertex: index into [`BatchBuffers::neural`].
-    Neural(u32),
-    /// An NBRDF vertex: index into [`BatchBuffers::nbrdf`].
-    Nbrdf(u32),
-    /// A MERL-table vertex: index into [`BatchBuffers::merl`].
-    Merl(u32),
-}
 
 /// Reusable buffers of [`PathTracer::step_batch`] for the scene `'s`.
 #[derive(Default)]
 pub struct BatchBuffers<'s> {
-    /// Per vertex of the chunk: its outcome, and its position (unused where it ended). Two
-    /// vectors rather than one of pairs: a pair is assembled on the stack in pieces and read
-    /// back whole, which stalls store forwarding once per vertex.
-    outcomes: Vec<Outcome>,
-    positions: Vec<Vec3>,
-    scattered: Vec<Scattered>,
-    diffuse: LaneGroups<DiffuseLanes<'s>>,
-    glossy: LaneGroups<GlossyLanes<'s>>,
+    diffuse: LaneGroup<DiffuseLanes<'s>>,
+    glossy: LaneGroup<GlossyLanes<'s>>,
     neural: DeferredScatter<'s, NeuralBsdf>,
     nbrdf: DeferredScatter<'s, NbrdfBsdf>,
     merl: DeferredScatter<'s, MerlBsdf>,
@@ -61,8 +40,9 @@ pub struct BatchBuffers<'s> {
     escapes: Vec<(u32, MapPoint)>,
 }
 
-/// What one batch step produces, both in the order of the active paths: the shadow tests
-/// with the index of their path, and the paths that go on.
+/// What one batch step produces: the shadow tests with the index of their path, and the
+/// paths that go on, both in the order their vertices were scattered (the order of the
+/// active paths within each kind of vertex; the order changes no path's values).
 #[derive(Default)]
 pub struct StepResults {
     pub shadows: Vec<(u32, ShadowTest)>,
@@ -81,14 +61,10 @@ impl PathTracer {
         buffers: &mut BatchBuffers<'s>,
         results: &mut StepResults,
     ) {
-        let StepResults { shadows, next } = results;
-        shadows.clear();
-        next.clear();
+        results.shadows.clear();
+        results.next.clear();
         let light_only = self.strategy == Strategy::LightOnly;
         let BatchBuffers {
-            outcomes,
-            positions,
-            scattered,
             diffuse,
             glossy,
             neural,
@@ -97,11 +73,6 @@ impl PathTracer {
             escapes,
         } = buffers;
         for (chunk, chunk_hits) in active.chunks(CHUNK).zip(hits.chunks(CHUNK)) {
-            outcomes.clear();
-            positions.clear();
-            scattered.clear();
-            diffuse.clear();
-            glossy.clear();
             neural.clear();
             nbrdf.clear();
             merl.clear();
@@ -137,53 +108,42 @@ impl PathTracer {
                 // Escaped rays were ended above: `begin` of a miss would add the environment
                 // again.
                 let Some(v) = hit.and_then(|hit| self.begin(scene, path, Some(hit))) else {
-                    outcomes.push(Outcome::Ended);
-                    positions.push(Vec3::ZERO);
                     continue;
                 };
-                positions.push(v.sp.p);
+                let beta = path.beta;
+                let settle = |i, p, s| self.settle(paths, results, i, p, s);
                 if let Bsdf::Lambert(b) = &v.bsdf {
-                    let slot = diffuse.push(light_only, |lanes| lanes.push(&v, b.albedo, path.beta, self.lane_light(scene, &v)));
-                    outcomes.push(Outcome::Diffuse(slot));
+                    diffuse.push(i, light_only, |lanes| lanes.push(&v, b.albedo, beta, self.lane_light(scene, &v)), settle);
                 } else if let Bsdf::MetallicRoughness(bsdf) = &v.bsdf {
-                    let slot = glossy.push(light_only, |lanes| lanes.push(&v, bsdf, path.beta, self.lane_light(scene, &v)));
-                    outcomes.push(Outcome::Glossy(slot));
+                    glossy.push(i, light_only, |lanes| lanes.push(&v, bsdf, beta, self.lane_light(scene, &v)), settle);
                 } else if let Bsdf::Neural(bsdf) = v.bsdf {
-                    outcomes.push(Outcome::Neural(neural.len() as u32));
-                    neural.push(self, scene, &v, bsdf, path.beta);
+                    neural.push(self, scene, i, &v, bsdf, beta);
                 } else if let Bsdf::Nbrdf(bsdf) = v.bsdf {
-                    outcomes.push(Outcome::Nbrdf(nbrdf.len() as u32));
-                    nbrdf.push(self, scene, &v, bsdf, path.beta);
+                    nbrdf.push(self, scene, i, &v, bsdf, beta);
                 } else if let Bsdf::Merl(bsdf) = v.bsdf {
-                    outcomes.push(Outcome::Merl(merl.len() as u32));
-                    merl.push(self, scene, &v, bsdf, path.beta);
+                    merl.push(self, scene, i, &v, bsdf, beta);
                 } else {
-                    outcomes.push(Outcome::Alone(scattered.len() as u32));
-                    scattered.push(self.scatter(scene, &v, path.beta));
+                    let s = self.scatter(scene, &v, beta);
+                    self.settle(paths, results, i, v.sp.p, s);
                 }
             }
-            diffuse.finish(light_only);
-            glossy.finish(light_only);
-            neural.scatter(self);
-            nbrdf.scatter(self);
-            merl.scatter(self);
-            for ((&i, &outcome), &p) in chunk.iter().zip(outcomes.iter()).zip(positions.iter()) {
-                let s = match outcome {
-                    Outcome::Ended => continue,
-                    Outcome::Alone(k) => scattered[k as usize],
-                    Outcome::Diffuse(slot) => diffuse.get(slot),
-                    Outcome::Glossy(slot) => glossy.get(slot),
-                    Outcome::Neural(k) => neural.get(k),
-                    Outcome::Nbrdf(k) => nbrdf.get(k),
-                    Outcome::Merl(k) => merl.get(k),
-                };
-                if let Some(test) = s.shadow {
-                    shadows.push((i, test));
-                }
-                if self.advance(&mut paths[i as usize], p, s.next) {
-                    next.push(i);
-                }
-            }
+            neural.scatter(self, |i, p, s| self.settle(paths, results, i, p, s));
+            nbrdf.scatter(self, |i, p, s| self.settle(paths, results, i, p, s));
+            merl.scatter(self, |i, p, s| self.settle(paths, results, i, p, s));
+        }
+        diffuse.finish(light_only, |i, p, s| self.settle(paths, results, i, p, s));
+        glossy.finish(light_only, |i, p, s| self.settle(paths, results, i, p, s));
+    }
+
+    /// Hands path `i`'s vertex at `p`, scattered into `s`, on: its shadow test to the
+    /// results, and the path to its next ray (listed in the results) or its end.
+    #[inline(always)]
+    fn settle(&self, paths: &mut [PathState], results: &mut StepResults, i: u32, p: Vec3, s: Scattered) {
+        if let Some(test) = s.shadow {
+            results.shadows.push((i, test));
+        }
+        if self.advance(&mut paths[i as usize], p, s.next) {
+            results.next.push(i);
         }
     }
 }

@@ -32,6 +32,8 @@ struct Slot {
 /// A vertex between its sampling and its evaluation.
 #[derive(Clone, Copy, Debug)]
 struct Pending {
+    /// The path (index) the vertex belongs to.
+    path: u32,
     sp: SurfacePoint,
     beta: Rgb,
     wo: Vec3,
@@ -81,8 +83,6 @@ pub(super) struct DeferredScatter<'s, B: BatchEval> {
     environment: Option<&'s Environment>,
     /// The distinct materials of the batch (usually one or two: a linear search finds them).
     materials: Vec<Material<'s, B>>,
-    /// The scattered vertices, in the order they were pushed (after [`Self::scatter`]).
-    scattered: Vec<Scattered>,
 }
 
 impl<B: BatchEval> Default for DeferredScatter<'_, B> {
@@ -91,25 +91,19 @@ impl<B: BatchEval> Default for DeferredScatter<'_, B> {
             vertices: Vec::new(),
             environment: None,
             materials: Vec::new(),
-            scattered: Vec::new(),
         }
     }
 }
 
 impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
-    /// Vertices pushed since the last [`Self::clear`].
-    pub fn len(&self) -> usize {
-        self.vertices.len()
-    }
-
     pub fn clear(&mut self) {
         self.vertices.clear();
         self.materials.clear();
     }
 
-    /// Draws vertex `v`'s light and BSDF samples (on `bsdf`, its BSDF) for a path of
+    /// Draws vertex `v`'s light and BSDF samples (on `bsdf`, its BSDF) for path `path` of
     /// throughput `beta`; [`Self::scatter`] finishes it.
-    pub fn push(&mut self, tracer: &PathTracer, scene: &'s RenderScene, v: &Vertex, bsdf: &'s B, beta: Rgb) {
+    pub fn push(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, bsdf: &'s B, beta: Rgb) {
         let material = match self.materials.iter().position(|m| std::ptr::eq(m.bsdf, bsdf)) {
             Some(k) => k,
             None => {
@@ -136,6 +130,7 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         };
         let sample = sampler.sample_in(&view, v.u, v.uc).map(|wi| PendingSample { wi, pdf: 0.0, slot: None });
         self.vertices.push(Pending {
+            path,
             sp: v.sp,
             beta,
             wo: v.wo,
@@ -220,11 +215,12 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
     }
 
     /// Finds the densities, prepares and evaluates every value, one call per material, and
-    /// scatters the vertices ([`Self::get`] then returns them).
-    pub fn scatter(&mut self, tracer: &PathTracer) {
+    /// scatters the vertices, calling `settle` with each one's path, position and result in
+    /// the order they were pushed.
+    pub fn scatter(&mut self, tracer: &PathTracer, mut settle: impl FnMut(u32, Vec3, Scattered)) {
         self.draw_environment(tracer);
         self.densities();
-        let Self { vertices, materials, scattered, .. } = self;
+        let Self { vertices, materials, .. } = self;
         for p in vertices.iter_mut() {
             let m = &mut materials[p.material as usize];
             let mut add = |wi: Vec3| {
@@ -248,19 +244,15 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             m.bsdf.eval_prepared(&m.points, &mut m.values);
         }
         let value = |slot: Slot| materials[slot.material as usize].values[slot.point as usize];
-        scattered.clear();
-        scattered.extend(vertices.iter().map(|p| Scattered {
-            shadow: p.light.and_then(|l| tracer.light_contribution(&p.sp, p.beta, &l.ls, l.wi, value(l.slot?), l.pdf)),
-            next: p
-                .sample
-                .and_then(|s| continuation(&p.sp, &BsdfSample { wi: s.wi, f: value(s.slot?), pdf: s.pdf }, p.beta)),
-        }));
-    }
-
-    /// What the `k`-th vertex pushed scattered into (after [`Self::scatter`]).
-    #[inline]
-    pub fn get(&self, k: u32) -> Scattered {
-        self.scattered[k as usize]
+        for p in vertices.iter() {
+            let scattered = Scattered {
+                shadow: p.light.and_then(|l| tracer.light_contribution(&p.sp, p.beta, &l.ls, l.wi, value(l.slot?), l.pdf)),
+                next: p
+                    .sample
+                    .and_then(|s| continuation(&p.sp, &BsdfSample { wi: s.wi, f: value(s.slot?), pdf: s.pdf }, p.beta)),
+            };
+            settle(p.path, p.sp.p, scattered);
+        }
     }
 }
 

@@ -19,6 +19,7 @@ use super::Vertex;
 use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
 use crate::sampling::sample_cosine_hemisphere_lanes;
 use crate::Rgb;
+use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
 /// Up to [`LANES`] diffuse vertices with their light samples, in structure-of-arrays form.
@@ -67,6 +68,11 @@ impl<'s> DiffuseLanes<'s> {
 impl LaneKernel for DiffuseLanes<'_> {
     fn len(&self) -> usize {
         self.len
+    }
+
+    #[inline]
+    fn position(&self, lane: usize) -> Vec3 {
+        self.p.get(lane)
     }
 
     fn clear(&mut self) {

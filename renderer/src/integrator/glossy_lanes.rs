@@ -18,6 +18,7 @@ use crate::bsdf::metallic_roughness_lanes::MetallicRoughnessLanes;
 use crate::bsdf::MetallicRoughness;
 use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
 use crate::Rgb;
+use glam::Vec3;
 
 /// Up to [`LANES`] metallic-roughness vertices with their light samples, in
 /// structure-of-arrays form.
@@ -70,6 +71,11 @@ impl<'s> GlossyLanes<'s> {
 impl LaneKernel for GlossyLanes<'_> {
     fn len(&self) -> usize {
         self.len
+    }
+
+    #[inline]
+    fn position(&self, lane: usize) -> Vec3 {
+        self.p.get(lane)
     }
 
     fn clear(&mut self) {

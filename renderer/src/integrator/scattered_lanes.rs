@@ -5,6 +5,7 @@
 use super::{Continuation, Scattered, ShadowTest};
 use crate::accel::Ray;
 use crate::lanes::{F32s, Vec3s, LANES};
+use glam::Vec3;
 
 /// [`Scattered`] for [`LANES`] vertices, structure of arrays.
 #[derive(Clone, Debug, Default)]
@@ -54,63 +55,53 @@ pub(crate) trait LaneKernel {
     /// Number of lanes filled.
     fn len(&self) -> usize;
 
+    /// The position of lane `lane`'s vertex.
+    fn position(&self, lane: usize) -> Vec3;
+
     /// Empties the lanes (their old values stay, unused).
     fn clear(&mut self);
 }
 
-/// The vertices of one lane kernel in a batch, gathered [`LANES`] at a time: the kernel's
-/// lanes being filled and the results of the groups scattered so far. [`LaneGroups::push`]
-/// fills a lane and scatters full groups; [`LaneGroups::finish`] scatters the last, partial
-/// one.
+/// The vertices of one lane kernel in a batch, gathered [`LANES`] at a time:
+/// [`LaneGroup::push`] fills a lane and, once all are filled, scatters them and hands each
+/// lane's result on; [`LaneGroup::finish`] does so for the last, partial group.
 #[derive(Default)]
-pub(crate) struct LaneGroups<K> {
+pub(crate) struct LaneGroup<K> {
     lanes: K,
-    groups: Vec<ScatteredLanes>,
-    /// Groups scattered since the last [`LaneGroups::clear`].
-    scattered: u32,
+    /// The path (index) of each filled lane's vertex.
+    paths: [u32; LANES],
+    out: ScatteredLanes,
 }
 
-impl<K: LaneKernel> LaneGroups<K> {
-    /// Starts a new batch.
-    pub fn clear(&mut self) {
-        self.lanes.clear();
-        self.scattered = 0;
-    }
-
-    /// Fills the next lane with `fill` (one push into the kernel's lanes), scatters the lanes
-    /// once all are filled, and returns the group and lane where the vertex's result will be.
+impl<K: LaneKernel> LaneGroup<K> {
+    /// Fills the next lane with the vertex of path `path` by `fill` (one push into the
+    /// kernel's lanes); once all are filled, scatters them and calls `settle` with each
+    /// lane's path, vertex position and result, in the order they were pushed.
     #[inline]
-    pub fn push(&mut self, light_only: bool, fill: impl FnOnce(&mut K)) -> (u32, u32) {
-        let slot = (self.scattered, self.lanes.len() as u32);
+    pub fn push(&mut self, path: u32, light_only: bool, fill: impl FnOnce(&mut K), settle: impl FnMut(u32, Vec3, Scattered)) {
+        let lane = self.lanes.len();
+        self.paths[lane] = path;
         fill(&mut self.lanes);
-        debug_assert_eq!(self.lanes.len() as u32, slot.1 + 1, "one vertex per push");
+        debug_assert_eq!(self.lanes.len(), lane + 1, "one vertex per push");
         if self.lanes.len() == LANES {
-            self.flush(light_only);
+            self.flush(light_only, settle);
         }
-        slot
     }
 
-    /// Scatters the lanes filled since the last full group, if any.
-    pub fn finish(&mut self, light_only: bool) {
+    /// Scatters and settles the lanes filled since the last full group, if any.
+    pub fn finish(&mut self, light_only: bool, settle: impl FnMut(u32, Vec3, Scattered)) {
         if self.lanes.len() > 0 {
-            self.flush(light_only);
+            self.flush(light_only, settle);
         }
     }
 
-    fn flush(&mut self, light_only: bool) {
-        let group = self.scattered as usize;
-        if self.groups.len() <= group {
-            self.groups.resize_with(group + 1, ScatteredLanes::default);
-        }
-        scatter(&self.lanes, light_only, &mut self.groups[group]);
-        self.lanes.clear();
-        self.scattered += 1;
-    }
-
-    /// The result of the vertex pushed at `slot` (after it was scattered).
     #[inline]
-    pub fn get(&self, (group, lane): (u32, u32)) -> Scattered {
-        self.groups[group as usize].get(lane as usize)
+    fn flush(&mut self, light_only: bool, mut settle: impl FnMut(u32, Vec3, Scattered)) {
+        scatter(&self.lanes, light_only, &mut self.out);
+        for (lane, &path) in self.paths[..self.lanes.len()].iter().enumerate() {
+            settle(path, self.lanes.position(lane), self.out.get(lane));
+        }
+        self.lanes.clear();
     }
 }
 
