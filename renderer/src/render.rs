@@ -259,14 +259,11 @@ impl<'a> Renderer<'a> {
             rays.extend(active.iter().map(|&i| paths[i as usize].ray));
             scene.intersect_all(rays, hits, depth);
             self.integrator.step_batch(scene, paths, active, hits, buffers, step);
-            let shadows = &step.shadows;
-            counters.shadow_rays += shadows.len() as u64;
-            rays.clear();
-            rays.extend(shadows.iter().map(|(_, test)| test.ray));
-            scene.occluded_all(rays, blocked, depth);
-            for ((i, test), &blocked) in shadows.iter().zip(blocked.iter()) {
+            counters.shadow_rays += step.shadows.len() as u64;
+            scene.occluded_all(&step.shadow_rays, blocked, depth);
+            for (&(i, contribution), &blocked) in step.shadows.iter().zip(blocked.iter()) {
                 if !blocked {
-                    paths[*i as usize].l += test.contribution;
+                    paths[i as usize].l += contribution;
                 }
             }
             std::mem::swap(active, &mut step.next);

@@ -11,8 +11,9 @@ use super::deferred::DeferredScatter;
 use super::diffuse_lanes::DiffuseLanes;
 use super::glossy_lanes::GlossyLanes;
 use super::scattered_lanes::LaneGroup;
-use super::{PathState, PathTracer, Scattered, ShadowTest, Strategy};
-use crate::accel::Hit;
+use super::{PathState, PathTracer, Scattered, Strategy};
+use crate::accel::{Hit, Ray};
+use crate::Rgb;
 use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::neural::NeuralBsdf;
@@ -40,13 +41,23 @@ pub struct BatchBuffers<'s> {
     escapes: Vec<(u32, MapPoint)>,
 }
 
-/// What one batch step produces: the shadow tests with the index of their path, and the
-/// paths that go on, both in the order their vertices were scattered (the order of the
-/// active paths within each kind of vertex; the order changes no path's values).
+/// What one batch step produces: the shadow tests (their rays, ready to trace, and the index
+/// of their path with the contribution each adds where its ray is unoccluded), and the paths
+/// that go on, both in the order their vertices were scattered (the order of the active
+/// paths within each kind of vertex; the order changes no path's values).
 #[derive(Default)]
 pub struct StepResults {
-    pub shadows: Vec<(u32, ShadowTest)>,
+    pub shadow_rays: Vec<Ray>,
+    pub shadows: Vec<(u32, Rgb)>,
     pub next: Vec<u32>,
+}
+
+impl StepResults {
+    fn clear(&mut self) {
+        self.shadow_rays.clear();
+        self.shadows.clear();
+        self.next.clear();
+    }
 }
 
 impl PathTracer {
@@ -61,8 +72,7 @@ impl PathTracer {
         buffers: &mut BatchBuffers<'s>,
         results: &mut StepResults,
     ) {
-        results.shadows.clear();
-        results.next.clear();
+        results.clear();
         let light_only = self.strategy == Strategy::LightOnly;
         let BatchBuffers {
             diffuse,
@@ -140,7 +150,8 @@ impl PathTracer {
     #[inline(always)]
     fn settle(&self, paths: &mut [PathState], results: &mut StepResults, i: u32, p: Vec3, s: Scattered) {
         if let Some(test) = s.shadow {
-            results.shadows.push((i, test));
+            results.shadow_rays.push(test.ray);
+            results.shadows.push((i, test.contribution));
         }
         if self.advance(&mut paths[i as usize], p, s.next) {
             results.next.push(i);
