@@ -1,6 +1,7 @@
 //! Orthonormal shading frames: conversion between world space and the local shading frame
 //! (z = normal) in which every BSDF is written.
 
+use crate::lanes::{F32s, Vec3s};
 use glam::Vec3;
 
 /// An orthonormal basis (s, t, n); `n` is the local z axis.
@@ -22,6 +23,26 @@ impl Frame {
         let s = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
         let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
         Frame { s, t, n }
+    }
+
+    /// [`Frame::from_normal`] per lane, with its operations (so the same bits): the (s, t)
+    /// of the frames around the unit normals `n`.
+    #[inline(always)]
+    pub fn from_normal_lanes(n: Vec3s) -> (Vec3s, Vec3s) {
+        let sign = F32s::splat(1.0).copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let s = Vec3s {
+            x: 1.0 + sign * n.x * n.x * a,
+            y: sign * b,
+            z: -sign * n.x,
+        };
+        let t = Vec3s {
+            x: b,
+            y: sign + n.y * n.y * a,
+            z: -n.y,
+        };
+        (s, t)
     }
 
     /// World direction to local coordinates.

@@ -4,10 +4,11 @@
 //! some triangle uses, and the environment's sampling structures exist only when the scene
 //! has an environment.
 
-use crate::accel::{gamma, interpolate_point, Bvh, Hit, InstanceBvh, Ray, DEPTH_CLASSES, NO_INSTANCE};
+use crate::accel::{gamma, interpolate_point, interpolate_point_lanes, Bvh, Hit, InstanceBvh, Ray, DEPTH_CLASSES, NO_INSTANCE};
 use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
+use crate::lanes::{F32s, Mask, Vec2s, Vec3s};
 use crate::neural::latent_library::LatentLibrary;
 use crate::lights::environment::Environment;
 use crate::lights::area::{EmissionTexture, Emitter};
@@ -287,6 +288,22 @@ impl RenderScene {
         }
     }
 
+    /// What finding `hit`'s surface point in lanes needs ([`flat_surface_points_lanes`]),
+    /// where its triangle is flat-shaded, not degenerate and not instanced; `None` elsewhere.
+    /// (Its material's normal map, which bends the normal per point, is the caller's to rule
+    /// out.)
+    #[inline]
+    pub(crate) fn flat_hit(&self, hit: &Hit) -> Option<FlatHit> {
+        let tri = hit.triangle as usize;
+        let HitRecord { corners, ng, flat_normal } = self.hit_records[tri];
+        (ng != Vec3::ZERO && flat_normal != Vec3::ZERO && hit.instance == NO_INSTANCE).then(|| FlatHit {
+            corners,
+            ng,
+            normal: flat_normal,
+            material: self.geometry.material_ids[tri],
+        })
+    }
+
     /// The surface point of a hit of a ray with direction `direction`; `None` for a
     /// degenerate triangle.
     #[inline]
@@ -394,6 +411,43 @@ impl RenderScene {
             Rgb::ZERO
         }
     }
+}
+
+/// A hit on a flat-shaded, untransformed, non-degenerate triangle ([`RenderScene::flat_hit`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FlatHit {
+    pub corners: [Vec3; 3],
+    /// Unit geometric normal from the winding, and the unit shading normal.
+    pub ng: Vec3,
+    pub normal: Vec3,
+    pub material: u32,
+}
+
+/// The surface points of [`FlatHit`]s (per lane: corners, geometric normal `ng`, shading
+/// normal `normal`) at barycentric coordinates `barycentric` of rays with directions
+/// `direction`, with [`RenderScene::surface_point`]'s operations for a triangle without
+/// normal map (so the same bits).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FlatSurfacePoints {
+    pub p: Vec3s,
+    pub p_error: Vec3s,
+    pub ng_facing: Vec3s,
+    pub front_face: Mask,
+    /// The shading frame.
+    pub s: Vec3s,
+    pub t: Vec3s,
+    pub n: Vec3s,
+}
+
+#[inline(always)]
+pub(crate) fn flat_surface_points_lanes(corners: [Vec3s; 3], ng: Vec3s, normal: Vec3s, barycentric: Vec2s, direction: Vec3s) -> FlatSurfacePoints {
+    let zero = F32s::splat(0.0);
+    let (p, p_error) = interpolate_point_lanes(corners, barycentric);
+    let front_face = direction.dot(ng).lt(zero);
+    let ng_facing = front_face.select3(ng, -ng);
+    let n = normal.dot(ng_facing).lt(zero).select3(-normal, normal);
+    let (s, t) = Frame::from_normal_lanes(n);
+    FlatSurfacePoints { p, p_error, ng_facing, front_face, s, t, n }
 }
 
 /// A normal-mapped shading normal `ns` tilted toward the viewer direction `wo` (unit, on

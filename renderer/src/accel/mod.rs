@@ -12,6 +12,7 @@ mod triangle_pack;
 pub use instances::InstanceBvh;
 pub use policy::TracePolicy;
 
+use crate::lanes::{Vec2s, Vec3s};
 use crate::support::cpu::has_avx2_fma;
 use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::cwbvh::node::CwBvhNode;
@@ -666,6 +667,16 @@ pub(crate) fn gamma(n: f32) -> f32 {
 /// bound on its absolute rounding error per axis (pbrt-v4's interpolation bound).
 #[inline]
 pub fn interpolate_point(corners: [Vec3; 3], barycentric: Vec2) -> (Vec3, Vec3) {
+    let b0 = 1.0 - barycentric.x - barycentric.y;
+    let [v0, v1, v2] = corners;
+    let p = v0 * b0 + v1 * barycentric.x + v2 * barycentric.y;
+    let abs_sum = (v0 * b0).abs() + (v1 * barycentric.x).abs() + (v2 * barycentric.y).abs();
+    (p, abs_sum * gamma(7.0))
+}
+
+/// [`interpolate_point`] per lane, with its operations (so the same bits).
+#[inline(always)]
+pub(crate) fn interpolate_point_lanes(corners: [Vec3s; 3], barycentric: Vec2s) -> (Vec3s, Vec3s) {
     let b0 = 1.0 - barycentric.x - barycentric.y;
     let [v0, v1, v2] = corners;
     let p = v0 * b0 + v1 * barycentric.x + v2 * barycentric.y;

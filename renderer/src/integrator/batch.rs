@@ -11,7 +11,8 @@ use super::deferred::DeferredScatter;
 use super::diffuse_lanes::DiffuseLanes;
 use super::glossy_lanes::GlossyLanes;
 use super::scattered_lanes::LaneGroup;
-use super::{PathState, PathTracer, Scattered, Strategy};
+use super::light_lanes::LaneLight;
+use super::{Draws, PathState, PathTracer, Scattered, Strategy};
 use crate::accel::{Hit, Ray};
 use crate::Rgb;
 use crate::bsdf::merl::MerlBsdf;
@@ -19,7 +20,7 @@ use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::Bsdf;
 use crate::lights::environment::MapPoint;
-use crate::render_scene::RenderScene;
+use crate::render_scene::{FlatHit, RenderScene};
 use crate::lanes::{Vec3s, LANES};
 use glam::Vec3;
 
@@ -114,13 +115,25 @@ impl PathTracer {
                 self.escape_at(scene, &mut paths[i as usize], at);
             }
             for (&i, &hit) in chunk.iter().zip(chunk_hits) {
-                let path = &mut paths[i as usize];
                 // Escaped rays were ended above: `begin` of a miss would add the environment
                 // again.
-                let Some(v) = hit.and_then(|hit| self.begin(scene, path, Some(hit))) else {
+                let Some(hit) = hit else { continue };
+                let path = &mut paths[i as usize];
+                let draws = self.draw(scene, path);
+                let beta = path.beta;
+                if let Some((flat, albedo, double_sided, light)) = self.plain_diffuse(scene, path, &hit, &draws) {
+                    let direction = path.ray.direction;
+                    diffuse.push(
+                        i,
+                        light_only,
+                        |lanes| lanes.push_hit(&flat, hit.barycentric, direction, albedo, double_sided, beta, &draws, light),
+                        |i, p, s| self.settle(paths, results, i, p, s),
+                    );
+                    continue;
+                }
+                let Some(v) = self.begin_drawn(scene, path, hit, draws) else {
                     continue;
                 };
-                let beta = path.beta;
                 let settle = |i, p, s| self.settle(paths, results, i, p, s);
                 if let Bsdf::Lambert(b) = &v.bsdf {
                     diffuse.push(i, light_only, |lanes| lanes.push(&v, b.albedo, beta, self.lane_light(scene, &v)), settle);
@@ -143,6 +156,24 @@ impl PathTracer {
         }
         diffuse.finish(light_only, |i, p, s| self.settle(paths, results, i, p, s));
         glossy.finish(light_only, |i, p, s| self.settle(paths, results, i, p, s));
+    }
+
+    /// What beginning the vertex of `path` at `hit` (its random numbers `draws`) in the
+    /// diffuse lanes needs — the hit's flat triangle ([`RenderScene::flat_hit`]), its
+    /// material's albedo and double-sidedness ([`SceneMaterials::plain_lambert`]) and its
+    /// light ([`Self::kernel_light`]) — where the kernel can find its surface point and
+    /// light sample; `None` where [`Self::begin_drawn`] must begin it (also where the path
+    /// may not scatter there).
+    ///
+    /// [`SceneMaterials::plain_lambert`]: crate::material::SceneMaterials::plain_lambert
+    #[inline(always)]
+    fn plain_diffuse<'s>(&self, scene: &'s RenderScene, path: &PathState, hit: &Hit, draws: &Draws) -> Option<(FlatHit, Rgb, bool, LaneLight<'s>)> {
+        let flat = scene.flat_hit(hit)?;
+        let (albedo, double_sided) = scene.materials.plain_lambert(flat.material)?;
+        if !self.allows(path.segments + 1) {
+            return None;
+        }
+        Some((flat, albedo, double_sided, self.kernel_light(scene, draws.light, draws.u_light)?))
     }
 
     /// Hands path `i`'s vertex at `p`, scattered into `s`, on: its shadow test to the

@@ -15,11 +15,12 @@
 
 use super::light_lanes::{next_event, LaneLight, LightLanes};
 use super::scattered_lanes::{offset_ray_origin, LaneKernel, ScatteredLanes};
-use super::Vertex;
-use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
+use super::{Draws, Vertex};
+use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
+use crate::render_scene::{flat_surface_points_lanes, FlatHit};
 use crate::sampling::sample_cosine_hemisphere_lanes;
 use crate::Rgb;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
 /// Up to [`LANES`] diffuse vertices with their light samples, in structure-of-arrays form.
@@ -38,6 +39,17 @@ pub(crate) struct DiffuseLanes<'s> {
     beta: Vec3s,
     u: Vec2s,
     light: LightLanes<'s>,
+    /// Lanes pushed as their hit ([`DiffuseLanes::push_hit`]), whose surface point (the
+    /// fields above it) the kernel finds from the hit's triangle, barycentric coordinates
+    /// and ray direction; whether any lane is; and whether their material is double-sided.
+    from_hit: [bool; LANES],
+    any_from_hit: bool,
+    corners: [Vec3s; 3],
+    hit_ng: Vec3s,
+    hit_normal: Vec3s,
+    barycentric: Vec2s,
+    direction: Vec3s,
+    double_sided: [bool; LANES],
 }
 
 impl<'s> DiffuseLanes<'s> {
@@ -61,7 +73,63 @@ impl<'s> DiffuseLanes<'s> {
         self.beta.set(i, beta);
         self.u.set(i, vertex.u);
         self.light.set(i, light);
+        self.from_hit[i] = false;
         self.len += 1;
+    }
+
+    /// Appends the vertex a ray of direction `direction` reaches at barycentric coordinates
+    /// `barycentric` of `hit`'s triangle, on a [`SceneMaterials::plain_lambert`] material
+    /// (albedo `albedo`, `double_sided`), for a path of throughput `beta`, with its random
+    /// numbers `draws` and their light (a [`PathTracer::kernel_light`]): what
+    /// [`PathTracer::begin`] and [`Self::push`] would give, the surface point found by the
+    /// kernel (the vertex ends where `begin` ends the path: at the back of a single-sided
+    /// material, or with the ray arriving below the shading hemisphere).
+    ///
+    /// [`SceneMaterials::plain_lambert`]: crate::material::SceneMaterials::plain_lambert
+    /// [`PathTracer::kernel_light`]: super::PathTracer::kernel_light
+    /// [`PathTracer::begin`]: super::PathTracer
+    ///
+    /// # Panics
+    /// When all lanes are filled.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn push_hit(&mut self, hit: &FlatHit, barycentric: Vec2, direction: Vec3, albedo: Rgb, double_sided: bool, beta: Rgb, draws: &Draws, light: LaneLight<'s>) {
+        let i = self.len;
+        assert!(i < LANES, "diffuse lanes are full");
+        for (corners, &corner) in self.corners.iter_mut().zip(&hit.corners) {
+            corners.set(i, corner);
+        }
+        self.hit_ng.set(i, hit.ng);
+        self.hit_normal.set(i, hit.normal);
+        self.barycentric.set(i, barycentric);
+        self.direction.set(i, direction);
+        self.double_sided[i] = double_sided;
+        self.albedo.set(i, albedo);
+        self.beta.set(i, beta);
+        self.u.set(i, draws.u);
+        self.light.set(i, light);
+        self.from_hit[i] = true;
+        self.any_from_hit = true;
+        self.len += 1;
+    }
+
+    /// The lanes' surface points (position, its error bound, geometric normal on the side
+    /// of the arriving ray, shading frame) and the lanes whose vertex scatters: those
+    /// pushed with it, and those pushed as their hit found here.
+    #[inline(always)]
+    fn surface_points(&self) -> ([Vec3s; 6], Mask) {
+        let pushed = [self.p, self.p_error, self.ng, self.s, self.t, self.n];
+        if !self.any_from_hit {
+            return (pushed, Mask([true; LANES]));
+        }
+        let sp = flat_surface_points_lanes(self.corners, self.hit_ng, self.hit_normal, self.barycentric, self.direction);
+        // `begin`: no BSDF at the back of a single-sided material; wo = to_local(−direction)
+        // must lie above the shading hemisphere.
+        let wo_z = (-self.direction).dot(sp.n);
+        let scatters = (sp.front_face | Mask(self.double_sided)) & !wo_z.le(F32s::splat(0.0));
+        let from_hit = Mask(self.from_hit);
+        let found = [sp.p, sp.p_error, sp.ng_facing, sp.s, sp.t, sp.n];
+        (std::array::from_fn(|k| from_hit.select3(found[k], pushed[k])), !from_hit | scatters)
     }
 }
 
@@ -70,13 +138,10 @@ impl LaneKernel for DiffuseLanes<'_> {
         self.len
     }
 
-    #[inline]
-    fn position(&self, lane: usize) -> Vec3 {
-        self.p.get(lane)
-    }
 
     fn clear(&mut self) {
         self.len = 0;
+        self.any_from_hit = false;
     }
 
     /// Scatters all lanes (the filled ones matter): next-event estimation weighted by the
@@ -85,23 +150,29 @@ impl LaneKernel for DiffuseLanes<'_> {
     #[inline(always)]
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes) {
         let zero = F32s::splat(0.0);
-        let (p, p_error, ng, beta) = (self.p, self.p_error, self.ng, self.beta);
+        let ([p, p_error, ng, s, t, n], scatters) = self.surface_points();
+        let beta = self.beta;
+        out.p = p;
 
         // Next-event estimation (PathTracer::light_term with Lambert::eval_pdf).
         let light = self.light.samples(p);
-        let wi_z = light.direction.dot(self.n);
+        let wi_z = light.direction.dot(n);
         let f = self.albedo * FRAC_1_PI;
         let bsdf_pdf = wi_z.max(zero) * FRAC_1_PI;
         next_event(&light, p, p_error, ng, wi_z, f, bsdf_pdf, beta, light_only, out);
+        out.shadow_ok = (Mask(out.shadow_ok) & scatters).0;
 
         // BSDF sampling (Lambert::sample: cosine-weighted, concentric disk).
         let Vec3s { x: dx, y: dy, z: dz } = sample_cosine_hemisphere_lanes(self.u);
         let pdf = dz.max(zero) * FRAC_1_PI;
         // continuation(): world direction, throughput, offset origin.
-        let wi_world = self.s * dx + self.t * dy + self.n * dz;
+        let wi_world = s * dx + t * dy + n * dz;
         let next_beta = beta * (f * (dz / pdf));
-        let next_ok =
-            !dz.le(zero) & !wi_world.dot(ng).le(zero) & next_beta.is_finite() & !next_beta.max_element().le(zero);
+        let next_ok = scatters
+            & !dz.le(zero)
+            & !wi_world.dot(ng).le(zero)
+            & next_beta.is_finite()
+            & !next_beta.max_element().le(zero);
         out.next_ok = next_ok.0;
         out.next_origin = offset_ray_origin(p, p_error, ng, wi_world);
         out.next_direction = wi_world;

@@ -18,7 +18,6 @@ use crate::bsdf::metallic_roughness_lanes::MetallicRoughnessLanes;
 use crate::bsdf::MetallicRoughness;
 use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
 use crate::Rgb;
-use glam::Vec3;
 
 /// Up to [`LANES`] metallic-roughness vertices with their light samples, in
 /// structure-of-arrays form.
@@ -73,10 +72,6 @@ impl LaneKernel for GlossyLanes<'_> {
         self.len
     }
 
-    #[inline]
-    fn position(&self, lane: usize) -> Vec3 {
-        self.p.get(lane)
-    }
 
     fn clear(&mut self) {
         self.len = 0;
@@ -89,6 +84,7 @@ impl LaneKernel for GlossyLanes<'_> {
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes) {
         let zero = F32s::splat(0.0);
         let (p, p_error, ng, wo, beta) = (self.p, self.p_error, self.ng, self.wo, self.beta);
+        out.p = p;
         let to_local = |v: Vec3s| Vec3s {
             x: v.dot(self.s),
             y: v.dot(self.t),

@@ -47,20 +47,29 @@ impl PathTracer {
     /// other drawn now ([`PathTracer::light_sample`]).
     #[inline(always)]
     pub(crate) fn lane_light<'s>(&self, scene: &'s RenderScene, v: &Vertex) -> LaneLight<'s> {
-        if let Some((index, select_pdf)) = v.light {
-            // Delta lights are sampled under every strategy, the others where light sampling
-            // is (as `light_sample` filters them).
-            if let Some((position, intensity)) = scene.lights.point(index) {
-                return LaneLight::Point { position, intensity, select_pdf };
-            }
-            if let Some(light) = scene.lights.triangle(index).filter(|t| t.texture.is_none() && self.strategy != Strategy::BsdfOnly) {
-                return LaneLight::Triangle { light, u: v.u_light, select_pdf };
-            }
+        self.kernel_light(scene, v.light, v.u_light)
+            .unwrap_or_else(|| self.light_sample(scene, v).map_or(LaneLight::None, LaneLight::Sampled))
+    }
+
+    /// The [`LaneLight`] of a vertex whose chosen light is `light` (index, selection
+    /// probability) and whose light sample's u is `u`, where the kernel samples or
+    /// illuminates it without the vertex's point: an untextured triangle, the environment, a
+    /// point light, or no light; `None` where its sample must be drawn at the point first.
+    #[inline(always)]
+    pub(crate) fn kernel_light<'s>(&self, scene: &'s RenderScene, light: Option<(u32, f32)>, u: Vec2) -> Option<LaneLight<'s>> {
+        let Some((index, select_pdf)) = light else {
+            return Some(LaneLight::None);
+        };
+        // Delta lights are sampled under every strategy, the others where light sampling is
+        // (as `light_sample` filters them).
+        if let Some((position, intensity)) = scene.lights.point(index) {
+            return Some(LaneLight::Point { position, intensity, select_pdf });
         }
-        match self.environment_draw(scene, v) {
-            Some((environment, u, select_pdf)) => LaneLight::Environment { environment, u, select_pdf },
-            None => self.light_sample(scene, v).map_or(LaneLight::None, LaneLight::Sampled),
+        if let Some(light) = scene.lights.triangle(index).filter(|t| t.texture.is_none() && self.strategy != Strategy::BsdfOnly) {
+            return Some(LaneLight::Triangle { light, u, select_pdf });
         }
+        let environment = scene.lights.environment_of(index).filter(|_| self.strategy != Strategy::BsdfOnly)?;
+        Some(LaneLight::Environment { environment, u, select_pdf })
     }
 
     /// Where vertex `v`'s light sample is the environment's: the environment, the sample's

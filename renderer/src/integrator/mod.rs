@@ -111,6 +111,15 @@ pub(crate) struct Vertex<'s> {
     pub u: Vec2,
 }
 
+/// A vertex's random numbers and chosen light ([`PathTracer::draw`]), as in [`Vertex`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Draws {
+    pub light: Option<(u32, f32)>,
+    pub u_light: Vec2,
+    pub uc: f32,
+    pub u: Vec2,
+}
+
 /// The ray a vertex continues the path with, drawn by BSDF sampling.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Continuation {
@@ -207,16 +216,33 @@ impl PathTracer {
     /// random numbers and chooses its light. `None` when the path ends here.
     #[inline(always)]
     fn begin<'s>(&self, scene: &'s RenderScene, path: &mut PathState, hit: Option<Hit>) -> Option<Vertex<'s>> {
-        let ray = path.ray;
         let Some(hit) = hit else {
             self.escape(scene, path);
             return None;
         };
-        // The vertex's samples are drawn first (a path that ends here draws nothing more, so
-        // drawing them early changes nothing).
+        let draws = self.draw(scene, path);
+        self.begin_drawn(scene, path, hit, draws)
+    }
+
+    /// The random numbers of the vertex `path` reaches and its chosen light. They are drawn
+    /// first (a path that ends at the vertex draws nothing more, so drawing them early
+    /// changes nothing).
+    #[inline(always)]
+    fn draw(&self, scene: &RenderScene, path: &mut PathState) -> Draws {
         let [u_select, u_light_x, u_light_y, uc, u_x, u_y] = path.sampler.next_block();
-        let (u_light, u) = (Vec2::new(u_light_x, u_light_y), Vec2::new(u_x, u_y));
-        let light = scene.lights.choose(u_select);
+        Draws {
+            light: scene.lights.choose(u_select),
+            u_light: Vec2::new(u_light_x, u_light_y),
+            uc,
+            u: Vec2::new(u_x, u_y),
+        }
+    }
+
+    /// [`Self::begin`] at `hit`, the vertex's random numbers drawn.
+    #[inline(always)]
+    fn begin_drawn<'s>(&self, scene: &'s RenderScene, path: &mut PathState, hit: Hit, draws: Draws) -> Option<Vertex<'s>> {
+        let ray = path.ray;
+        let Draws { light, u_light, uc, u } = draws;
         let sp = scene.surface_point(&hit, ray.direction)?;
         let le = scene.emission(&sp);
         if le.max_element() > 0.0 {

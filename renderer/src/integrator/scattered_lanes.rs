@@ -10,6 +10,8 @@ use glam::Vec3;
 /// [`Scattered`] for [`LANES`] vertices, structure of arrays.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct ScatteredLanes {
+    /// The vertices' positions.
+    pub p: Vec3s,
     pub shadow_ok: [bool; LANES],
     pub shadow_origin: Vec3s,
     pub shadow_direction: Vec3s,
@@ -47,16 +49,14 @@ impl ScatteredLanes {
 /// A kernel over [`LANES`] vertices, run by [`scatter`] compiled for the widest vector
 /// instructions the CPU has.
 pub(crate) trait LaneKernel {
-    /// Scatters every lane (the filled ones matter) into `out`; `light_only` weighs light
+    /// Scatters every lane (the filled ones matter) into `out` (with the vertices'
+    /// positions); `light_only` weighs light
     /// samples by 1 instead of the power heuristic. Written with [`crate::lanes`] types and
     /// `#[inline(always)]`, so that it is compiled into each of [`scatter`]'s copies.
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes);
 
     /// Number of lanes filled.
     fn len(&self) -> usize;
-
-    /// The position of lane `lane`'s vertex.
-    fn position(&self, lane: usize) -> Vec3;
 
     /// Empties the lanes (their old values stay, unused).
     fn clear(&mut self);
@@ -99,7 +99,7 @@ impl<K: LaneKernel> LaneGroup<K> {
     fn flush(&mut self, light_only: bool, mut settle: impl FnMut(u32, Vec3, Scattered)) {
         scatter(&self.lanes, light_only, &mut self.out);
         for (lane, &path) in self.paths[..self.lanes.len()].iter().enumerate() {
-            settle(path, self.lanes.position(lane), self.out.get(lane));
+            settle(path, self.out.p.get(lane), self.out.get(lane));
         }
         self.lanes.clear();
     }

@@ -133,6 +133,8 @@ pub struct SceneMaterials {
     /// Shared with the light set (emissive textures).
     textures: Arc<[Texture]>,
     kinds: Vec<Kind>,
+    /// Per material, its [`SceneMaterials::plain_lambert`] answer.
+    plain_lambert: Vec<Option<(Rgb, bool)>>,
     shared: Vec<SharedBsdf>,
     /// Materials that bind a latent code while no latent file was given: (material, latent
     /// name); they render with their glTF parameters.
@@ -168,10 +170,22 @@ impl SceneMaterials {
                 }),
             });
         }
+        let plain_lambert = materials
+            .iter()
+            .zip(&kinds)
+            .map(|(m, &kind)| {
+                let plain = kind == Kind::Lambert
+                    && m.base_color_texture.is_none()
+                    && m.normal_texture.is_none()
+                    && !(m.emission.max_element() > 0.0);
+                plain.then_some((m.base_color, m.double_sided))
+            })
+            .collect();
         Ok(SceneMaterials {
             materials,
             textures: textures.into(),
             kinds,
+            plain_lambert,
             shared,
             unbound_neural,
         })
@@ -222,6 +236,14 @@ impl SceneMaterials {
             }
             Kind::Shared(i) => self.shared[i].as_bsdf(),
         })
+    }
+
+    /// The albedo of `material`, and whether it is double-sided, where it is an untextured
+    /// Lambertian surface without normal map that emits nothing (its BSDF then needs no
+    /// surface point: what the diffuse lanes begin from a hit); `None` elsewhere.
+    #[inline]
+    pub fn plain_lambert(&self, material: u32) -> Option<(Rgb, bool)> {
+        self.plain_lambert[material as usize]
     }
 
     /// Radiance `material` emits from its front side, W/(m² sr): its emissive factor, times
