@@ -167,7 +167,7 @@ impl PathTracer {
     ///
     /// [`SceneMaterials::plain_lambert`]: crate::material::SceneMaterials::plain_lambert
     #[inline(always)]
-    fn plain_diffuse<'s>(&self, scene: &'s RenderScene, path: &PathState, hit: &Hit, draws: &Draws) -> Option<(FlatHit, Rgb, bool, LaneLight<'s>)> {
+    pub(super) fn plain_diffuse<'s>(&self, scene: &'s RenderScene, path: &PathState, hit: &Hit, draws: &Draws) -> Option<(FlatHit, Rgb, bool, LaneLight<'s>)> {
         let flat = scene.flat_hit(hit)?;
         let (albedo, double_sided) = scene.materials.plain_lambert(flat.material)?;
         if !self.allows(path.segments + 1) {

@@ -225,6 +225,99 @@ mod tests {
         }
     }
 
+    /// Vertices pushed as their hit ([`DiffuseLanes::push_hit`]), alone or mixed in a group
+    /// with vertices pushed begun, give what the scalar `begin` and `scatter` give, bit for
+    /// bit (the position included), and end where `begin` ends the path: in the Cornell box
+    /// with its single-sided walls seen from both sides and made double-sided, and on the
+    /// preview's ground, under every strategy.
+    #[test]
+    fn hits_pushed_equal_scalar_begin_and_scatter() {
+        let load = |name: &str| {
+            let path = format!("{}/../scenes/{name}/scene.gltf", env!("CARGO_MANIFEST_DIR"));
+            SceneDescription::load(path.as_ref()).expect("shipped scene")
+        };
+        let cornell = load("cornell-box");
+        assert!(cornell.materials.iter().any(|m| !m.double_sided), "the box has single-sided walls");
+        let mut double_sided = cornell.clone();
+        for m in &mut double_sided.materials {
+            m.double_sided = true;
+        }
+        for (description, single_sided) in [(cornell, true), (double_sided, false), (load("material-preview"), true)] {
+            hits_pushed_equal_scalar_in(&RenderScene::new(description).expect("scene"), single_sided);
+        }
+    }
+
+    fn hits_pushed_equal_scalar_in(scene: &RenderScene, single_sided: bool) {
+        let mut rng = Sampler::new(9, 2, 6);
+        for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
+            let tracer = PathTracer {
+                strategy,
+                ..PathTracer::default()
+            };
+            // (path state before the vertex, hit, whether it is pushed as its hit)
+            let mut cases = Vec::new();
+            let mut tries = 0;
+            while cases.len() < 16 * 10 + 9 {
+                tries += 1;
+                assert!(tries < 100_000, "{strategy:?}: too few plain diffuse hits");
+                let origin = scene.bounds_centre + (rng.next_2d().extend(rng.next_1d()) - 0.5) * scene.bounds_radius;
+                let ray = Ray::new(origin, sample_uniform_sphere(rng.next_2d()));
+                let mut state = tracer.start(ray, rng.clone()).expect("depth allows a segment");
+                rng.next_1d();
+                state.beta = if cases.len() % 8 == 0 { Rgb::ZERO } else { rng.next_2d().extend(rng.next_1d()) * 2.0 };
+                let Some(hit) = scene.intersect(&ray) else { continue };
+                let mut drawn = state.clone();
+                let draws = tracer.draw(scene, &mut drawn);
+                if tracer.plain_diffuse(scene, &drawn, &hit, &draws).is_some() {
+                    // Every third one pushed begun (where it scatters), the rest as hits.
+                    cases.push((state, hit, cases.len() % 3 != 0));
+                }
+            }
+            let (mut lanes, mut out) = (DiffuseLanes::default(), ScatteredLanes::default());
+            let (mut from_hits, mut ended, mut shadows) = (0, 0, 0);
+            for group in cases.chunks(LANES) {
+                lanes.clear();
+                let mut expected = Vec::new();
+                for (state, hit, as_hit) in group {
+                    let mut begun = state.clone();
+                    let vertex = tracer.begin(scene, &mut begun, Some(*hit));
+                    let scattered = vertex.map(|v| (tracer.scatter(scene, &v, state.beta), v.sp.p));
+                    let mut drawn = state.clone();
+                    let draws = tracer.draw(scene, &mut drawn);
+                    assert_eq!(format!("{:?}", drawn.sampler), format!("{:?}", begun.sampler), "the same numbers drawn");
+                    let (flat, albedo, double_sided, light) = tracer.plain_diffuse(scene, &drawn, hit, &draws).expect("plain");
+                    match (vertex, as_hit) {
+                        (Some(v), false) => lanes.push(&v, albedo, state.beta, tracer.lane_light(scene, &v)),
+                        _ => {
+                            lanes.push_hit(&flat, hit.barycentric, state.ray.direction, albedo, double_sided, state.beta, &draws, light);
+                            from_hits += 1;
+                        }
+                    }
+                    ended += scattered.is_none() as usize;
+                    shadows += scattered.is_some_and(|(s, _)| s.shadow.is_some()) as usize;
+                    expected.push(scattered);
+                }
+                crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
+                for (lane, expected) in expected.iter().enumerate() {
+                    let got = out.get(lane);
+                    match expected {
+                        Some((scattered, p)) => {
+                            assert_eq!(format!("{got:?}"), format!("{scattered:?}"), "{strategy:?}, lane {lane}");
+                            assert_eq!(out.p.get(lane).to_array().map(f32::to_bits), p.to_array().map(f32::to_bits));
+                        }
+                        None => assert!(got.shadow.is_none() && got.next.is_none(), "{strategy:?}, lane {lane}: the path ends"),
+                    }
+                }
+            }
+            assert!(from_hits > cases.len() / 2, "{strategy:?}: {from_hits} pushed as hits");
+            // Single-sided surfaces seen from behind end paths; double-sided ones do not.
+            assert!(ended < cases.len() && (ended > 0) == single_sided, "{strategy:?}: {ended} ended");
+            if strategy != Strategy::BsdfOnly {
+                assert!(shadows > 0, "{strategy:?}: lit lanes");
+            }
+        }
+    }
+
     fn lanes_equal_scalar_scatter_in(scene: &RenderScene, spot_light: bool) {
         let mut rng = Sampler::new(3, 1, 4);
         for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {

@@ -60,16 +60,21 @@ impl PathTracer {
         let Some((index, select_pdf)) = light else {
             return Some(LaneLight::None);
         };
-        // Delta lights are sampled under every strategy, the others where light sampling is
-        // (as `light_sample` filters them).
+        // Delta lights are sampled under every strategy, the others (triangles, the
+        // environment) where light sampling is (as `light_sample` filters them).
         if let Some((position, intensity)) = scene.lights.point(index) {
             return Some(LaneLight::Point { position, intensity, select_pdf });
         }
-        if let Some(light) = scene.lights.triangle(index).filter(|t| t.texture.is_none() && self.strategy != Strategy::BsdfOnly) {
-            return Some(LaneLight::Triangle { light, u, select_pdf });
+        let sampled = self.strategy != Strategy::BsdfOnly;
+        if let Some(light) = scene.lights.triangle(index) {
+            return match (sampled, light.texture.is_none()) {
+                (false, _) => Some(LaneLight::None),
+                (true, true) => Some(LaneLight::Triangle { light, u, select_pdf }),
+                (true, false) => None,
+            };
         }
-        let environment = scene.lights.environment_of(index).filter(|_| self.strategy != Strategy::BsdfOnly)?;
-        Some(LaneLight::Environment { environment, u, select_pdf })
+        let environment = scene.lights.environment_of(index)?;
+        Some(if sampled { LaneLight::Environment { environment, u, select_pdf } } else { LaneLight::None })
     }
 
     /// Where vertex `v`'s light sample is the environment's: the environment, the sample's

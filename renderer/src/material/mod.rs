@@ -174,6 +174,9 @@ impl SceneMaterials {
             .iter()
             .zip(&kinds)
             .map(|(m, &kind)| {
+                // Emits nothing: `emission_at`'s value is then the factor, which `begin` adds
+                // only where some channel is > 0 (so NaN factors count as nothing too).
+                #[allow(clippy::neg_cmp_op_on_partial_ord)]
                 let plain = kind == Kind::Lambert
                     && m.base_color_texture.is_none()
                     && m.normal_texture.is_none()
