@@ -288,18 +288,27 @@ impl RenderScene {
         }
     }
 
-    /// What finding `hit`'s surface point in lanes needs ([`flat_surface_points_lanes`]),
-    /// where its triangle is flat-shaded, not degenerate and not instanced; `None` elsewhere.
-    /// (Its material's normal map, which bends the normal per point, is the caller's to rule
-    /// out.)
+    /// What finding `hit`'s surface point in lanes needs ([`surface_points_lanes`]), where
+    /// its triangle is neither degenerate nor instanced; `None` elsewhere. (Its material's
+    /// normal map, which bends the normal per point, is the caller's to rule out.)
     #[inline]
-    pub(crate) fn flat_hit(&self, hit: &Hit) -> Option<FlatHit> {
+    pub(crate) fn lane_hit(&self, hit: &Hit) -> Option<LaneHit> {
         let tri = hit.triangle as usize;
         let HitRecord { corners, ng, flat_normal } = self.hit_records[tri];
-        (ng != Vec3::ZERO && flat_normal != Vec3::ZERO && hit.instance == NO_INSTANCE).then(|| FlatHit {
+        if ng == Vec3::ZERO || hit.instance != NO_INSTANCE {
+            return None;
+        }
+        let flat = flat_normal != Vec3::ZERO;
+        let normals = if flat {
+            [flat_normal; 3]
+        } else {
+            self.geometry.triangles[tri].map(|v| self.geometry.normals[v as usize])
+        };
+        Some(LaneHit {
             corners,
             ng,
-            normal: flat_normal,
+            normals,
+            flat,
             material: self.geometry.material_ids[tri],
         })
     }
@@ -413,22 +422,21 @@ impl RenderScene {
     }
 }
 
-/// A hit on a flat-shaded, untransformed, non-degenerate triangle ([`RenderScene::flat_hit`]).
+/// A hit on a triangle whose surface point can be found in lanes ([`RenderScene::lane_hit`]).
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct FlatHit {
+pub(crate) struct LaneHit {
     pub corners: [Vec3; 3],
-    /// Unit geometric normal from the winding, and the unit shading normal.
+    /// Unit geometric normal from the winding.
     pub ng: Vec3,
-    pub normal: Vec3,
+    /// The vertex normals, or where `flat` the unit shading normal (three times).
+    pub normals: [Vec3; 3],
+    pub flat: bool,
     pub material: u32,
 }
 
-/// The surface points of [`FlatHit`]s (per lane: corners, geometric normal `ng`, shading
-/// normal `normal`) at barycentric coordinates `barycentric` of rays with directions
-/// `direction`, with [`RenderScene::surface_point`]'s operations for a triangle without
-/// normal map (so the same bits).
+/// The surface points [`surface_points_lanes`] finds.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct FlatSurfacePoints {
+pub(crate) struct SurfacePointsLanes {
     pub p: Vec3s,
     pub p_error: Vec3s,
     pub ng_facing: Vec3s,
@@ -439,15 +447,35 @@ pub(crate) struct FlatSurfacePoints {
     pub n: Vec3s,
 }
 
+/// The surface points of [`LaneHit`]s (per lane: the triangle's corners, geometric normal
+/// `ng`, `normals` and whether they are `flat`; `any_smooth` where some lane's are not) at
+/// barycentric coordinates `barycentric` of rays with directions `direction`, with
+/// [`RenderScene::surface_point`]'s operations for a triangle without normal map (so the
+/// same bits).
 #[inline(always)]
-pub(crate) fn flat_surface_points_lanes(corners: [Vec3s; 3], ng: Vec3s, normal: Vec3s, barycentric: Vec2s, direction: Vec3s) -> FlatSurfacePoints {
+pub(crate) fn surface_points_lanes(
+    corners: [Vec3s; 3],
+    ng: Vec3s,
+    normals: [Vec3s; 3],
+    flat: Mask,
+    any_smooth: bool,
+    barycentric: Vec2s,
+    direction: Vec3s,
+) -> SurfacePointsLanes {
     let zero = F32s::splat(0.0);
     let (p, p_error) = interpolate_point_lanes(corners, barycentric);
+    let mut ns = normals[0];
+    if any_smooth {
+        let b0 = 1.0 - barycentric.x - barycentric.y;
+        let interpolated = normals[0] * b0 + normals[1] * barycentric.x + normals[2] * barycentric.y;
+        let (unit, ok) = interpolated.try_normalize();
+        ns = flat.select3(ns, ok.select3(unit, ng));
+    }
     let front_face = direction.dot(ng).lt(zero);
     let ng_facing = front_face.select3(ng, -ng);
-    let n = normal.dot(ng_facing).lt(zero).select3(-normal, normal);
+    let n = ns.dot(ng_facing).lt(zero).select3(-ns, ns);
     let (s, t) = Frame::from_normal_lanes(n);
-    FlatSurfacePoints { p, p_error, ng_facing, front_face, s, t, n }
+    SurfacePointsLanes { p, p_error, ng_facing, front_face, s, t, n }
 }
 
 /// A normal-mapped shading normal `ns` tilted toward the viewer direction `wo` (unit, on

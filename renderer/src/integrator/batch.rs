@@ -20,7 +20,7 @@ use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::Bsdf;
 use crate::lights::environment::MapPoint;
-use crate::render_scene::{FlatHit, RenderScene};
+use crate::render_scene::{LaneHit, RenderScene};
 use crate::lanes::{Vec3s, LANES};
 use glam::Vec3;
 
@@ -121,14 +121,14 @@ impl PathTracer {
                 let path = &mut paths[i as usize];
                 let draws = self.draw(scene, path);
                 let beta = path.beta;
-                if let Some((flat, albedo, double_sided, light)) = self.plain_diffuse(scene, path, &hit, &draws) {
-                    let direction = path.ray.direction;
-                    diffuse.push(
-                        i,
-                        light_only,
-                        |lanes| lanes.push_hit(&flat, hit.barycentric, direction, albedo, double_sided, beta, &draws, light),
-                        |i, p, s| self.settle(paths, results, i, p, s),
-                    );
+                if let Some((lane_hit, &(bsdf, double_sided), light)) = self.lane_begin(scene, path, &hit, &draws) {
+                    let (b, direction) = (hit.barycentric, path.ray.direction);
+                    let settle = |i, p, s| self.settle(paths, results, i, p, s);
+                    if let Bsdf::Lambert(l) = bsdf {
+                        diffuse.push(i, light_only, |lanes| lanes.push_hit(&lane_hit, b, direction, double_sided, l.albedo, beta, &draws, light), settle);
+                    } else if let Bsdf::MetallicRoughness(m) = &bsdf {
+                        glossy.push(i, light_only, |lanes| lanes.push_hit(&lane_hit, b, direction, double_sided, m, beta, &draws, light), settle);
+                    }
                     continue;
                 }
                 let Some(v) = self.begin_drawn(scene, path, hit, draws) else {
@@ -158,22 +158,23 @@ impl PathTracer {
         glossy.finish(light_only, |i, p, s| self.settle(paths, results, i, p, s));
     }
 
-    /// What beginning the vertex of `path` at `hit` (its random numbers `draws`) in the
-    /// diffuse lanes needs — the hit's flat triangle ([`RenderScene::flat_hit`]), its
-    /// material's albedo and double-sidedness ([`SceneMaterials::plain_lambert`]) and its
-    /// light ([`Self::kernel_light`]) — where the kernel can find its surface point and
-    /// light sample; `None` where [`Self::begin_drawn`] must begin it (also where the path
-    /// may not scatter there).
+    /// What beginning the vertex of `path` at `hit` (its random numbers `draws`) in a lane
+    /// kernel needs — the hit's triangle ([`RenderScene::lane_hit`]), its material's BSDF
+    /// (Lambertian or metallic-roughness) and double-sidedness
+    /// ([`SceneMaterials::plain_bsdf`]) and its light ([`Self::kernel_light`]) — where the
+    /// kernel can find its surface point and light sample; `None` where
+    /// [`Self::begin_drawn`] must begin it (also where the path may not scatter there).
     ///
-    /// [`SceneMaterials::plain_lambert`]: crate::material::SceneMaterials::plain_lambert
+    /// [`SceneMaterials::plain_bsdf`]: crate::material::SceneMaterials::plain_bsdf
     #[inline(always)]
-    pub(super) fn plain_diffuse<'s>(&self, scene: &'s RenderScene, path: &PathState, hit: &Hit, draws: &Draws) -> Option<(FlatHit, Rgb, bool, LaneLight<'s>)> {
-        let flat = scene.flat_hit(hit)?;
-        let (albedo, double_sided) = scene.materials.plain_lambert(flat.material)?;
+    #[allow(clippy::type_complexity)]
+    pub(super) fn lane_begin<'s>(&self, scene: &'s RenderScene, path: &PathState, hit: &Hit, draws: &Draws) -> Option<(LaneHit, &'s (Bsdf<'s>, bool), LaneLight<'s>)> {
+        let lane_hit = scene.lane_hit(hit)?;
+        let plain = scene.materials.plain_bsdf(lane_hit.material)?;
         if !self.allows(path.segments + 1) {
             return None;
         }
-        Some((flat, albedo, double_sided, self.kernel_light(scene, draws.light, draws.u_light)?))
+        Some((lane_hit, plain, self.kernel_light(scene, draws.light, draws.u_light)?))
     }
 
     /// Hands path `i`'s vertex at `p`, scattered into `s`, on: its shadow test to the

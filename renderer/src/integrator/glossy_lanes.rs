@@ -13,11 +13,14 @@
 
 use super::light_lanes::{next_event, LaneLight, LightLanes};
 use super::scattered_lanes::{offset_ray_origin, LaneKernel, ScatteredLanes};
-use super::Vertex;
+use super::hit_lanes::HitLanes;
+use super::{Draws, Vertex};
 use crate::bsdf::metallic_roughness_lanes::MetallicRoughnessLanes;
 use crate::bsdf::MetallicRoughness;
-use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
+use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
+use crate::render_scene::LaneHit;
 use crate::Rgb;
+use glam::{Vec2, Vec3};
 
 /// Up to [`LANES`] metallic-roughness vertices with their light samples, in
 /// structure-of-arrays form.
@@ -25,15 +28,7 @@ use crate::Rgb;
 pub(crate) struct GlossyLanes<'s> {
     len: usize,
     bsdf: MetallicRoughnessLanes,
-    p: Vec3s,
-    p_error: Vec3s,
-    /// Geometric normal on the side of the arriving ray.
-    ng: Vec3s,
-    /// Shading frame.
-    s: Vec3s,
-    t: Vec3s,
-    n: Vec3s,
-    wo: Vec3s,
+    surface: HitLanes,
     beta: Vec3s,
     u: Vec2s,
     uc: F32s,
@@ -50,18 +45,38 @@ impl<'s> GlossyLanes<'s> {
     pub fn push(&mut self, vertex: &Vertex, bsdf: &MetallicRoughness, beta: Rgb, light: LaneLight<'s>) {
         let i = self.len;
         assert!(i < LANES, "glossy lanes are full");
-        let sp = &vertex.sp;
+        self.surface.set_vertex(i, vertex);
+        self.set(i, bsdf, beta, vertex.u, vertex.uc, light);
+    }
+
+    /// Appends the vertex a ray of direction `direction` reaches at barycentric coordinates
+    /// `barycentric` of `hit`'s triangle, whose material's BSDF is `bsdf` everywhere
+    /// ([`SceneMaterials::plain_bsdf`], `double_sided` or not), for a path of throughput
+    /// `beta`, with its random numbers `draws` and their light (a
+    /// [`PathTracer::kernel_light`]): what [`PathTracer::begin`] and [`Self::push`] would
+    /// give, the surface point found by the kernel ([`HitLanes`]).
+    ///
+    /// [`SceneMaterials::plain_bsdf`]: crate::material::SceneMaterials::plain_bsdf
+    /// [`PathTracer::kernel_light`]: super::PathTracer::kernel_light
+    /// [`PathTracer::begin`]: super::PathTracer
+    ///
+    /// # Panics
+    /// When all lanes are filled.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn push_hit(&mut self, hit: &LaneHit, barycentric: Vec2, direction: Vec3, double_sided: bool, bsdf: &MetallicRoughness, beta: Rgb, draws: &Draws, light: LaneLight<'s>) {
+        let i = self.len;
+        assert!(i < LANES, "glossy lanes are full");
+        self.surface.set_hit(i, hit, barycentric, direction, double_sided);
+        self.set(i, bsdf, beta, draws.u, draws.uc, light);
+    }
+
+    #[inline(always)]
+    fn set(&mut self, i: usize, bsdf: &MetallicRoughness, beta: Rgb, u: Vec2, uc: f32, light: LaneLight<'s>) {
         self.bsdf.set(i, bsdf);
-        self.p.set(i, sp.p);
-        self.p_error.set(i, sp.p_error);
-        self.ng.set(i, sp.ng_facing);
-        self.s.set(i, sp.frame.s);
-        self.t.set(i, sp.frame.t);
-        self.n.set(i, sp.frame.n);
-        self.wo.set(i, vertex.wo);
         self.beta.set(i, beta);
-        self.u.set(i, vertex.u);
-        self.uc.0[i] = vertex.uc;
+        self.u.set(i, u);
+        self.uc.0[i] = uc;
         self.light.set(i, light);
         self.len += 1;
     }
@@ -72,9 +87,9 @@ impl LaneKernel for GlossyLanes<'_> {
         self.len
     }
 
-
     fn clear(&mut self) {
         self.len = 0;
+        self.surface.clear();
     }
 
     /// Scatters all lanes (the filled ones matter): next-event estimation weighted by the
@@ -83,27 +98,27 @@ impl LaneKernel for GlossyLanes<'_> {
     #[inline(always)]
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes) {
         let zero = F32s::splat(0.0);
-        let (p, p_error, ng, wo, beta) = (self.p, self.p_error, self.ng, self.wo, self.beta);
+        let (surface, scatters) = self.surface.surface_points();
+        let (p, p_error, ng, wo, beta) = (surface.p, surface.p_error, surface.ng, surface.wo, self.beta);
         out.p = p;
-        let to_local = |v: Vec3s| Vec3s {
-            x: v.dot(self.s),
-            y: v.dot(self.t),
-            z: v.dot(self.n),
-        };
 
         // Next-event estimation (PathTracer::light_term and light_contribution).
         let light = self.light.samples(p);
-        let wi = to_local(light.direction);
+        let wi = surface.to_local(light.direction);
         let p_specular = self.bsdf.specular_probability(wo);
         let (f, bsdf_pdf) = self.bsdf.eval_pdf(p_specular, wo, wi);
         next_event(&light, p, p_error, ng, wi.z, f, bsdf_pdf, beta, light_only, out);
+        out.shadow_ok = (Mask(out.shadow_ok) & scatters).0;
 
         // BSDF sampling and continuation().
         let sample = self.bsdf.sample(p_specular, wo, self.u, self.uc);
-        let wi_world = self.s * sample.wi.x + self.t * sample.wi.y + self.n * sample.wi.z;
+        let wi_world = surface.to_world(sample.wi);
         let next_beta = beta * (sample.f * (sample.wi.z / sample.pdf));
-        let next_ok =
-            sample.ok & !wi_world.dot(ng).le(zero) & next_beta.is_finite() & !next_beta.max_element().le(zero);
+        let next_ok = scatters
+            & sample.ok
+            & !wi_world.dot(ng).le(zero)
+            & next_beta.is_finite()
+            & !next_beta.max_element().le(zero);
         out.next_ok = next_ok.0;
         out.next_origin = offset_ray_origin(p, p_error, ng, wi_world);
         out.next_direction = wi_world;

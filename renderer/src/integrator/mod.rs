@@ -9,6 +9,7 @@ mod batch;
 mod deferred;
 mod diffuse_lanes;
 mod glossy_lanes;
+mod hit_lanes;
 mod light_lanes;
 mod scattered_lanes;
 

@@ -133,8 +133,8 @@ pub struct SceneMaterials {
     /// Shared with the light set (emissive textures).
     textures: Arc<[Texture]>,
     kinds: Vec<Kind>,
-    /// Per material, its [`SceneMaterials::plain_lambert`] answer.
-    plain_lambert: Vec<Option<(Rgb, bool)>>,
+    /// Per material, its [`SceneMaterials::plain_bsdf`] answer.
+    plain: Vec<Option<(Bsdf<'static>, bool)>>,
     shared: Vec<SharedBsdf>,
     /// Materials that bind a latent code while no latent file was given: (material, latent
     /// name); they render with their glTF parameters.
@@ -170,25 +170,33 @@ impl SceneMaterials {
                 }),
             });
         }
-        let plain_lambert = materials
+        let plain = materials
             .iter()
             .zip(&kinds)
             .map(|(m, &kind)| {
                 // Emits nothing: `emission_at`'s value is then the factor, which `begin` adds
                 // only where some channel is > 0 (so NaN factors count as nothing too).
                 #[allow(clippy::neg_cmp_op_on_partial_ord)]
-                let plain = kind == Kind::Lambert
-                    && m.base_color_texture.is_none()
+                let uniform = m.base_color_texture.is_none()
+                    && (kind != Kind::MetallicRoughness || m.metallic_roughness_texture.is_none())
                     && m.normal_texture.is_none()
                     && !(m.emission.max_element() > 0.0);
-                plain.then_some((m.base_color, m.double_sided))
+                let bsdf = match kind {
+                    Kind::Lambert => Bsdf::Lambert(Lambert { albedo: m.base_color }),
+                    Kind::MetallicRoughness => {
+                        let (f0, f90) = m.dielectric_fresnel();
+                        Bsdf::MetallicRoughness(MetallicRoughness::new(m.base_color, m.metallic, m.roughness).with_dielectric(f0, f90))
+                    }
+                    Kind::Shared(_) => return None,
+                };
+                uniform.then_some((bsdf, m.double_sided))
             })
             .collect();
         Ok(SceneMaterials {
             materials,
             textures: textures.into(),
             kinds,
-            plain_lambert,
+            plain,
             shared,
             unbound_neural,
         })
@@ -241,12 +249,14 @@ impl SceneMaterials {
         })
     }
 
-    /// The albedo of `material`, and whether it is double-sided, where it is an untextured
-    /// Lambertian surface without normal map that emits nothing (its BSDF then needs no
-    /// surface point: what the diffuse lanes begin from a hit); `None` elsewhere.
+    /// The BSDF of `material` and whether it is double-sided, where the BSDF is the same at
+    /// every point (what [`SceneMaterials::bsdf`] gives wherever it gives one) and the
+    /// material emits nothing: an untextured Lambertian or metallic-roughness material
+    /// without normal map (so the lane kernels can begin its vertices from their hits);
+    /// `None` elsewhere.
     #[inline]
-    pub fn plain_lambert(&self, material: u32) -> Option<(Rgb, bool)> {
-        self.plain_lambert[material as usize]
+    pub fn plain_bsdf(&self, material: u32) -> Option<&(Bsdf<'_>, bool)> {
+        self.plain[material as usize].as_ref()
     }
 
     /// Radiance `material` emits from its front side, W/(m² sr): its emissive factor, times

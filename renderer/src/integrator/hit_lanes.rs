@@ -1,0 +1,330 @@
+//! The surface points of a lane kernel's vertices: pushed found (by
+//! [`PathTracer::begin`](super::PathTracer)), or pushed as their hit and found by the kernel
+//! for all such lanes at once ([`crate::render_scene::surface_points_lanes`], the scalar
+//! code's operations, so the same bits).
+
+use super::Vertex;
+use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
+use crate::render_scene::{surface_points_lanes, LaneHit};
+use glam::{Vec2, Vec3};
+
+/// A vertex's surface point per lane: position, its absolute error bound, geometric normal
+/// on the side of the arriving ray, shading frame (s, t, n), and the direction toward the
+/// previous vertex in that frame.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct SurfaceLanes {
+    pub p: Vec3s,
+    pub p_error: Vec3s,
+    pub ng: Vec3s,
+    pub s: Vec3s,
+    pub t: Vec3s,
+    pub n: Vec3s,
+    pub wo: Vec3s,
+}
+
+impl SurfaceLanes {
+    /// World direction `v` in the lanes' shading frames.
+    #[inline(always)]
+    pub fn to_local(&self, v: Vec3s) -> Vec3s {
+        Vec3s {
+            x: v.dot(self.s),
+            y: v.dot(self.t),
+            z: v.dot(self.n),
+        }
+    }
+
+    /// Local direction `v` in world space.
+    #[inline(always)]
+    pub fn to_world(&self, v: Vec3s) -> Vec3s {
+        self.s * v.x + self.t * v.y + self.n * v.z
+    }
+}
+
+/// The surface points of up to [`LANES`] vertices: those pushed found, and what finding
+/// the others needs (their hit, ray direction and whether their material is double-sided).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct HitLanes {
+    found: SurfaceLanes,
+    /// Lanes pushed as their hit; whether any is, and whether any of those has a smooth
+    /// (interpolated) shading normal.
+    from_hit: [bool; LANES],
+    any_from_hit: bool,
+    any_smooth: bool,
+    corners: [Vec3s; 3],
+    ng: Vec3s,
+    normals: [Vec3s; 3],
+    flat: [bool; LANES],
+    barycentric: Vec2s,
+    direction: Vec3s,
+    double_sided: [bool; LANES],
+}
+
+impl HitLanes {
+    /// Forgets which lanes were pushed as hits (their old values stay, unused).
+    #[inline]
+    pub fn clear(&mut self) {
+        self.any_from_hit = false;
+        self.any_smooth = false;
+    }
+
+    /// Lane `i` is `vertex`'s surface point.
+    #[inline(always)]
+    pub fn set_vertex(&mut self, i: usize, vertex: &Vertex) {
+        let sp = &vertex.sp;
+        let found = &mut self.found;
+        found.p.set(i, sp.p);
+        found.p_error.set(i, sp.p_error);
+        found.ng.set(i, sp.ng_facing);
+        found.s.set(i, sp.frame.s);
+        found.t.set(i, sp.frame.t);
+        found.n.set(i, sp.frame.n);
+        found.wo.set(i, vertex.wo);
+        self.from_hit[i] = false;
+    }
+
+    /// Lane `i` is the point a ray of direction `direction` reaches at barycentric
+    /// coordinates `barycentric` of `hit`'s triangle, whose material is `double_sided` or
+    /// not.
+    #[inline(always)]
+    pub fn set_hit(&mut self, i: usize, hit: &LaneHit, barycentric: Vec2, direction: Vec3, double_sided: bool) {
+        for (corners, &corner) in self.corners.iter_mut().zip(&hit.corners) {
+            corners.set(i, corner);
+        }
+        // A flat lane's normal is its first; the others are read only where some lane is
+        // smooth, and then not used for the flat lanes.
+        self.normals[0].set(i, hit.normals[0]);
+        if !hit.flat {
+            self.normals[1].set(i, hit.normals[1]);
+            self.normals[2].set(i, hit.normals[2]);
+        }
+        self.ng.set(i, hit.ng);
+        self.flat[i] = hit.flat;
+        self.barycentric.set(i, barycentric);
+        self.direction.set(i, direction);
+        self.double_sided[i] = double_sided;
+        self.from_hit[i] = true;
+        self.any_from_hit = true;
+        self.any_smooth |= !hit.flat;
+    }
+
+    /// The lanes' surface points, and the lanes whose vertex scatters: those pushed found,
+    /// and those pushed as their hit where [`PathTracer::begin`](super::PathTracer) would
+    /// not end the path (at the back of a single-sided material, or with the ray arriving
+    /// below the shading hemisphere).
+    #[inline(always)]
+    pub fn surface_points(&self) -> (SurfaceLanes, Mask) {
+        if !self.any_from_hit {
+            return (self.found.clone(), Mask([true; LANES]));
+        }
+        let sp = surface_points_lanes(self.corners, self.ng, self.normals, Mask(self.flat), self.any_smooth, self.barycentric, self.direction);
+        let hit = SurfaceLanes {
+            p: sp.p,
+            p_error: sp.p_error,
+            ng: sp.ng_facing,
+            s: sp.s,
+            t: sp.t,
+            n: sp.n,
+            wo: Vec3s::default(),
+        };
+        let wo = hit.to_local(-self.direction);
+        let scatters = (sp.front_face | Mask(self.double_sided)) & !wo.z.le(F32s::splat(0.0));
+        let (from_hit, found) = (Mask(self.from_hit), &self.found);
+        let surface = SurfaceLanes {
+            p: from_hit.select3(hit.p, found.p),
+            p_error: from_hit.select3(hit.p_error, found.p_error),
+            ng: from_hit.select3(hit.ng, found.ng),
+            s: from_hit.select3(hit.s, found.s),
+            t: from_hit.select3(hit.t, found.t),
+            n: from_hit.select3(hit.n, found.n),
+            wo: from_hit.select3(wo, found.wo),
+        };
+        (surface, !from_hit | scatters)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::{Hit, Ray};
+    use crate::bsdf::Bsdf;
+    use crate::integrator::diffuse_lanes::DiffuseLanes;
+    use crate::integrator::glossy_lanes::GlossyLanes;
+    use crate::integrator::light_lanes::LaneLight;
+    use crate::integrator::scattered_lanes::{scatter, LaneKernel, ScatteredLanes};
+    use crate::integrator::{PathState, PathTracer, Strategy};
+    use crate::render_scene::RenderScene;
+    use crate::sampler::Sampler;
+    use crate::sampling::sample_uniform_sphere;
+    use crate::scene::{SceneDescription, SurfaceModel};
+    use crate::Rgb;
+
+    /// Vertices pushed as their hit, alone or mixed in a group with vertices pushed begun,
+    /// give what the scalar `begin` and `scatter` give, bit for bit (the position included),
+    /// and end where `begin` ends the path: on Lambertian surfaces (the Cornell box, whose
+    /// single-sided walls are seen from both sides, and again made double-sided; the
+    /// preview's flat ground, and its smooth-shaded sphere made Lambertian) and
+    /// metallic-roughness ones (the preview's sphere, and its ground made
+    /// metallic-roughness), under every strategy.
+    #[test]
+    fn hits_pushed_equal_scalar_begin_and_scatter() {
+        let load = |name: &str| {
+            let path = format!("{}/../scenes/{name}/scene.gltf", env!("CARGO_MANIFEST_DIR"));
+            SceneDescription::load(path.as_ref()).expect("shipped scene")
+        };
+        let cornell = load("cornell-box");
+        assert!(cornell.materials.iter().all(|m| !m.double_sided), "the box's walls are single-sided");
+        let mut double_sided = cornell.clone();
+        for m in &mut double_sided.materials {
+            m.double_sided = true;
+        }
+        let preview = load("material-preview");
+        let with_model = |model: SurfaceModel| {
+            let mut description = preview.clone();
+            for m in &mut description.materials {
+                m.model = model.clone();
+            }
+            description
+        };
+        let (glossy, diffuse) = (with_model(SurfaceModel::MetallicRoughness), with_model(SurfaceModel::Lambert));
+        // Per kernel (diffuse, glossy): vertices, pushed as hits, ended, smooth-shaded, lit.
+        let mut totals = [[0usize; 5]; 2];
+        for (description, double_sided) in [(cornell, false), (double_sided, true), (preview, false), (glossy, false), (diffuse, false)] {
+            let scene = RenderScene::new(description).expect("scene");
+            for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
+                let tracer = PathTracer {
+                    strategy,
+                    ..PathTracer::default()
+                };
+                let (diffuse, glossy) = cases(&scene, &tracer);
+                for (kernel, cases) in [diffuse, glossy].into_iter().enumerate() {
+                    if cases.is_empty() {
+                        continue;
+                    }
+                    let counts = if kernel == 0 {
+                        check::<DiffuseLanes>(&scene, &tracer, &cases, |lanes, v, bsdf, beta, light| match bsdf {
+                            Bsdf::Lambert(b) => lanes.push(v, b.albedo, beta, light),
+                            _ => unreachable!(),
+                        }, |lanes, hit, b, direction, double_sided, bsdf, beta, draws, light| match bsdf {
+                            Bsdf::Lambert(l) => lanes.push_hit(hit, b, direction, double_sided, l.albedo, beta, draws, light),
+                            _ => unreachable!(),
+                        })
+                    } else {
+                        check::<GlossyLanes>(&scene, &tracer, &cases, |lanes, v, bsdf, beta, light| match bsdf {
+                            Bsdf::MetallicRoughness(m) => lanes.push(v, m, beta, light),
+                            _ => unreachable!(),
+                        }, |lanes, hit, b, direction, double_sided, bsdf, beta, draws, light| match bsdf {
+                            Bsdf::MetallicRoughness(m) => lanes.push_hit(hit, b, direction, double_sided, m, beta, draws, light),
+                            _ => unreachable!(),
+                        })
+                    };
+                    let Counts { from_hits, ended, shadows, smooth } = counts;
+                    let n = cases.len();
+                    assert!(from_hits > n / 2, "{strategy:?}: {from_hits} of {n} pushed as hits");
+                    assert!(ended < n && (ended == 0 || !double_sided), "{strategy:?}: {ended} of {n} ended");
+                    for (total, count) in totals[kernel].iter_mut().zip([n, from_hits, ended, smooth, shadows]) {
+                        *total += count;
+                    }
+                }
+            }
+        }
+        for (kernel, [n, from_hits, ended, smooth, shadows]) in totals.into_iter().enumerate() {
+            assert!(n >= 1000 && from_hits > 0 && ended > 0 && smooth > 0 && shadows > 0, "kernel {kernel}: {:?}", totals[kernel]);
+        }
+    }
+
+    /// A vertex's path before it, its hit, and whether to push it as its hit.
+    type Case = (PathState, Hit, bool);
+
+    /// Up to 169 vertices each for the diffuse and the glossy kernel that can be begun in
+    /// lanes, from rays inside the scene's bounds in random directions or (every other ray)
+    /// toward a random triangle (so mostly the dense meshes'), every eighth vertex with a
+    /// zero throughput.
+    fn cases(scene: &RenderScene, tracer: &PathTracer) -> (Vec<Case>, Vec<Case>) {
+        let mut rng = Sampler::new(9, 2, 6);
+        let (mut diffuse, mut glossy) = (Vec::new(), Vec::new());
+        let triangles = scene.geometry.triangle_count();
+        for k in 0..20_000 {
+            let origin = scene.bounds_centre + (rng.next_2d().extend(rng.next_1d()) - 0.5) * scene.bounds_radius;
+            let direction = if k % 2 == 0 {
+                sample_uniform_sphere(rng.next_2d())
+            } else {
+                let tri = ((rng.next_1d() * triangles as f32) as usize).min(triangles - 1);
+                let [a, b, c] = scene.geometry.triangle_positions(tri);
+                let toward = (a + b + c) / 3.0 - origin;
+                toward.normalize_or(Vec3::Z)
+            };
+            let ray = Ray::new(origin, direction);
+            let mut state = tracer.start(ray, rng.clone()).expect("depth allows a segment");
+            rng.next_1d();
+            let Some(hit) = scene.intersect(&ray) else { continue };
+            let mut drawn = state.clone();
+            let draws = tracer.draw(scene, &mut drawn);
+            let Some((_, &(bsdf, _), _)) = tracer.lane_begin(scene, &drawn, &hit, &draws) else { continue };
+            let cases = if matches!(bsdf, Bsdf::Lambert(_)) { &mut diffuse } else { &mut glossy };
+            if cases.len() < 16 * 10 + 9 {
+                state.beta = if cases.len() % 8 == 0 { Rgb::ZERO } else { rng.next_2d().extend(rng.next_1d()) * 2.0 };
+                // Every third one pushed begun (where it scatters), the rest as hits.
+                cases.push((state, hit, cases.len() % 3 != 0));
+            }
+        }
+        (diffuse, glossy)
+    }
+
+    struct Counts {
+        from_hits: usize,
+        ended: usize,
+        shadows: usize,
+        smooth: usize,
+    }
+
+    /// Pushes `cases` into kernel `K` in groups (begun with `push_vertex`, or as their hit
+    /// with `push_hit`) and compares each lane with the scalar code.
+    #[allow(clippy::type_complexity)]
+    fn check<'s, K: LaneKernel + Default>(
+        scene: &'s RenderScene,
+        tracer: &PathTracer,
+        cases: &[Case],
+        push_vertex: impl Fn(&mut K, &Vertex<'s>, &Bsdf<'s>, Rgb, LaneLight<'s>),
+        push_hit: impl Fn(&mut K, &LaneHit, Vec2, Vec3, bool, &Bsdf<'s>, Rgb, &super::super::Draws, LaneLight<'s>),
+    ) -> Counts {
+        let strategy = tracer.strategy;
+        let (mut lanes, mut out) = (K::default(), ScatteredLanes::default());
+        let mut counts = Counts { from_hits: 0, ended: 0, shadows: 0, smooth: 0 };
+        for group in cases.chunks(LANES) {
+            lanes.clear();
+            let mut expected = Vec::new();
+            for (state, hit, as_hit) in group {
+                let mut begun = state.clone();
+                let vertex = tracer.begin(scene, &mut begun, Some(*hit));
+                let scattered = vertex.map(|v| (tracer.scatter(scene, &v, state.beta), v.sp.p));
+                let mut drawn = state.clone();
+                let draws = tracer.draw(scene, &mut drawn);
+                assert_eq!(format!("{:?}", drawn.sampler), format!("{:?}", begun.sampler), "the same numbers drawn");
+                let (lane_hit, &(bsdf, double_sided), light) = tracer.lane_begin(scene, &drawn, hit, &draws).expect("begins in lanes");
+                match (vertex, as_hit) {
+                    (Some(v), false) => push_vertex(&mut lanes, &v, &bsdf, state.beta, tracer.lane_light(scene, &v)),
+                    _ => {
+                        push_hit(&mut lanes, &lane_hit, hit.barycentric, state.ray.direction, double_sided, &bsdf, state.beta, &draws, light);
+                        counts.from_hits += 1;
+                        counts.smooth += !lane_hit.flat as usize;
+                    }
+                }
+                counts.ended += scattered.is_none() as usize;
+                counts.shadows += scattered.is_some_and(|(s, _)| s.shadow.is_some()) as usize;
+                expected.push(scattered);
+            }
+            scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
+            for (lane, expected) in expected.iter().enumerate() {
+                let got = out.get(lane);
+                match expected {
+                    Some((scattered, p)) => {
+                        assert_eq!(format!("{got:?}"), format!("{scattered:?}"), "{strategy:?}, lane {lane}");
+                        assert_eq!(out.p.get(lane).to_array().map(f32::to_bits), p.to_array().map(f32::to_bits));
+                    }
+                    None => assert!(got.shadow.is_none() && got.next.is_none(), "{strategy:?}, lane {lane}: the path ends"),
+                }
+            }
+        }
+        counts
+    }
+}
