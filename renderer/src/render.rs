@@ -437,13 +437,11 @@ impl Tiles {
 mod tests {
     use super::*;
     use crate::integrator::{PathCounters, Strategy};
-    use crate::scene::SceneDescription;
 
     /// The batched tile loop must give exactly the per-path estimator's image: same random
     /// streams, same arithmetic, same accumulation order.
     #[test]
     fn batched_tiles_equal_paths_traced_one_by_one() {
-        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/");
         // The material-preview's sphere: metallic-roughness without a latent file, the decoded
         // neural material with the shipped one, or its slot given a MERL table or an NBRDF
         // network (all three scattered with their values evaluated together).
@@ -475,7 +473,7 @@ mod tests {
             ("material-preview", 5, Strategy::LightOnly, Sphere::Gltf, true),
         ];
         for (name, max_depth, strategy, sphere, constant_environment) in cases {
-            let mut description = SceneDescription::load(format!("{root}{name}/scene.gltf").as_ref()).expect("shipped scene");
+            let mut description = crate::testing::data::shipped_scene(name);
             if constant_environment {
                 let spec = description.environment.as_mut().expect("the scene has an environment");
                 spec.source = crate::scene::EnvironmentSource::Constant(Rgb::new(0.9, 1.0, 1.2));
@@ -533,8 +531,7 @@ mod tests {
 
     /// A shipped scene ready to render, with its default camera.
     fn shipped_scene(name: &str) -> (RenderScene, crate::scene::Camera) {
-        let path = format!(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/{}/scene.gltf"), name);
-        let description = SceneDescription::load(path.as_ref()).expect("shipped scene");
+        let description = crate::testing::data::shipped_scene(name);
         let camera = description.camera(None).expect("camera").clone();
         (RenderScene::new(description).expect("scene"), camera)
     }

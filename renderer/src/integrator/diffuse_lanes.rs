@@ -138,7 +138,7 @@ mod tests {
     use crate::render_scene::RenderScene;
     use crate::sampler::Sampler;
     use crate::sampling::sample_uniform_sphere;
-    use crate::scene::{EnvironmentSource, PunctualLight, SceneDescription};
+    use crate::scene::{EnvironmentSource, PunctualLight};
 
     /// Every lane gives what the scalar `scatter` gives for its vertex, bit for bit, for
     /// full and partial groups, every strategy, lights behind the surface and zero
@@ -148,10 +148,7 @@ mod tests {
     /// are pushed drawn).
     #[test]
     fn lanes_equal_scalar_scatter_bit_for_bit() {
-        let load = |name: &str| {
-            let path = format!("{}/../scenes/{name}/scene.gltf", env!("CARGO_MANIFEST_DIR"));
-            SceneDescription::load(path.as_ref()).expect("shipped scene")
-        };
+        let load = crate::testing::data::shipped_scene;
         let preview = load("material-preview");
         let mut constant = preview.clone();
         let spec = constant.environment.as_mut().expect("the preview has an environment");

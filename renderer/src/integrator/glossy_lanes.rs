@@ -136,7 +136,7 @@ mod tests {
     use crate::render_scene::RenderScene;
     use crate::sampler::Sampler;
     use crate::sampling::sample_uniform_sphere;
-    use crate::scene::{EnvironmentSource, SceneDescription};
+    use crate::scene::EnvironmentSource;
 
     /// Every lane gives what the scalar `scatter` gives for its vertex, bit for bit, on the
     /// material-preview's metallic-roughness surfaces lit by its point light and by its
@@ -145,8 +145,7 @@ mod tests {
     /// throughputs.
     #[test]
     fn lanes_equal_scalar_scatter_bit_for_bit() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/material-preview/scene.gltf");
-        let description = SceneDescription::load(path.as_ref()).expect("shipped scene");
+        let description = crate::testing::data::shipped_scene("material-preview");
         let mut constant = description.clone();
         let spec = constant.environment.as_mut().expect("the preview has an environment");
         spec.source = EnvironmentSource::Constant(Rgb::new(0.8, 1.0, 1.3));

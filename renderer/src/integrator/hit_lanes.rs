@@ -155,7 +155,7 @@ mod tests {
     use crate::render_scene::RenderScene;
     use crate::sampler::Sampler;
     use crate::sampling::sample_uniform_sphere;
-    use crate::scene::{SceneDescription, SurfaceModel};
+    use crate::scene::SurfaceModel;
     use crate::Rgb;
 
     /// Vertices pushed as their hit, alone or mixed in a group with vertices pushed begun,
@@ -167,10 +167,7 @@ mod tests {
     /// metallic-roughness), under every strategy.
     #[test]
     fn hits_pushed_equal_scalar_begin_and_scatter() {
-        let load = |name: &str| {
-            let path = format!("{}/../scenes/{name}/scene.gltf", env!("CARGO_MANIFEST_DIR"));
-            SceneDescription::load(path.as_ref()).expect("shipped scene")
-        };
+        let load = crate::testing::data::shipped_scene;
         let cornell = load("cornell-box");
         assert!(cornell.materials.iter().all(|m| !m.double_sided), "the box's walls are single-sided");
         let mut double_sided = cornell.clone();

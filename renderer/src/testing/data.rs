@@ -1,8 +1,9 @@
 //! The real data unit tests read: the shared NBRDF networks (`../shared/data/nbrdf`, always
-//! next to the repository) and the shipped latent file.
+//! next to the repository), the shipped scenes and the shipped latent file.
 
 use crate::neural::latent_library::LatentLibrary;
 use crate::neural::nbrdf::NbrdfNetwork;
+use crate::scene::SceneDescription;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
@@ -14,6 +15,12 @@ pub(crate) fn data_dir() -> PathBuf {
 /// The NBRDF network fitted to MERL material `name`.
 pub(crate) fn merl_network(name: &str) -> NbrdfNetwork {
     NbrdfNetwork::load(data_dir().join("merl").join(name)).unwrap()
+}
+
+/// The shipped scene `scenes/NAME/scene.gltf`, loaded.
+pub(crate) fn shipped_scene(name: &str) -> SceneDescription {
+    let path = format!(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/{}/scene.gltf"), name);
+    SceneDescription::load(path.as_ref()).expect("shipped scene")
 }
 
 /// The shipped latent file, read once per test process.
