@@ -1,6 +1,8 @@
-//! [`PathTracer::step`] for a batch of paths: the vertices are begun one by one, those on
-//! Lambertian and metallic-roughness surfaces scattered [`LANES`](crate::lanes::LANES) at a
-//! time under any light ([`DiffuseLanes`], [`GlossyLanes`]), those on decoded neural
+//! [`PathTracer::step`] for a batch of paths: each vertex's random numbers are drawn and
+//! its light chosen one by one; those on Lambertian and metallic-roughness surfaces are
+//! scattered [`LANES`](crate::lanes::LANES) at a time under any light ([`DiffuseLanes`],
+//! [`GlossyLanes`]; on uniform materials pushed as their hits, the kernel finding their
+//! surface points, elsewhere begun one by one), those on decoded neural
 //! materials, NBRDF networks and MERL tables with their values evaluated together after all
 //! were sampled ([`DeferredScatter`]: one batched forward pass per net, table entries
 //! prefetched), the others one by one. Each vertex's path is advanced as soon as its

@@ -50,9 +50,9 @@ impl ScatteredLanes {
 /// instructions the CPU has.
 pub(crate) trait LaneKernel {
     /// Scatters every lane (the filled ones matter) into `out` (with the vertices'
-    /// positions); `light_only` weighs light
-    /// samples by 1 instead of the power heuristic. Written with [`crate::lanes`] types and
-    /// `#[inline(always)]`, so that it is compiled into each of [`scatter`]'s copies.
+    /// positions); `light_only` weighs light samples by 1 instead of the power heuristic.
+    /// Written with [`crate::lanes`] types and `#[inline(always)]`, so that it is compiled
+    /// into each of [`scatter`]'s copies.
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes);
 
     /// Number of lanes filled.
