@@ -434,24 +434,44 @@ pub(crate) struct LaneHit {
     pub material: u32,
 }
 
-/// The surface points [`surface_points_lanes`] finds.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct SurfacePointsLanes {
+/// A vertex's surface point per lane, as the lane kernels read it: position, its absolute
+/// error bound, geometric normal on the side of the arriving ray, shading frame (s, t, n),
+/// and the direction toward the previous vertex in that frame (the vertex's wo).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct SurfaceLanes {
     pub p: Vec3s,
     pub p_error: Vec3s,
-    pub ng_facing: Vec3s,
-    pub front_face: Mask,
-    /// The shading frame.
+    pub ng: Vec3s,
     pub s: Vec3s,
     pub t: Vec3s,
     pub n: Vec3s,
+    pub wo: Vec3s,
 }
+
+impl SurfaceLanes {
+    /// World direction `v` in the lanes' shading frames.
+    #[inline(always)]
+    pub fn to_local(&self, v: Vec3s) -> Vec3s {
+        Vec3s {
+            x: v.dot(self.s),
+            y: v.dot(self.t),
+            z: v.dot(self.n),
+        }
+    }
+
+    /// Local direction `v` in world space.
+    #[inline(always)]
+    pub fn to_world(&self, v: Vec3s) -> Vec3s {
+        self.s * v.x + self.t * v.y + self.n * v.z
+    }
+}
+
 
 /// The surface points of [`LaneHit`]s (per lane: the triangle's corners, geometric normal
 /// `ng`, `normals` and whether they are `flat`; `any_smooth` where some lane's are not) at
 /// barycentric coordinates `barycentric` of rays with directions `direction`, with
-/// [`RenderScene::surface_point`]'s operations for a triangle without normal map (so the
-/// same bits).
+/// [`RenderScene::surface_point`]'s operations for a triangle without normal map and wo as
+/// `PathTracer::begin` finds it (so the same bits); and the lanes hit from the front.
 #[inline(always)]
 pub(crate) fn surface_points_lanes(
     corners: [Vec3s; 3],
@@ -461,7 +481,7 @@ pub(crate) fn surface_points_lanes(
     any_smooth: bool,
     barycentric: Vec2s,
     direction: Vec3s,
-) -> SurfacePointsLanes {
+) -> (SurfaceLanes, Mask) {
     let zero = F32s::splat(0.0);
     let (p, p_error) = interpolate_point_lanes(corners, barycentric);
     let mut ns = normals[0];
@@ -475,7 +495,9 @@ pub(crate) fn surface_points_lanes(
     let ng_facing = front_face.select3(ng, -ng);
     let n = ns.dot(ng_facing).lt(zero).select3(-ns, ns);
     let (s, t) = Frame::from_normal_lanes(n);
-    SurfacePointsLanes { p, p_error, ng_facing, front_face, s, t, n }
+    let mut surface = SurfaceLanes { p, p_error, ng: ng_facing, s, t, n, wo: Vec3s::default() };
+    surface.wo = surface.to_local(-direction);
+    (surface, front_face)
 }
 
 /// A normal-mapped shading normal `ns` tilted toward the viewer direction `wo` (unit, on

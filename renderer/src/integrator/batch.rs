@@ -126,10 +126,10 @@ impl PathTracer {
                 if let Some((lane_hit, &(bsdf, double_sided), light)) = self.lane_begin(scene, path, &hit, &draws) {
                     let (b, direction) = (hit.barycentric, path.ray.direction);
                     let settle = |i, p, s| self.settle(paths, results, i, p, s);
-                    if let Bsdf::Lambert(l) = bsdf {
-                        diffuse.push(i, light_only, |lanes| lanes.push_hit(&lane_hit, b, direction, double_sided, l.albedo, beta, &draws, light), settle);
-                    } else if let Bsdf::MetallicRoughness(m) = &bsdf {
-                        glossy.push(i, light_only, |lanes| lanes.push_hit(&lane_hit, b, direction, double_sided, m, beta, &draws, light), settle);
+                    match bsdf {
+                        Bsdf::Lambert(l) => diffuse.push(i, light_only, |lanes| lanes.push_hit(&lane_hit, b, direction, double_sided, l.albedo, beta, &draws, light), settle),
+                        Bsdf::MetallicRoughness(m) => glossy.push(i, light_only, |lanes| lanes.push_hit(&lane_hit, b, direction, double_sided, &m, beta, &draws, light), settle),
+                        _ => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
                     }
                     continue;
                 }

@@ -5,40 +5,8 @@
 
 use super::Vertex;
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
-use crate::render_scene::{surface_points_lanes, LaneHit};
+use crate::render_scene::{surface_points_lanes, LaneHit, SurfaceLanes};
 use glam::{Vec2, Vec3};
-
-/// A vertex's surface point per lane: position, its absolute error bound, geometric normal
-/// on the side of the arriving ray, shading frame (s, t, n), and the direction toward the
-/// previous vertex in that frame.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct SurfaceLanes {
-    pub p: Vec3s,
-    pub p_error: Vec3s,
-    pub ng: Vec3s,
-    pub s: Vec3s,
-    pub t: Vec3s,
-    pub n: Vec3s,
-    pub wo: Vec3s,
-}
-
-impl SurfaceLanes {
-    /// World direction `v` in the lanes' shading frames.
-    #[inline(always)]
-    pub fn to_local(&self, v: Vec3s) -> Vec3s {
-        Vec3s {
-            x: v.dot(self.s),
-            y: v.dot(self.t),
-            z: v.dot(self.n),
-        }
-    }
-
-    /// Local direction `v` in world space.
-    #[inline(always)]
-    pub fn to_world(&self, v: Vec3s) -> Vec3s {
-        self.s * v.x + self.t * v.y + self.n * v.z
-    }
-}
 
 /// The surface points of up to [`LANES`] vertices: those pushed found, and what finding
 /// the others needs (their hit, ray direction and whether their material is double-sided).
@@ -116,18 +84,9 @@ impl HitLanes {
         if !self.any_from_hit {
             return (self.found.clone(), Mask([true; LANES]));
         }
-        let sp = surface_points_lanes(self.corners, self.ng, self.normals, Mask(self.flat), self.any_smooth, self.barycentric, self.direction);
-        let hit = SurfaceLanes {
-            p: sp.p,
-            p_error: sp.p_error,
-            ng: sp.ng_facing,
-            s: sp.s,
-            t: sp.t,
-            n: sp.n,
-            wo: Vec3s::default(),
-        };
-        let wo = hit.to_local(-self.direction);
-        let scatters = (sp.front_face | Mask(self.double_sided)) & !wo.z.le(F32s::splat(0.0));
+        let (hit, front_face) =
+            surface_points_lanes(self.corners, self.ng, self.normals, Mask(self.flat), self.any_smooth, self.barycentric, self.direction);
+        let scatters = (front_face | Mask(self.double_sided)) & !hit.wo.z.le(F32s::splat(0.0));
         let (from_hit, found) = (Mask(self.from_hit), &self.found);
         let surface = SurfaceLanes {
             p: from_hit.select3(hit.p, found.p),
@@ -136,7 +95,7 @@ impl HitLanes {
             s: from_hit.select3(hit.s, found.s),
             t: from_hit.select3(hit.t, found.t),
             n: from_hit.select3(hit.n, found.n),
-            wo: from_hit.select3(wo, found.wo),
+            wo: from_hit.select3(hit.wo, found.wo),
         };
         (surface, !from_hit | scatters)
     }

@@ -14,7 +14,7 @@
 
 use super::scattered_lanes::{offset_ray_origin, power_heuristic, ScatteredLanes};
 use super::{PathTracer, Strategy, Vertex, SHADOW_EPSILON};
-use crate::accel::gamma;
+use crate::accel::interpolate_point_lanes;
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::lights::area::TriangleLight;
 use crate::lights::environment::Environment;
@@ -232,11 +232,7 @@ impl<'s> LightLanes<'s> {
         let lower = ux.lt(uy);
         let b0 = lower.select(ux * 0.5, ux - uy * 0.5);
         let b1 = lower.select(uy - ux * 0.5, uy * 0.5);
-        let (bx, by) = (b1, 1.0 - b0 - b1);
-        let w0 = 1.0 - bx - by;
-        let [v0, v1, v2] = self.corners;
-        let q = v0 * w0 + v1 * bx + v2 * by;
-        let q_error = ((v0 * w0).abs() + (v1 * bx).abs() + (v2 * by).abs()) * gamma(7.0);
+        let (q, q_error) = interpolate_point_lanes(self.corners, Vec2s { x: b1, y: 1.0 - b0 - b1 });
         let to = q - p;
         let d2 = to.dot(to);
         let distance = d2.sqrt();
