@@ -60,7 +60,7 @@ use renderer::render_scene::RenderScene;
 use renderer::scene::{SceneDescription, SurfaceModel};
 use renderer::Rgb;
 use glam::Vec3;
-use renderer::testing::chi2::guided_directional_albedo;
+use renderer::bsdf::albedo::guided_directional_albedo;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -94,7 +94,7 @@ pub const ALBEDO_THETAS: [f32; 3] = [0.0, 45.0, 75.0];
 
 /// The candidate's directional albedo over the table's at [`ALBEDO_THETAS`], both integrated
 /// over the same directions guided by the table's sampler
-/// ([`renderer::testing::chi2::guided_directional_albedo`]); a table channel with no energy gives
+/// ([`renderer::bsdf::albedo::guided_directional_albedo`]); a table channel with no energy gives
 /// ratio 1 when the candidate has none either.
 pub fn albedo_ratios(candidate: &impl Bxdf, table: &MerlBsdf, samples: usize) -> [[f64; 3]; 3] {
     ALBEDO_THETAS.map(|deg| {

@@ -16,6 +16,7 @@
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
+pub mod albedo;
 pub mod lambert;
 pub mod merl;
 pub mod metallic_roughness;

@@ -413,8 +413,8 @@ mod tests {
             );
             for deg in [0.0f32, 45.0, 75.0] {
                 let wo = unit(deg.to_radians(), 0.0);
-                let a = crate::testing::chi2::guided_directional_albedo(&decoded, &table, wo, 40_000);
-                let b = crate::testing::chi2::guided_directional_albedo(&table, &table, wo, 40_000);
+                let a = crate::bsdf::albedo::guided_directional_albedo(&decoded, &table, wo, 40_000);
+                let b = crate::bsdf::albedo::guided_directional_albedo(&table, &table, wo, 40_000);
                 let ratio = a / b;
                 if (ratio - glam::DVec3::ONE).abs().max_element() > 0.1 {
                     failures.push(format!("{name} θo={deg}°: decoded/table {ratio:.3}"));

@@ -95,7 +95,7 @@ fn measured_brdfs_do_not_create_energy() {
         for (kind, bsdf) in kinds {
             for degrees in [0.0f32, 30.0, 60.0, 80.0, 85.0] {
                 let t = degrees.to_radians();
-                let albedo = chi2::directional_albedo(bsdf, Vec3::new(t.sin(), 0.0, t.cos()), 50_000);
+                let albedo = crate::bsdf::albedo::directional_albedo(bsdf, Vec3::new(t.sin(), 0.0, t.cos()), 50_000);
                 assert!(albedo.max_element() < 1.01, "{kind} {name} at θo = {degrees}°: albedo {albedo}");
             }
         }
