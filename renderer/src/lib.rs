@@ -31,6 +31,7 @@ pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod support;
+#[cfg(any(test, feature = "testing"))]
 pub mod testing;
 pub mod trig;
 
