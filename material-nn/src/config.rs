@@ -4,10 +4,12 @@
 //! fields.
 
 use crate::augment::Augmentation;
+use crate::dataset::{MaterialTable, Sampler};
 use crate::error::{Error, Result};
 use renderer::neural::mapping::MappingForm;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+use std::sync::Arc;
 
 /// Which model a run trains.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -230,6 +232,17 @@ impl TrainConfig {
             .map_err(|e| Error::invalid_file(path, format!("bad config: {e}")))?;
         config.check().map_err(|e| Error::invalid_file(path, e))?;
         Ok(config)
+    }
+
+    /// The sampler this run draws its sample sets with (mapping, ε, θh distribution) around
+    /// f_ref, `reference`.
+    pub fn sampler(&self, reference: MaterialTable) -> Sampler {
+        Sampler {
+            reference: Arc::new(reference),
+            mapping: self.mapping,
+            epsilon: self.epsilon,
+            peak_share: self.peak_share,
+        }
     }
 
     /// The learning rate of optimiser step `step` (0-based) of a run of `total_steps`.

@@ -345,16 +345,6 @@ pub struct Sampler {
 const MAX_ATTEMPTS_PER_SAMPLE: usize = 64;
 
 impl Sampler {
-    /// The sampler a run is configured with (mapping, ε, θh distribution) around `reference`.
-    pub fn of(config: &crate::config::TrainConfig, reference: MaterialTable) -> Self {
-        Sampler {
-            reference: Arc::new(reference),
-            mapping: config.mapping,
-            epsilon: config.epsilon,
-            peak_share: config.peak_share,
-        }
-    }
-
     /// The sample of a rendered point with measured value `f` (1/sr): (network input,
     /// mapped value, cos θi); `None` where f_ref is unmeasured.
     pub fn sample_of(&self, point: &RenderedPoint, f: [f32; 3]) -> Option<([f32; 6], [f32; 3], f32)> {

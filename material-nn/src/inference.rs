@@ -432,7 +432,7 @@ impl TrainedRun {
         let info: RunInfo = read_json(&run.info())?;
         let split: crate::dataset::Split = read_json(&run.split())?;
         let config = ckpt.config;
-        let sampler = Sampler::of(&config, reference);
+        let sampler = config.sampler(reference);
         let codec = Codec::new(model, sampler, ReconstructionLoss::of(&config));
         Ok(TrainedRun {
             config,

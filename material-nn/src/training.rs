@@ -347,7 +347,7 @@ fn new_run(req: &TrainRequest, run: &RunDir) -> Result<Setup> {
         },
     )?;
     Ok(Setup {
-        sampler: Sampler::of(&config, reference),
+        sampler: config.sampler(reference),
         config,
         train,
         validation,
@@ -371,7 +371,7 @@ fn existing_run(data_dir: &Path, run: &RunDir, config: TrainConfig, table_cache_
     let (train, validation) = open_split(data_dir, &split, table_cache_bytes)?;
     let reference = MaterialTable::read(&run.reference())?;
     Ok(Setup {
-        sampler: Sampler::of(&config, reference),
+        sampler: config.sampler(reference),
         config,
         train,
         validation,

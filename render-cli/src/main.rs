@@ -342,8 +342,8 @@ fn run(args: Args) -> Result<()> {
         (None, Some((k, n))) => Region::band(width, height, k, n).with_context(|| {
             format!(
                 "invalid value for --tile: {k}/{n}: the {width}x{height} image has {} rows of {} pixels to share out",
-                height.div_ceil(renderer::render::TILE_SIZE),
-                renderer::render::TILE_SIZE
+                height.div_ceil(renderer::film::TILE_SIZE),
+                renderer::film::TILE_SIZE
             )
         })?,
         (None, None) => Region::whole(width, height),

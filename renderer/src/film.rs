@@ -2,9 +2,12 @@
 //! (for a per-pixel variance estimate) and the number of samples taken, for the whole image
 //! or for a [`Region`] of it (`render --region`, one part of a render split across machines).
 
-use crate::render::TILE_SIZE;
 use crate::Rgb;
 use serde::Serialize;
+
+/// Edge length in pixels of the square tiles of one grid over the whole image: the render
+/// loop's unit of work ([`crate::render`]) and the rows that [`Region::band`] shares out.
+pub const TILE_SIZE: u32 = 16;
 
 /// A rectangle of pixels [x0, x1) × [y0, y1) of an image, in pixels from the top-left
 /// corner (ends exclusive).

@@ -7,7 +7,7 @@
 //! position in the whole image).
 
 use crate::camera::PinholeCamera;
-use crate::film::{Film, PixelAccumulator, Region};
+use crate::film::{Film, PixelAccumulator, Region, TILE_SIZE};
 use crate::accel::{Hit, Ray, DEPTH_CLASSES};
 use crate::integrator::{BatchBuffers, PathState, PathTracer, StepResults};
 use crate::lanes::{Vec2s, LANES};
@@ -20,9 +20,6 @@ use serde::Serialize;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::time::{Duration, Instant};
-
-/// Edge length of a square tile in pixels.
-pub const TILE_SIZE: u32 = 16;
 
 /// The most samples per pixel one pass takes, with a sample or a time budget: Ctrl-C is
 /// answered within one tile of this many samples per pixel.

@@ -38,7 +38,7 @@
 
 use crate::formats::merl::{BIN_COUNT, PHI_D_BINS, THETA_D_BINS, THETA_H_BINS};
 use crate::neural::mapping::MappingForm;
-use crate::neural::mlp::{DenseLayer, Encoder, Mlp};
+use crate::neural::mlp::{decode_target_net, DenseLayer, Encoder, Mlp};
 use crate::{Error, Result};
 use half::f16;
 use std::path::Path;
@@ -128,6 +128,25 @@ impl LatentFile {
     pub fn residual_len(&self) -> usize {
         let params: usize = self.target_layers().iter().map(|(i, o)| i * o + o).sum();
         params - self.target_widths.last().copied().unwrap_or(0)
+    }
+
+    /// Decodes a latent code into the target net ([`decode_target_net`] with this file's
+    /// hypernetwork and target-net shape): the code's output offset (per channel of the last
+    /// layer) added to its output bias and its residual (empty: none; see
+    /// [`NamedLatent::residual`]) to the other parameters.
+    ///
+    /// # Panics
+    /// If `z.len()` differs from `latent_dim`, the target net does not end in
+    /// `offset.len()` outputs, or the residual is neither empty nor
+    /// [`LatentFile::residual_len`] long (a file read by [`LatentFile::read`] is
+    /// consistent; check user-made codes first).
+    pub fn decode(&self, z: &[f32], offset: [f32; 3], residual: &[f32]) -> Mlp {
+        assert_eq!(z.len(), self.latent_dim, "latent code size");
+        assert!(
+            residual.is_empty() || residual.len() == self.residual_len(),
+            "residual size"
+        );
+        decode_target_net(&self.hypernetwork, &self.target_layers(), z, offset, residual)
     }
 
     /// The latent code called `name`.

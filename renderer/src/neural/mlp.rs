@@ -7,8 +7,6 @@
 //! Dense layers compute y = x · W + b with W stored [d_in, d_out] row-major (as NBRDF's `.npy`
 //! tensors and burn's `Linear`).
 
-use crate::formats::latent_file::LatentFile;
-
 /// One dense layer y = x · W + b.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DenseLayer {
@@ -186,7 +184,7 @@ impl Encoder {
     /// over the samples (summed in f64). No samples give zeros of the output width.
     ///
     /// # Panics
-    /// If the layers do not chain (a file read by [`LatentFile::read`] is consistent).
+    /// If the layers do not chain (those of a latent file that was read do).
     pub fn encode(&self, samples: &[[f32; 9]]) -> Vec<f32> {
         let width = self.output_width();
         let mut sum = vec![0.0f64; width];
@@ -206,56 +204,49 @@ impl Encoder {
     }
 }
 
-impl LatentFile {
-    /// Decodes a latent code into the target net (hypernetwork forward pass in f32): one MLP
-    /// with ReLU after every hidden layer and a linear output y, the code's output offset
-    /// (per channel of the last layer) added to its output bias and its residual (empty:
-    /// none; see [`crate::formats::latent_file::NamedLatent::residual`]) to the other
-    /// parameters.
-    ///
-    /// # Panics
-    /// If `z.len()` differs from `latent_dim`, the target net does not end in
-    /// `offset.len()` outputs, or the residual is neither empty nor
-    /// [`LatentFile::residual_len`] long (a file read by [`LatentFile::read`] is
-    /// consistent; check user-made codes first).
-    pub fn decode(&self, z: &[f32], offset: [f32; 3], residual: &[f32]) -> Mlp {
-        assert_eq!(z.len(), self.latent_dim, "latent code size");
-        assert!(
-            residual.is_empty() || residual.len() == self.residual_len(),
-            "residual size"
-        );
-        let mut outputs: Vec<Vec<f32>> = self
-            .hypernetwork
-            .iter()
-            .map(|head| head.forward(z))
-            .collect();
-        if !residual.is_empty() {
-            // One slice per head in order, the output bias's head excepted (the offset's).
-            let mut rest = residual;
-            let last = outputs.len() - 1;
-            for out in &mut outputs[..last] {
-                let (head, tail) = rest.split_at(out.len());
-                out.iter_mut().zip(head).for_each(|(v, d)| *v += d);
-                rest = tail;
-            }
+/// Decodes latent code `z` into the target net (the hypernetwork forward pass in f32): head
+/// `2k` of `heads` gives the weights and head `2k + 1` the biases of target layer `k`, whose
+/// shape is `target_layers[k]` (d_in, d_out); one MLP with ReLU after every hidden layer and
+/// a linear output y. The code's output `offset` (per channel of the last layer) is added to
+/// the output bias and its `residual` (empty: none; one slice per head in order, the output
+/// bias's head excepted) to the other parameters.
+///
+/// # Panics
+/// If the heads do not make the layers' parameters, the target net does not end in
+/// `offset.len()` outputs, or a non-empty residual is shorter than the heads' outputs less
+/// the output bias.
+pub fn decode_target_net(
+    heads: &[Mlp],
+    target_layers: &[(usize, usize)],
+    z: &[f32],
+    offset: [f32; 3],
+    residual: &[f32],
+) -> Mlp {
+    let mut outputs: Vec<Vec<f32>> = heads.iter().map(|head| head.forward(z)).collect();
+    if !residual.is_empty() {
+        // One slice per head in order, the output bias's head excepted (the offset's).
+        let mut rest = residual;
+        let last = outputs.len() - 1;
+        for out in &mut outputs[..last] {
+            let (head, tail) = rest.split_at(out.len());
+            out.iter_mut().zip(head).for_each(|(v, d)| *v += d);
+            rest = tail;
         }
-        let mut layers: Vec<DenseLayer> = self
-            .target_layers()
-            .into_iter()
-            .enumerate()
-            .map(|(k, (d_in, d_out))| DenseLayer {
-                d_in,
-                d_out,
-                weight: outputs[2 * k].clone(),
-                bias: outputs[2 * k + 1].clone(),
-            })
-            .collect();
-        let last = layers.last_mut().expect("a target net has a layer");
-        assert_eq!(last.bias.len(), offset.len(), "one offset per output");
-        last.bias.iter_mut().zip(offset).for_each(|(b, d)| *b += d);
-        Mlp { layers }
     }
-
+    let mut layers: Vec<DenseLayer> = target_layers
+        .iter()
+        .enumerate()
+        .map(|(k, &(d_in, d_out))| DenseLayer {
+            d_in,
+            d_out,
+            weight: outputs[2 * k].clone(),
+            bias: outputs[2 * k + 1].clone(),
+        })
+        .collect();
+    let last = layers.last_mut().expect("a target net has a layer");
+    assert_eq!(last.bias.len(), offset.len(), "one offset per output");
+    last.bias.iter_mut().zip(offset).for_each(|(b, d)| *b += d);
+    Mlp { layers }
 }
 
 #[cfg(test)]
