@@ -48,6 +48,9 @@ pub fn check(name: &str, img: &Rendered) {
     let (w, h, reference) = read_image(&path).unwrap_or_else(|e| panic!("pinned image {name}: {e}"));
     assert_eq!((w, h), (img.width, img.height), "pinned image {name}: size");
     let d = relative_difference(&img.mean, &reference);
+    if d > 0.0 {
+        eprintln!("pinned image {name}: mean relative difference {d:e} (not bit for bit)");
+    }
     assert!(
         d <= TOLERANCE,
         "pinned image {name}: mean relative difference {:.3} % (tolerance {:.2} %); the renderer's output changed for the same seed. If that is meant, re-bless with BLESS=1 (tests/README.md)",

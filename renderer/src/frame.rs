@@ -1,7 +1,7 @@
 //! Orthonormal shading frames: conversion between world space and the local shading frame
 //! (z = normal) in which every BSDF is written.
 
-use crate::lanes::{F32s, Vec3s};
+use crate::lanes::{Real, V3};
 use glam::Vec3;
 
 /// An orthonormal basis (s, t, n); `n` is the local z axis.
@@ -17,32 +17,8 @@ impl Frame {
     /// except at one point).
     #[inline]
     pub fn from_normal(n: Vec3) -> Self {
-        let sign = 1.0f32.copysign(n.z);
-        let a = -1.0 / (sign + n.z);
-        let b = n.x * n.y * a;
-        let s = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-        let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
-        Frame { s, t, n }
-    }
-
-    /// [`Frame::from_normal`] per lane, with its operations (so the same bits): the (s, t)
-    /// of the frames around the unit normals `n`.
-    #[inline(always)]
-    pub fn from_normal_lanes(n: Vec3s) -> (Vec3s, Vec3s) {
-        let sign = F32s::splat(1.0).copysign(n.z);
-        let a = -1.0 / (sign + n.z);
-        let b = n.x * n.y * a;
-        let s = Vec3s {
-            x: 1.0 + sign * n.x * n.x * a,
-            y: sign * b,
-            z: -sign * n.x,
-        };
-        let t = Vec3s {
-            x: b,
-            y: sign + n.y * n.y * a,
-            z: -n.y,
-        };
-        (s, t)
+        let (s, t) = tangents(V3::from(n));
+        Frame { s: s.into(), t: t.into(), n }
     }
 
     /// World direction to local coordinates.
@@ -56,6 +32,18 @@ impl Frame {
     pub fn to_world(&self, v: Vec3) -> Vec3 {
         self.s * v.x + self.t * v.y + self.n * v.z
     }
+}
+
+/// The (s, t) of [`Frame::from_normal`] around the unit normal `n`, over [`Real`] values
+/// (one frame, or one per lane).
+#[inline(always)]
+pub(crate) fn tangents<R: Real>(n: V3<R>) -> (V3<R>, V3<R>) {
+    let sign = R::splat(1.0).copysign(n.z);
+    let a = R::splat(-1.0) / (sign + n.z);
+    let b = n.x * n.y * a;
+    let s = V3::new(R::splat(1.0) + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let t = V3::new(b, sign + n.y * n.y * a, -n.y);
+    (s, t)
 }
 
 #[cfg(test)]

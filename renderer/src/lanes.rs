@@ -10,6 +10,7 @@
 // Indexed fixed-length loops are the form LLVM vectorises most reliably here.
 #![allow(clippy::needless_range_loop)]
 
+use std::fmt::Debug;
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
 /// Number of lanes: one AVX-512 register of `f32`.
@@ -25,18 +26,27 @@ pub struct F32s(pub [f32; LANES]);
 pub struct Mask(pub [bool; LANES]);
 
 /// Three [`F32s`]: a vector per lane.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Vec3s {
-    pub x: F32s,
-    pub y: F32s,
-    pub z: F32s,
-}
+pub type Vec3s = V3<F32s>;
 
 /// Two [`F32s`]: a 2D point per lane.
+pub type Vec2s = V2<F32s>;
+
+/// A 3-vector of [`Real`] components: a `glam::Vec3`'s values for `f32`, a vector per lane
+/// for [`F32s`] ([`Vec3s`]). Its operations are `glam::Vec3`'s, in the same order, so the
+/// formulas written once with it give the bits of the scalar code for `f32` and for each
+/// lane.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Vec2s {
-    pub x: F32s,
-    pub y: F32s,
+pub struct V3<R> {
+    pub x: R,
+    pub y: R,
+    pub z: R,
+}
+
+/// A 2-vector of [`Real`] components (`glam::Vec2`'s values for `f32`, [`Vec2s`] per lane).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct V2<R> {
+    pub x: R,
+    pub y: R,
 }
 
 impl Default for F32s {
@@ -236,25 +246,25 @@ macro_rules! binary_ops {
                 o.map(|b| self $op b)
             }
         }
-        impl $trait for Vec3s {
-            type Output = Vec3s;
+        impl<R: Real> $trait for V3<R> {
+            type Output = V3<R>;
             #[inline(always)]
-            fn $method(self, o: Vec3s) -> Vec3s {
-                Vec3s { x: self.x $op o.x, y: self.y $op o.y, z: self.z $op o.z }
+            fn $method(self, o: V3<R>) -> V3<R> {
+                V3 { x: self.x $op o.x, y: self.y $op o.y, z: self.z $op o.z }
             }
         }
-        impl $trait<F32s> for Vec3s {
-            type Output = Vec3s;
+        impl<R: Real> $trait<R> for V3<R> {
+            type Output = V3<R>;
             #[inline(always)]
-            fn $method(self, o: F32s) -> Vec3s {
-                Vec3s { x: self.x $op o, y: self.y $op o, z: self.z $op o }
+            fn $method(self, o: R) -> V3<R> {
+                V3 { x: self.x $op o, y: self.y $op o, z: self.z $op o }
             }
         }
         impl $trait<f32> for Vec3s {
             type Output = Vec3s;
             #[inline(always)]
             fn $method(self, o: f32) -> Vec3s {
-                Vec3s { x: self.x $op o, y: self.y $op o, z: self.z $op o }
+                V3 { x: self.x $op o, y: self.y $op o, z: self.z $op o }
             }
         }
     )*};
@@ -270,15 +280,456 @@ impl Neg for F32s {
     }
 }
 
-impl Neg for Vec3s {
-    type Output = Vec3s;
+impl<R: Real> Neg for V3<R> {
+    type Output = V3<R>;
     #[inline(always)]
-    fn neg(self) -> Vec3s {
-        Vec3s {
+    fn neg(self) -> V3<R> {
+        V3 {
             x: -self.x,
             y: -self.y,
             z: -self.z,
         }
+    }
+}
+
+/// One `f32` or [`LANES`] of them ([`F32s`]): the number type the formulas of the BSDFs,
+/// warps and integrator helpers are written over once, so that the scalar path (`f32`) and
+/// the lane kernels (`F32s`) run the same operations in the same order — the same bits per
+/// lane. Where scalar code would return early, a formula computes a [`Real::Mask`] and
+/// selects ([`MaskOps::select`], [`choose`]); `f32`'s mask is `bool`.
+///
+/// Constants on the left of an operator are written `R::splat(c) − x` (the bits of
+/// `c − x`): Rust does not carry a trait's `f32: Sub<Self>` bound to its users.
+pub trait Real:
+    Copy
+    + Default
+    + Debug
+    + PartialEq
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + Add<f32, Output = Self>
+    + Sub<f32, Output = Self>
+    + Mul<f32, Output = Self>
+    + Div<f32, Output = Self>
+{
+    /// The result of a comparison: `bool`, or [`Mask`] per lane.
+    type Mask: MaskOps;
+
+    /// `v` (in every lane).
+    fn splat(v: f32) -> Self;
+    /// `a` where `mask` is set, `b` elsewhere.
+    fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
+    fn abs(self) -> Self;
+    fn sqrt(self) -> Self;
+    /// `f32::max` (a NaN takes the other operand).
+    fn max(self, o: Self) -> Self;
+    /// `f32::min` (a NaN takes the other operand).
+    fn min(self, o: Self) -> Self;
+    /// `f32::signum`: ±1 by the sign bit, NaN for NaN.
+    fn signum(self) -> Self;
+    /// `f32::copysign`: the magnitude of `self` with the sign of `sign`.
+    fn copysign(self, sign: Self) -> Self;
+    /// Rounding toward zero through `i32` (`x as i32 as f32`: saturating, NaN becomes 0).
+    fn truncate(self) -> Self;
+    fn lt(self, o: Self) -> Self::Mask;
+    fn le(self, o: Self) -> Self::Mask;
+    fn gt(self, o: Self) -> Self::Mask;
+    fn ge(self, o: Self) -> Self::Mask;
+    fn eq(self, o: Self) -> Self::Mask;
+    fn is_finite(self) -> Self::Mask;
+    fn is_infinite(self) -> Self::Mask;
+
+    /// `f32::clamp` (NaN stays NaN).
+    #[inline(always)]
+    fn clamp(self, min: f32, max: f32) -> Self {
+        let x = Self::select(self.lt(Self::splat(min)), Self::splat(min), self);
+        Self::select(x.gt(Self::splat(max)), Self::splat(max), x)
+    }
+}
+
+/// A comparison's result: `bool` for one value, [`Mask`] for [`LANES`].
+pub trait MaskOps: Copy + Debug + BitAnd<Output = Self> + BitOr<Output = Self> + Not<Output = Self> {
+    /// Whether some lane is set.
+    fn any(self) -> bool;
+    /// Whether every lane is set.
+    fn all(self) -> bool;
+
+    /// `a` where the mask is set, `b` elsewhere (any [`Blend`] value: numbers, vectors and
+    /// tuples of them).
+    #[inline(always)]
+    fn select<T: Blend<Self>>(self, a: T, b: T) -> T {
+        T::blend(self, a, b)
+    }
+}
+
+/// Values chosen between per lane by a mask `M`.
+pub trait Blend<M>: Sized {
+    /// `a` where `mask` is set, `b` elsewhere.
+    fn blend(mask: M, a: Self, b: Self) -> Self;
+}
+
+/// `a()` where `mask` is set, `b()` elsewhere, calling a closure only when some lane takes
+/// its value: a branch for one value, both and a select for lanes that differ. Each lane
+/// gets what it would alone.
+#[inline(always)]
+pub fn choose<M: MaskOps, T: Blend<M>>(mask: M, a: impl FnOnce() -> T, b: impl FnOnce() -> T) -> T {
+    if mask.all() {
+        a()
+    } else if !mask.any() {
+        b()
+    } else {
+        T::blend(mask, a(), b())
+    }
+}
+
+impl MaskOps for bool {
+    #[inline(always)]
+    fn any(self) -> bool {
+        self
+    }
+
+    #[inline(always)]
+    fn all(self) -> bool {
+        self
+    }
+}
+
+impl MaskOps for Mask {
+    #[inline(always)]
+    fn any(self) -> bool {
+        let mut r = false;
+        for i in 0..LANES {
+            r |= self.0[i];
+        }
+        r
+    }
+
+    #[inline(always)]
+    fn all(self) -> bool {
+        let mut r = true;
+        for i in 0..LANES {
+            r &= self.0[i];
+        }
+        r
+    }
+}
+
+impl<R: Real> Blend<R::Mask> for R {
+    #[inline(always)]
+    fn blend(mask: R::Mask, a: R, b: R) -> R {
+        R::select(mask, a, b)
+    }
+}
+
+impl<R: Real> Blend<R::Mask> for V3<R> {
+    #[inline(always)]
+    fn blend(mask: R::Mask, a: V3<R>, b: V3<R>) -> V3<R> {
+        V3 {
+            x: R::select(mask, a.x, b.x),
+            y: R::select(mask, a.y, b.y),
+            z: R::select(mask, a.z, b.z),
+        }
+    }
+}
+
+impl<R: Real> Blend<R::Mask> for V2<R> {
+    #[inline(always)]
+    fn blend(mask: R::Mask, a: V2<R>, b: V2<R>) -> V2<R> {
+        V2 {
+            x: R::select(mask, a.x, b.x),
+            y: R::select(mask, a.y, b.y),
+        }
+    }
+}
+
+impl<M: Copy, A: Blend<M>, B: Blend<M>> Blend<M> for (A, B) {
+    #[inline(always)]
+    fn blend(mask: M, a: (A, B), b: (A, B)) -> (A, B) {
+        (A::blend(mask, a.0, b.0), B::blend(mask, a.1, b.1))
+    }
+}
+
+impl Real for f32 {
+    type Mask = bool;
+
+    #[inline(always)]
+    fn splat(v: f32) -> f32 {
+        v
+    }
+
+    #[inline(always)]
+    fn select(mask: bool, a: f32, b: f32) -> f32 {
+        if mask {
+            a
+        } else {
+            b
+        }
+    }
+
+    #[inline(always)]
+    fn abs(self) -> f32 {
+        f32::abs(self)
+    }
+
+    #[inline(always)]
+    fn sqrt(self) -> f32 {
+        f32::sqrt(self)
+    }
+
+    #[inline(always)]
+    fn max(self, o: f32) -> f32 {
+        f32::max(self, o)
+    }
+
+    #[inline(always)]
+    fn min(self, o: f32) -> f32 {
+        f32::min(self, o)
+    }
+
+    #[inline(always)]
+    fn signum(self) -> f32 {
+        f32::signum(self)
+    }
+
+    #[inline(always)]
+    fn copysign(self, sign: f32) -> f32 {
+        f32::copysign(self, sign)
+    }
+
+    #[inline(always)]
+    fn truncate(self) -> f32 {
+        self as i32 as f32
+    }
+
+    #[inline(always)]
+    fn lt(self, o: f32) -> bool {
+        self < o
+    }
+
+    #[inline(always)]
+    fn le(self, o: f32) -> bool {
+        self <= o
+    }
+
+    #[inline(always)]
+    fn gt(self, o: f32) -> bool {
+        self > o
+    }
+
+    #[inline(always)]
+    fn ge(self, o: f32) -> bool {
+        self >= o
+    }
+
+    #[inline(always)]
+    fn eq(self, o: f32) -> bool {
+        self == o
+    }
+
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f32::is_finite(self)
+    }
+
+    #[inline(always)]
+    fn is_infinite(self) -> bool {
+        f32::is_infinite(self)
+    }
+}
+
+impl Real for F32s {
+    type Mask = Mask;
+
+    #[inline(always)]
+    fn splat(v: f32) -> F32s {
+        F32s([v; LANES])
+    }
+
+    #[inline(always)]
+    fn select(mask: Mask, a: F32s, b: F32s) -> F32s {
+        mask.select(a, b)
+    }
+
+    #[inline(always)]
+    fn abs(self) -> F32s {
+        F32s::abs(self)
+    }
+
+    #[inline(always)]
+    fn sqrt(self) -> F32s {
+        F32s::sqrt(self)
+    }
+
+    #[inline(always)]
+    fn max(self, o: F32s) -> F32s {
+        F32s::max(self, o)
+    }
+
+    #[inline(always)]
+    fn min(self, o: F32s) -> F32s {
+        F32s::min(self, o)
+    }
+
+    #[inline(always)]
+    fn signum(self) -> F32s {
+        F32s::signum(self)
+    }
+
+    #[inline(always)]
+    fn copysign(self, sign: F32s) -> F32s {
+        F32s::copysign(self, sign)
+    }
+
+    #[inline(always)]
+    fn truncate(self) -> F32s {
+        F32s::truncate(self)
+    }
+
+    #[inline(always)]
+    fn lt(self, o: F32s) -> Mask {
+        F32s::lt(self, o)
+    }
+
+    #[inline(always)]
+    fn le(self, o: F32s) -> Mask {
+        F32s::le(self, o)
+    }
+
+    #[inline(always)]
+    fn gt(self, o: F32s) -> Mask {
+        F32s::gt(self, o)
+    }
+
+    #[inline(always)]
+    fn ge(self, o: F32s) -> Mask {
+        F32s::ge(self, o)
+    }
+
+    #[inline(always)]
+    fn eq(self, o: F32s) -> Mask {
+        F32s::eq(self, o)
+    }
+
+    #[inline(always)]
+    fn is_finite(self) -> Mask {
+        F32s::is_finite(self)
+    }
+
+    #[inline(always)]
+    fn is_infinite(self) -> Mask {
+        F32s::is_infinite(self)
+    }
+}
+
+impl<R: Real> V3<R> {
+    #[inline(always)]
+    pub fn new(x: R, y: R, z: R) -> V3<R> {
+        V3 { x, y, z }
+    }
+
+    /// `v` (in every lane).
+    #[inline(always)]
+    pub fn splat(v: glam::Vec3) -> V3<R> {
+        V3 {
+            x: R::splat(v.x),
+            y: R::splat(v.y),
+            z: R::splat(v.z),
+        }
+    }
+
+    /// `glam::Vec3::try_normalize` (the same operations: the vector times the reciprocal of
+    /// its length), with where that is `Some` (the reciprocal finite and positive); elsewhere
+    /// the vector is meaningless.
+    #[inline(always)]
+    pub fn try_normalize(self) -> (V3<R>, R::Mask) {
+        let rcp = R::splat(1.0) / self.dot(self).sqrt();
+        (self * rcp, rcp.is_finite() & rcp.gt(R::splat(0.0)))
+    }
+
+    /// `glam::Vec3::try_normalize(v).unwrap_or(fallback)`.
+    #[inline(always)]
+    pub fn normalize_or(self, fallback: glam::Vec3) -> V3<R> {
+        let (v, ok) = self.try_normalize();
+        ok.select(v, V3::splat(fallback))
+    }
+
+    /// Dot product, summed in `glam::Vec3::dot`'s order (x, y, then z).
+    #[inline(always)]
+    pub fn dot(self, o: V3<R>) -> R {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+
+    #[inline(always)]
+    pub fn abs(self) -> V3<R> {
+        V3 {
+            x: self.x.abs(),
+            y: self.y.abs(),
+            z: self.z.abs(),
+        }
+    }
+
+    /// `glam::Vec3::max_element` (`a > b ? a : b`, left to right).
+    #[inline(always)]
+    pub fn max_element(self) -> R {
+        let max = |a: R, b: R| R::select(a.gt(b), a, b);
+        max(max(self.x, self.y), self.z)
+    }
+
+    /// Whether all three components are finite.
+    #[inline(always)]
+    pub fn is_finite(self) -> R::Mask {
+        self.x.is_finite() & self.y.is_finite() & self.z.is_finite()
+    }
+}
+
+impl From<glam::Vec3> for V3<f32> {
+    #[inline(always)]
+    fn from(v: glam::Vec3) -> V3<f32> {
+        V3 { x: v.x, y: v.y, z: v.z }
+    }
+}
+
+impl From<V3<f32>> for glam::Vec3 {
+    #[inline(always)]
+    fn from(v: V3<f32>) -> glam::Vec3 {
+        glam::Vec3::new(v.x, v.y, v.z)
+    }
+}
+
+impl From<glam::Vec2> for V2<f32> {
+    #[inline(always)]
+    fn from(v: glam::Vec2) -> V2<f32> {
+        V2 { x: v.x, y: v.y }
+    }
+}
+
+/// A lane type whose lane `i` can be set to one value: how the kernels fill formula
+/// parameters ([`Real`] structures of `F32s`) from one shading point's (of `f32`).
+pub trait SetLane {
+    /// One lane's value.
+    type One;
+    /// Sets lane `i` to `v`.
+    fn set_lane(&mut self, i: usize, v: Self::One);
+}
+
+impl SetLane for F32s {
+    type One = f32;
+    #[inline(always)]
+    fn set_lane(&mut self, i: usize, v: f32) {
+        self.0[i] = v;
+    }
+}
+
+impl SetLane for Vec3s {
+    type One = V3<f32>;
+    #[inline(always)]
+    fn set_lane(&mut self, i: usize, v: V3<f32>) {
+        self.x.0[i] = v.x;
+        self.y.0[i] = v.y;
+        self.z.0[i] = v.z;
     }
 }
 
@@ -295,60 +746,6 @@ impl Vec3s {
         self.x.0[i] = v.x;
         self.y.0[i] = v.y;
         self.z.0[i] = v.z;
-    }
-
-    /// `v` in every lane.
-    #[inline(always)]
-    pub fn splat(v: glam::Vec3) -> Vec3s {
-        Vec3s {
-            x: F32s::splat(v.x),
-            y: F32s::splat(v.y),
-            z: F32s::splat(v.z),
-        }
-    }
-
-    /// `glam::Vec3::try_normalize` per lane (the same operations: the vector times the
-    /// reciprocal of its length), with the lanes where that is `Some` (the reciprocal finite
-    /// and positive); the other lanes' vectors are meaningless.
-    #[inline(always)]
-    pub fn try_normalize(self) -> (Vec3s, Mask) {
-        let rcp = 1.0 / self.dot(self).sqrt();
-        (self * rcp, rcp.is_finite() & rcp.gt(F32s::splat(0.0)))
-    }
-
-    /// `glam::Vec3::try_normalize(v).unwrap_or(fallback)` per lane.
-    #[inline(always)]
-    pub fn normalize_or(self, fallback: glam::Vec3) -> Vec3s {
-        let (v, ok) = self.try_normalize();
-        ok.select3(v, Vec3s::splat(fallback))
-    }
-
-    /// Dot product per lane, summed in `glam::Vec3::dot`'s order (x, y, then z).
-    #[inline(always)]
-    pub fn dot(self, o: Vec3s) -> F32s {
-        self.x * o.x + self.y * o.y + self.z * o.z
-    }
-
-    #[inline(always)]
-    pub fn abs(self) -> Vec3s {
-        Vec3s {
-            x: self.x.abs(),
-            y: self.y.abs(),
-            z: self.z.abs(),
-        }
-    }
-
-    /// `glam::Vec3::max_element` per lane (`a > b ? a : b`, left to right).
-    #[inline(always)]
-    pub fn max_element(self) -> F32s {
-        let max = |a: F32s, b: F32s| a.gt(b).select(a, b);
-        max(max(self.x, self.y), self.z)
-    }
-
-    /// Whether all three components of a lane are finite.
-    #[inline(always)]
-    pub fn is_finite(self) -> Mask {
-        self.x.is_finite() & self.y.is_finite() & self.z.is_finite()
     }
 }
 

@@ -4,7 +4,7 @@
 //! some triangle uses, and the environment's sampling structures exist only when the scene
 //! has an environment.
 
-use crate::accel::{gamma, interpolate_point, interpolate_point_lanes, Bvh, Hit, InstanceBvh, Ray, DEPTH_CLASSES, NO_INSTANCE};
+use crate::accel::{gamma, interpolate_point, barycentric_point, Bvh, Hit, InstanceBvh, Ray, DEPTH_CLASSES, NO_INSTANCE};
 use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
@@ -483,7 +483,7 @@ pub(crate) fn surface_points_lanes(
     direction: Vec3s,
 ) -> (SurfaceLanes, Mask) {
     let zero = F32s::splat(0.0);
-    let (p, p_error) = interpolate_point_lanes(corners, barycentric);
+    let (p, p_error) = barycentric_point(corners, barycentric);
     let mut ns = normals[0];
     if any_smooth {
         let b0 = 1.0 - barycentric.x - barycentric.y;
@@ -494,7 +494,7 @@ pub(crate) fn surface_points_lanes(
     let front_face = direction.dot(ng).lt(zero);
     let ng_facing = front_face.select3(ng, -ng);
     let n = ns.dot(ng_facing).lt(zero).select3(-ns, ns);
-    let (s, t) = Frame::from_normal_lanes(n);
+    let (s, t) = crate::frame::tangents(n);
     let mut surface = SurfaceLanes { p, p_error, ng: ng_facing, s, t, n, wo: Vec3s::default() };
     surface.wo = surface.to_local(-direction);
     (surface, front_face)

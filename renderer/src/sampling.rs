@@ -3,8 +3,7 @@
 //! heuristic.
 
 use glam::{Vec2, Vec3};
-use std::ops::{Add, Mul, Sub};
-use crate::lanes::{F32s, Vec2s, Vec3s, LANES};
+use crate::lanes::{F32s, MaskOps, Real, Vec2s, LANES, V2, V3};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4};
 
 /// The largest f32 below 1: where a number drawn in [0, 1) is clamped.
@@ -15,145 +14,98 @@ pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 /// one ulp.
 #[inline]
 pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
-    let o = 2.0 * u - Vec2::ONE;
-    let x_major = o.x.abs() > o.y.abs();
-    let (r, minor) = if x_major { (o.x, o.y) } else { (o.y, o.x) };
-    // |minor| ≤ |r|; r = 0 only at the centre, which maps to the origin.
-    let ratio = if r != 0.0 { minor / r } else { 0.0 };
-    let (s, c) = sin_cos_octant(std::f32::consts::FRAC_PI_4 * ratio);
-    // x-major: θ = π/4 · y/x; y-major: θ = π/2 − π/4 · x/y, so cos θ and sin θ swap.
-    let (cos_theta, sin_theta) = if x_major { (c, s) } else { (s, c) };
-    Vec2::new(cos_theta, sin_theta) * r
+    let d = concentric_disk(V2::from(u));
+    Vec2::new(d.x, d.y)
 }
 
-/// (sin x, cos x) for |x| ≤ π/4 by the minimax polynomials of Cephes' `sinf`/`cosf`; for
-/// `f32` or, with the same operations per lane, [`crate::lanes::F32s`].
+/// [`sample_concentric_disk`] over [`Real`] values (one point, or one per lane).
 #[inline(always)]
-pub fn sin_cos_octant<T>(x: T) -> (T, T)
-where
-    T: Copy + Add<Output = T> + Mul<Output = T> + Mul<f32, Output = T>,
-    f32: Add<T, Output = T> + Sub<T, Output = T> + Mul<T, Output = T>,
-{
+pub(crate) fn concentric_disk<R: Real>(u: V2<R>) -> V2<R> {
+    let zero = R::splat(0.0);
+    let ox = u.x * 2.0 - 1.0;
+    let oy = u.y * 2.0 - 1.0;
+    let x_major = ox.abs().gt(oy.abs());
+    let (r, minor) = x_major.select((ox, oy), (oy, ox));
+    // |minor| ≤ |r|; r = 0 only at the centre, which maps to the origin.
+    let ratio = R::select(r.eq(zero), zero, minor / r);
+    let (sin, cos) = sin_cos_octant(ratio * FRAC_PI_4);
+    // x-major: θ = π/4 · y/x; y-major: θ = π/2 − π/4 · x/y, so cos θ and sin θ swap.
+    let (cos_theta, sin_theta) = x_major.select((cos, sin), (sin, cos));
+    V2 { x: cos_theta * r, y: sin_theta * r }
+}
+
+/// (sin x, cos x) for |x| ≤ π/4 by the minimax polynomials of Cephes' `sinf`/`cosf`.
+#[inline(always)]
+pub fn sin_cos_octant<R: Real>(x: R) -> (R, R) {
     let x2 = x * x;
-    let sin = x + x * x2 * (-1.666_665_5e-1 + x2 * (8.332_161e-3 + x2 * -1.951_529_6e-4));
-    let cos = 1.0 - 0.5 * x2 + x2 * x2 * (4.166_664_6e-2 + x2 * (-1.388_731_6e-3 + x2 * 2.443_315_7e-5));
+    let sin = x + x * x2 * (R::splat(-1.666_665_5e-1) + x2 * (R::splat(8.332_161e-3) + x2 * -1.951_529_6e-4));
+    let cos = R::splat(1.0) - x2 * 0.5 + x2 * x2 * (R::splat(4.166_664_6e-2) + x2 * (R::splat(-1.388_731_6e-3) + x2 * 2.443_315_7e-5));
     (sin, cos)
 }
 
-/// (sin 2πu, cos 2πu) for 0 ≤ u < 2²¹, an angle given in turns: reduced to the nearest
-/// quarter turn q (exactly: 4u − q needs no rounding there), [`sin_cos_octant`] on the remaining
-/// |x| ≤ π/4, and the quarter turn applied by swapping and negating. About one ulp from the
-/// exact values in [0, 1), several times faster than libm's `sinf`/`cosf`, and computed with
-/// the same operations per lane by [`sin_cos_turns_lanes`], so the two agree bit for bit.
+/// (sin 2πu, cos 2πu) for 0 ≤ u < 2²¹, an angle given in turns, for one value or per lane:
+/// reduced to the nearest quarter turn q (exactly: 4u − q needs no rounding there),
+/// [`sin_cos_octant`] on the remaining |x| ≤ π/4, and the quarter turn applied by swapping
+/// and negating. About one ulp from the exact values in [0, 1), several times faster than
+/// libm's `sinf`/`cosf`.
 #[inline(always)]
-pub fn sin_cos_turns(u: f32) -> (f32, f32) {
+pub fn sin_cos_turns<R: Real>(u: R) -> (R, R) {
     let (x, q) = quarter_turns(u);
     let (s, c) = sin_cos_octant(x);
-    let (s, c) = if q == 1.0 || q == 3.0 { (c, s) } else { (s, c) };
-    let s = if q >= 2.0 { -s } else { s };
-    let c = if q == 1.0 || q == 2.0 { -c } else { c };
-    (s, c)
-}
-
-/// [`sin_cos_turns`] per lane.
-#[inline(always)]
-pub fn sin_cos_turns_lanes(u: F32s) -> (F32s, F32s) {
-    let (x, q) = quarter_turns(u);
-    let (s, c) = sin_cos_octant(x);
-    let swap = q.eq(F32s::splat(1.0)) | q.eq(F32s::splat(3.0));
-    let (s, c) = (swap.select(c, s), swap.select(s, c));
-    let s = q.ge(F32s::splat(2.0)).select(-s, s);
-    let c = (q.eq(F32s::splat(1.0)) | q.eq(F32s::splat(2.0))).select(-c, c);
+    let is = |k: f32| q.eq(R::splat(k));
+    let swap = is(1.0) | is(3.0);
+    let (s, c) = swap.select((c, s), (s, c));
+    let s = R::select(q.ge(R::splat(2.0)), -s, s);
+    let c = R::select(is(1.0) | is(2.0), -c, c);
     (s, c)
 }
 
 /// The angle 2πu as x + q π/2 with q ∈ {0, 1, 2, 3} the nearest quarter turn (modulo a
-/// whole turn) and |x| ≤ π/4, for `f32` or, with the same operations per lane, [`F32s`].
-/// Rounds by truncation (a conversion to `i32` and back, one instruction each way without
-/// SSE4.1's `roundss`), which is the floor for the u ≥ −1/8 it is meant for.
+/// whole turn) and |x| ≤ π/4. Rounds by truncation (a conversion to `i32` and back, one
+/// instruction each way without SSE4.1's `roundss`), which is the floor for the u ≥ −1/8 it
+/// is meant for.
 #[inline(always)]
-fn quarter_turns<T>(u: T) -> (T, T)
-where
-    T: Copy + Truncate + Sub<Output = T> + Mul<f32, Output = T> + Add<f32, Output = T>,
-    f32: Mul<T, Output = T>,
-{
-    let t = 4.0 * u;
+fn quarter_turns<R: Real>(u: R) -> (R, R) {
+    let t = u * 4.0;
     let nearest = (t + 0.5).truncate();
     let x = (t - nearest) * FRAC_PI_2;
-    let q = nearest - 4.0 * (nearest * 0.25).truncate();
+    let q = nearest - (nearest * 0.25).truncate() * 4.0;
     (x, q)
-}
-
-/// Rounding toward zero through `i32` (saturating), for `f32` and per lane for [`F32s`].
-pub trait Truncate {
-    fn truncate(self) -> Self;
-}
-
-impl Truncate for f32 {
-    #[inline(always)]
-    fn truncate(self) -> f32 {
-        self as i32 as f32
-    }
-}
-
-impl Truncate for F32s {
-    #[inline(always)]
-    fn truncate(self) -> F32s {
-        F32s::truncate(self)
-    }
 }
 
 /// Cosine-weighted direction on the upper (z ≥ 0) hemisphere.
 #[inline]
 pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3 {
-    let d = sample_concentric_disk(u);
-    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
-    Vec3::new(d.x, d.y, z)
+    cosine_hemisphere(V2::from(u)).into()
 }
 
-/// [`sample_cosine_hemisphere`] per lane, with the same operations (the same bits).
+/// [`sample_cosine_hemisphere`] over [`Real`] values (one direction, or one per lane).
 #[inline(always)]
-pub fn sample_cosine_hemisphere_lanes(u: Vec2s) -> Vec3s {
-    let zero = F32s::splat(0.0);
-    let ox = 2.0 * u.x - 1.0;
-    let oy = 2.0 * u.y - 1.0;
-    let x_major = ox.abs().gt(oy.abs());
-    let r = x_major.select(ox, oy);
-    let minor = x_major.select(oy, ox);
-    let ratio = r.eq(zero).select(zero, minor / r);
-    let (sin, cos) = sin_cos_octant(FRAC_PI_4 * ratio);
-    let x = x_major.select(cos, sin) * r;
-    let y = x_major.select(sin, cos) * r;
-    let z = (1.0 - (x * x + y * y)).max(zero).sqrt();
-    Vec3s { x, y, z }
+pub(crate) fn cosine_hemisphere<R: Real>(u: V2<R>) -> V3<R> {
+    let d = concentric_disk(u);
+    let z = (R::splat(1.0) - (d.x * d.x + d.y * d.y)).max(R::splat(0.0)).sqrt();
+    V3::new(d.x, d.y, z)
 }
 
 /// Density of [`sample_cosine_hemisphere`] in 1/sr.
 #[inline]
-pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
-    cos_theta.max(0.0) * FRAC_1_PI
+pub fn cosine_hemisphere_pdf<R: Real>(cos_theta: R) -> R {
+    cos_theta.max(R::splat(0.0)) * FRAC_1_PI
 }
 
 /// Uniform direction on the unit sphere.
 #[inline]
 pub fn sample_uniform_sphere(u: Vec2) -> Vec3 {
-    let z = 1.0 - 2.0 * u.x;
-    let r = (1.0 - z * z).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = sin_cos_turns(u.y);
-    Vec3::new(r * cos_phi, r * sin_phi, z)
+    uniform_sphere(V2::from(u)).into()
 }
 
-/// [`sample_uniform_sphere`] per lane, with the same operations (the same bits).
+/// [`sample_uniform_sphere`] over [`Real`] values (one direction, or one per lane).
 #[inline(always)]
-pub fn sample_uniform_sphere_lanes(u: Vec2s) -> Vec3s {
-    let z = 1.0 - 2.0 * u.x;
-    let r = (1.0 - z * z).max(F32s::splat(0.0)).sqrt();
-    let (sin_phi, cos_phi) = sin_cos_turns_lanes(u.y);
-    Vec3s {
-        x: r * cos_phi,
-        y: r * sin_phi,
-        z,
-    }
+pub(crate) fn uniform_sphere<R: Real>(u: V2<R>) -> V3<R> {
+    let z = R::splat(1.0) - u.x * 2.0;
+    let r = (R::splat(1.0) - z * z).max(R::splat(0.0)).sqrt();
+    let (sin_phi, cos_phi) = sin_cos_turns(u.y);
+    V3::new(r * cos_phi, r * sin_phi, z)
 }
 
 /// Density of [`sample_uniform_sphere`] in 1/sr.
@@ -172,18 +124,15 @@ pub fn sample_uniform_triangle(u: Vec2) -> Vec2 {
     Vec2::new(b1, 1.0 - b0 - b1)
 }
 
-/// Power heuristic with β = 2 for MIS (Veach 1997); `f` and `g` are the two densities.
-#[inline]
-pub fn power_heuristic(f: f32, g: f32) -> f32 {
+/// Power heuristic with β = 2 for MIS (Veach 1997); `f` and `g` are the two densities
+/// (one pair, or one per lane).
+#[inline(always)]
+pub fn power_heuristic<R: Real>(f: R, g: R) -> R {
+    let zero = R::splat(0.0);
     let (f2, g2) = (f * f, g * g);
-    if f2.is_infinite() {
-        return 1.0;
-    }
-    if f2 + g2 == 0.0 {
-        0.0
-    } else {
-        f2 / (f2 + g2)
-    }
+    let sum = f2 + g2;
+    let ratio = R::select(sum.eq(zero), zero, f2 / sum);
+    R::select(f2.is_infinite(), R::splat(1.0), ratio)
 }
 
 /// A discrete distribution over `n` cells (a piecewise-constant density on [0, 1) over `n`
@@ -863,7 +812,7 @@ mod tests {
             for (i, x) in u.0.iter_mut().enumerate() {
                 *x = (start + i) as f32 / n as f32;
             }
-            let (s, c) = sin_cos_turns_lanes(u);
+            let (s, c) = sin_cos_turns(u);
             for (i, &x) in u.0.iter().enumerate() {
                 let (es, ec) = sin_cos_turns(x);
                 assert_eq!((s.0[i].to_bits(), c.0[i].to_bits()), (es.to_bits(), ec.to_bits()), "u = {x}");
@@ -881,7 +830,7 @@ mod tests {
                 let v = if group == 0 { Vec2::new([0.0, 0.5, 0.999_999_94][lane % 3], 0.25) } else { rng.next_2d() };
                 u.set(lane, v);
             }
-            let d = sample_uniform_sphere_lanes(u);
+            let d = uniform_sphere(u);
             for lane in 0..crate::lanes::LANES {
                 let expected = sample_uniform_sphere(Vec2::new(u.x.0[lane], u.y.0[lane]));
                 assert_eq!(d.get(lane).to_array().map(f32::to_bits), expected.to_array().map(f32::to_bits));

@@ -12,7 +12,7 @@ mod triangle_pack;
 pub use instances::InstanceBvh;
 pub use policy::TracePolicy;
 
-use crate::lanes::{Vec2s, Vec3s};
+use crate::lanes::{MaskOps, Real, V2, V3};
 use crate::support::cpu::has_avx2_fma;
 use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::cwbvh::node::CwBvhNode;
@@ -667,21 +667,18 @@ pub(crate) fn gamma(n: f32) -> f32 {
 /// bound on its absolute rounding error per axis (pbrt-v4's interpolation bound).
 #[inline]
 pub fn interpolate_point(corners: [Vec3; 3], barycentric: Vec2) -> (Vec3, Vec3) {
-    let b0 = 1.0 - barycentric.x - barycentric.y;
-    let [v0, v1, v2] = corners;
-    let p = v0 * b0 + v1 * barycentric.x + v2 * barycentric.y;
-    let abs_sum = (v0 * b0).abs() + (v1 * barycentric.x).abs() + (v2 * barycentric.y).abs();
-    (p, abs_sum * gamma(7.0))
+    let (p, error) = barycentric_point(corners.map(V3::from), V2::from(barycentric));
+    (p.into(), error.into())
 }
 
-/// [`interpolate_point`] per lane, with its operations (so the same bits).
+/// [`interpolate_point`] over [`Real`] values (one point, or one per lane).
 #[inline(always)]
-pub(crate) fn interpolate_point_lanes(corners: [Vec3s; 3], barycentric: Vec2s) -> (Vec3s, Vec3s) {
-    let b0 = 1.0 - barycentric.x - barycentric.y;
+pub(crate) fn barycentric_point<R: Real>(corners: [V3<R>; 3], barycentric: V2<R>) -> (V3<R>, V3<R>) {
+    let b0 = R::splat(1.0) - barycentric.x - barycentric.y;
     let [v0, v1, v2] = corners;
     let p = v0 * b0 + v1 * barycentric.x + v2 * barycentric.y;
     let abs_sum = (v0 * b0).abs() + (v1 * barycentric.x).abs() + (v2 * barycentric.y).abs();
-    (p, abs_sum * gamma(7.0))
+    (p, abs_sum * R::splat(gamma(7.0)))
 }
 
 /// Moves a ray origin `p` (with absolute error bound `p_error`) off its surface along the
@@ -692,11 +689,19 @@ pub(crate) fn interpolate_point_lanes(corners: [Vec3s; 3], barycentric: Vec2s) -
 /// ulps) away from `p`: as conservative, and branch-free.
 #[inline]
 pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+    offset_origin(p.into(), p_error.into(), n.into(), w.into()).into()
+}
+
+/// [`offset_ray_origin`] over [`Real`] values (one origin, or one per lane).
+#[inline(always)]
+pub(crate) fn offset_origin<R: Real>(p: V3<R>, p_error: V3<R>, n: V3<R>, w: V3<R>) -> V3<R> {
+    let zero = R::splat(0.0);
     let d = n.abs().dot(p_error);
-    let offset = if w.dot(n) < 0.0 { -n * d } else { n * d };
+    let offset = w.dot(n).lt(zero).select(-n * d, n * d);
     let po = p + offset;
-    let away = Vec3::select(offset.cmpeq(Vec3::ZERO), Vec3::ZERO, offset.signum());
-    po + away * (po.abs() * f32::EPSILON + Vec3::splat(f32::MIN_POSITIVE))
+    let away = |o: R| R::select(o.eq(zero), zero, o.signum());
+    let away = V3::new(away(offset.x), away(offset.y), away(offset.z));
+    po + away * (po.abs() * R::splat(f32::EPSILON) + V3::splat(Vec3::splat(f32::MIN_POSITIVE)))
 }
 
 #[cfg(test)]

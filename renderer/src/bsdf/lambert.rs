@@ -15,8 +15,9 @@
 //! assert!((s.weight() - Rgb::ONE).length() < 1e-5);
 //! ```
 
-use super::{BsdfSample, Bxdf};
-use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
+use super::{BsdfSample, Bxdf, RealBxdf, RealSample};
+use crate::lanes::{F32s, MaskOps, Real, SetLane, V2, V3};
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
@@ -39,41 +40,84 @@ impl Lambert {
     }
 }
 
+impl Lambert {
+    /// The reflector's formulas ([`LambertLobe`]) for one shading point.
+    #[inline(always)]
+    pub(crate) fn lobe(&self) -> LambertLobe<f32> {
+        LambertLobe {
+            albedo: self.albedo.into(),
+        }
+    }
+}
+
 impl Bxdf for Lambert {
     /// `albedo / π` in 1/sr when both directions are above the horizon, zero otherwise.
     #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Rgb::ZERO;
-        }
-        self.albedo * FRAC_1_PI
+        self.eval_pdf(wo, wi).0
     }
 
     /// cos θi / π in 1/sr when both directions are above the horizon, zero otherwise.
     #[inline]
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        cosine_hemisphere_pdf(wi.z)
+        self.eval_pdf(wo, wi).1
     }
 
     /// A cosine-weighted direction (concentric mapping of `u`; `uc` is unused). `None` when
     /// `wo` is below the horizon or `u` maps onto the horizon itself.
     #[inline]
-    fn sample(&self, wo: Vec3, u: Vec2, _uc: f32) -> Option<BsdfSample> {
-        if wo.z <= 0.0 {
-            return None;
-        }
-        let wi = sample_cosine_hemisphere(u);
-        if wi.z <= 0.0 {
-            return None;
-        }
-        Some(BsdfSample {
+    fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
+        self.lobe().sample((), wo.into(), u.into(), uc).into_option()
+    }
+
+    #[inline]
+    fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        let (f, pdf) = self.lobe().eval_pdf((), wo.into(), wi.into());
+        (f.into(), pdf)
+    }
+}
+
+/// [`Lambert`]'s formulas over [`Real`] values: for one shading point
+/// ([`Lambert::lobe`]) or for [`LANES`](crate::lanes::LANES) points with their own albedos
+/// (the lane kernels fill one lane per vertex with [`LambertLobe::set`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct LambertLobe<R> {
+    /// Hemispherical reflectance per channel (already clamped to [0, 1]).
+    pub albedo: V3<R>,
+}
+
+impl LambertLobe<F32s> {
+    /// Sets lane `i` to one shading point's albedo.
+    #[inline]
+    pub fn set(&mut self, i: usize, one: &LambertLobe<f32>) {
+        self.albedo.set_lane(i, one.albedo);
+    }
+}
+
+impl<R: Real> RealBxdf<R> for LambertLobe<R> {
+    type AtWo = ();
+
+    #[inline(always)]
+    fn at_wo(&self, _wo: V3<R>) {}
+
+    #[inline(always)]
+    fn eval_pdf(&self, _at: (), wo: V3<R>, wi: V3<R>) -> (V3<R>, R) {
+        let zero = R::splat(0.0);
+        let above = wo.z.gt(zero) & wi.z.gt(zero);
+        let f = self.albedo * R::splat(FRAC_1_PI);
+        (above.select(f, V3::default()), R::select(above, cosine_hemisphere_pdf(wi.z), zero))
+    }
+
+    #[inline(always)]
+    fn sample(&self, _at: (), wo: V3<R>, u: V2<R>, _uc: R) -> RealSample<R> {
+        let zero = R::splat(0.0);
+        let wi = cosine_hemisphere(u);
+        RealSample {
+            ok: wo.z.gt(zero) & wi.z.gt(zero),
             wi,
-            f: self.albedo * FRAC_1_PI,
+            f: self.albedo * R::splat(FRAC_1_PI),
             pdf: cosine_hemisphere_pdf(wi.z),
-        })
+        }
     }
 }
 

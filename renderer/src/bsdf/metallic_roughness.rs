@@ -75,10 +75,11 @@
 //! }
 //! ```
 
-use super::microfacet::{fresnel_schlick, half_vector, schlick_weight, GgxDistribution};
-use super::{BsdfSample, Bxdf};
-use crate::color::luminance;
-use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
+use super::microfacet::{half_vector_or_z, reflect_about, schlick_weight, Ggx, GgxDistribution};
+use super::{BsdfSample, Bxdf, RealBxdf, RealSample};
+use crate::color::luminance_of;
+use crate::lanes::{choose, F32s, MaskOps, Real, SetLane, V2, V3};
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
@@ -188,15 +189,7 @@ impl MetallicRoughness {
         self.dielectric_f90 + (1.0 - self.dielectric_f90) * self.metallic
     }
 
-    /// The specular lobe's Fresnel factor F0 + (F90 − F0)(1 − cos θ)⁵.
-    #[inline]
-    fn fresnel(&self, cos_theta: f32) -> Rgb {
-        if self.dielectric_f90 == 1.0 {
-            return fresnel_schlick(self.f0(), cos_theta);
-        }
-        let f0 = self.f0();
-        f0 + (Rgb::splat(self.f90()) - f0) * schlick_weight(cos_theta)
-    }
+
 
     /// The diffuse normalisation per channel, k = 0.995 / T̄ with T̄ = (1 − f0) − (f90 − f0)/21
     /// the cosine-weighted mean of the dielectric's transmittance (zero where nothing is
@@ -217,14 +210,7 @@ impl MetallicRoughness {
         self.base_color * (1.0 - self.metallic)
     }
 
-    /// The dielectric interface's transmittance T(μ) = 1 − F_d(μ) per channel at the
-    /// macroscopic cosine `cos_theta` (clamped to [0, 1]): 0.96 (1 − (1 − μ)⁵) by default,
-    /// in [0, 0.96], 0 on the horizon.
-    #[inline]
-    fn dielectric_transmittance(&self, cos_theta: f32) -> Rgb {
-        let w = schlick_weight(cos_theta);
-        Rgb::ONE - self.dielectric_f0 - (Rgb::splat(self.dielectric_f90) - self.dielectric_f0) * w
-    }
+
 
     /// Probability with which [`Bxdf::sample`] draws from the specular lobe given `wo`.
     ///
@@ -235,38 +221,22 @@ impl MetallicRoughness {
     /// (metallic 1 or black base colour), so a pure metal spends no samples on it.
     #[inline]
     pub fn specular_probability(&self, wo: Vec3) -> f32 {
-        let diffuse = self.diffuse_color();
-        if diffuse.max_element() <= 0.0 {
-            return 1.0;
+        self.lobes().specular_probability(wo.into())
+    }
+
+    /// The BSDF's parameters as its formulas use them ([`MetallicRoughnessLobes`]).
+    #[inline(always)]
+    pub(crate) fn lobes(&self) -> MetallicRoughnessLobes<f32> {
+        let distribution = self.distribution();
+        MetallicRoughnessLobes {
+            ggx: distribution.formulas(),
+            f0: self.f0().into(),
+            f90: self.f90(),
+            t_base: (Rgb::ONE - self.dielectric_f0).into(),
+            t_slope: (Rgb::splat(self.dielectric_f90) - self.dielectric_f0).into(),
+            diffuse_color: self.diffuse_color().into(),
+            diffuse_scale_over_pi: (self.diffuse_scale() * FRAC_1_PI).into(),
         }
-        let cos_o = wo.z.clamp(0.0, 1.0);
-        let specular_albedo = luminance(self.fresnel(cos_o));
-        let diffuse_albedo = luminance(diffuse * self.dielectric_transmittance(cos_o)) * DIFFUSE_RETURN;
-        let total = specular_albedo + diffuse_albedo;
-        let p = if total > 0.0 {
-            specular_albedo / total
-        } else {
-            0.5
-        };
-        p.clamp(MIN_LOBE_PROBABILITY, 1.0 - MIN_LOBE_PROBABILITY)
-    }
-}
-
-impl MetallicRoughness {
-    /// f_r for directions already known to lie above the horizon, with the GGX distribution
-    /// and the half vector: F D V + (1 − m) c k T(μo) T(μi) / π.
-    #[inline]
-    fn value(&self, ggx: &GgxDistribution, wo: Vec3, wi: Vec3, h: Vec3) -> Rgb {
-        let specular = self.fresnel(wo.dot(h)) * (ggx.d(h) * ggx.visibility(wo, wi));
-        let transmittance = self.dielectric_transmittance(wo.z) * self.dielectric_transmittance(wi.z);
-        specular + self.diffuse_color() * transmittance * (self.diffuse_scale() * FRAC_1_PI)
-    }
-
-    /// The mixture density for directions already known to lie above the horizon.
-    #[inline]
-    fn density(&self, ggx: &GgxDistribution, wo: Vec3, wi: Vec3) -> f32 {
-        let p_specular = self.specular_probability(wo);
-        p_specular * ggx.reflection_pdf(wo, wi) + (1.0 - p_specular) * cosine_hemisphere_pdf(wi.z)
     }
 }
 
@@ -277,8 +247,9 @@ impl Bxdf for MetallicRoughness {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return Rgb::ZERO;
         }
-        let h = half_vector(wo, wi).unwrap_or(Vec3::Z);
-        self.value(&self.distribution(), wo, wi, h)
+        let (wo, wi) = (V3::from(wo), V3::from(wi));
+        let (h, _) = half_vector_or_z(wo, wi);
+        self.lobes().value(wo, wi, h).into()
     }
 
     /// The exact mixture density p_s · pdf_GGX(wi) + (1 − p_s) · cos θi / π in 1/sr, with
@@ -289,7 +260,10 @@ impl Bxdf for MetallicRoughness {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        self.density(&self.distribution(), wo, wi)
+        let lobes = self.lobes();
+        let (wo, wi) = (V3::from(wo), V3::from(wi));
+        let (h, has_half) = half_vector_or_z(wo, wi);
+        lobes.density(lobes.specular_probability(wo), wo, wi, h, has_half)
     }
 
     /// Picks the specular lobe when `uc < p_s` (then `u` drives the visible-normal sample),
@@ -300,34 +274,143 @@ impl Bxdf for MetallicRoughness {
         if wo.z <= 0.0 {
             return None;
         }
-        let ggx = self.distribution();
-        let p_specular = self.specular_probability(wo);
-        let wi = if uc < p_specular || p_specular >= 1.0 {
-            ggx.sample_reflection(wo, u)?
-        } else {
-            sample_cosine_hemisphere(u)
-        };
-        if wi.z <= 0.0 {
-            return None;
-        }
-        let h = half_vector(wo, wi).unwrap_or(Vec3::Z);
-        let pdf = self.density(&ggx, wo, wi);
-        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample {
-            wi,
-            f: self.value(&ggx, wo, wi, h),
-            pdf,
-        })
+        let lobes = self.lobes();
+        let wo = V3::from(wo);
+        lobes.sample(lobes.at_wo(wo), wo, u.into(), uc).into_option()
     }
 
-    /// Value and density in one call (the distribution is built once).
+    /// Value and density in one call (the parameters are derived once).
     #[inline]
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return (Rgb::ZERO, 0.0);
         }
-        let ggx = self.distribution();
-        let h = half_vector(wo, wi).unwrap_or(Vec3::Z);
-        (self.value(&ggx, wo, wi, h), self.density(&ggx, wo, wi))
+        let lobes = self.lobes();
+        let wo = V3::from(wo);
+        let (f, pdf) = lobes.eval_pdf(lobes.at_wo(wo), wo, wi.into());
+        (f.into(), pdf)
+    }
+}
+
+/// The metallic-roughness BSDF's formulas over [`Real`] values, with its parameters as the
+/// formulas use them: for one shading point ([`MetallicRoughness::lobes`]) or for
+/// [`LANES`](crate::lanes::LANES) points with their own materials (the lane kernels fill
+/// one lane per vertex with [`MetallicRoughnessLobes::set`]). The module documentation has
+/// the formulas; conventions are [`crate::bsdf`]'s.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct MetallicRoughnessLobes<R> {
+    /// The specular lobe's GGX distribution (isotropic, α = roughness², clamped).
+    ggx: Ggx<R>,
+    /// Reflectance at normal and at grazing incidence of the specular lobe.
+    f0: V3<R>,
+    f90: R,
+    /// The dielectric's transmittance T(μ) = `t_base` − `t_slope` (1 − μ)⁵.
+    t_base: V3<R>,
+    t_slope: V3<R>,
+    /// (1 − metallic) · base colour.
+    diffuse_color: V3<R>,
+    /// The diffuse normalisation k divided by π.
+    diffuse_scale_over_pi: V3<R>,
+}
+
+impl MetallicRoughnessLobes<F32s> {
+    /// Sets lane `i` to one shading point's parameters.
+    #[inline]
+    pub fn set(&mut self, i: usize, one: &MetallicRoughnessLobes<f32>) {
+        self.ggx.alpha_x.set_lane(i, one.ggx.alpha_x);
+        self.ggx.alpha_y.set_lane(i, one.ggx.alpha_y);
+        self.f0.set_lane(i, one.f0);
+        self.f90.set_lane(i, one.f90);
+        self.t_base.set_lane(i, one.t_base);
+        self.t_slope.set_lane(i, one.t_slope);
+        self.diffuse_color.set_lane(i, one.diffuse_color);
+        self.diffuse_scale_over_pi.set_lane(i, one.diffuse_scale_over_pi);
+    }
+}
+
+impl<R: Real> MetallicRoughnessLobes<R> {
+    /// The specular lobe's Fresnel factor F0 + (F90 − F0)(1 − cos θ)⁵.
+    #[inline(always)]
+    fn fresnel(&self, cos_theta: R) -> V3<R> {
+        self.f0 + (V3::new(self.f90, self.f90, self.f90) - self.f0) * schlick_weight(cos_theta)
+    }
+
+    /// The dielectric interface's transmittance T(μ) = 1 − F_d(μ) per channel at the
+    /// macroscopic cosine `cos_theta` (clamped to [0, 1] by the Schlick weight).
+    #[inline(always)]
+    fn transmittance(&self, cos_theta: R) -> V3<R> {
+        self.t_base - self.t_slope * schlick_weight(cos_theta)
+    }
+
+    /// [`MetallicRoughness::specular_probability`]: E_s / (E_s + E_d) clamped to [0.1, 0.9],
+    /// 1 where the diffuse lobe vanishes.
+    #[inline(always)]
+    pub fn specular_probability(&self, wo: V3<R>) -> R {
+        let zero = R::splat(0.0);
+        let cos_o = wo.z.clamp(0.0, 1.0);
+        let specular = luminance_of(self.fresnel(cos_o));
+        let diffuse = luminance_of(self.diffuse_color * self.transmittance(cos_o)) * DIFFUSE_RETURN;
+        let total = specular + diffuse;
+        let p = R::select(total.gt(zero), specular / total, R::splat(0.5));
+        let p = p.clamp(MIN_LOBE_PROBABILITY, 1.0 - MIN_LOBE_PROBABILITY);
+        R::select(self.diffuse_color.max_element().le(zero), R::splat(1.0), p)
+    }
+
+    /// f_r for directions above the horizon with half vector `h`: F D V + (1 − m) c k
+    /// T(μo) T(μi) / π.
+    #[inline(always)]
+    pub fn value(&self, wo: V3<R>, wi: V3<R>, h: V3<R>) -> V3<R> {
+        let specular = self.fresnel(wo.dot(h)) * (self.ggx.d(h) * self.ggx.visibility(wo, wi));
+        let transmittance = self.transmittance(wo.z) * self.transmittance(wi.z);
+        specular + self.diffuse_color * transmittance * self.diffuse_scale_over_pi
+    }
+
+    /// The mixture density p_s pdf_GGX + (1 − p_s) cos θi / π for directions above the
+    /// horizon, with the half vector `h` (where `has_half`: [`half_vector_or_z`]).
+    #[inline(always)]
+    pub fn density(&self, p_specular: R, wo: V3<R>, wi: V3<R>, h: V3<R>, has_half: R::Mask) -> R {
+        p_specular * self.ggx.reflection_pdf(wo, wi, h, has_half) + (R::splat(1.0) - p_specular) * cosine_hemisphere_pdf(wi.z)
+    }
+}
+
+impl<R: Real> RealBxdf<R> for MetallicRoughnessLobes<R> {
+    /// The probability of sampling the specular lobe.
+    type AtWo = R;
+
+    #[inline(always)]
+    fn at_wo(&self, wo: V3<R>) -> R {
+        self.specular_probability(wo)
+    }
+
+    #[inline(always)]
+    fn eval_pdf(&self, p_specular: R, wo: V3<R>, wi: V3<R>) -> (V3<R>, R) {
+        let zero = R::splat(0.0);
+        let above = wo.z.gt(zero) & wi.z.gt(zero);
+        if !above.any() {
+            return (V3::default(), zero);
+        }
+        let (h, has_half) = half_vector_or_z(wo, wi);
+        let f = self.value(wo, wi, h);
+        let pdf = self.density(p_specular, wo, wi, h, has_half);
+        (above.select(f, V3::default()), R::select(above, pdf, zero))
+    }
+
+    /// The specular lobe (visible normals) where `uc` is below `p_specular`, the
+    /// cosine-weighted diffuse lobe elsewhere.
+    #[inline(always)]
+    fn sample(&self, p_specular: R, wo: V3<R>, u: V2<R>, uc: R) -> RealSample<R> {
+        let zero = R::splat(0.0);
+        let specular = uc.lt(p_specular) | p_specular.ge(R::splat(1.0));
+        let wi = choose(specular, || reflect_about(wo, self.ggx.sample_visible_normal(wo, u)), || cosine_hemisphere(u));
+        let (h, has_half) = half_vector_or_z(wo, wi);
+        let pdf = self.density(p_specular, wo, wi, h, has_half);
+        let ok = wo.z.gt(zero) & wi.z.gt(zero) & pdf.gt(zero) & pdf.is_finite();
+        RealSample {
+            ok,
+            wi,
+            f: self.value(wo, wi, h),
+            pdf,
+        }
     }
 }
 
@@ -744,5 +827,75 @@ mod tests {
                 assert!(result.passed(), "{m:?}, θo = {theta}°\n{result}");
             }
         }
+    }
+
+    /// Bits of a vector, for comparisons that tell −0 from +0 and NaNs apart.
+    fn bits(v: Vec3) -> [u32; 3] {
+        v.to_array().map(f32::to_bits)
+    }
+
+    /// Every lane's value, density and sample ([`MetallicRoughnessLobes`] over `F32s`)
+    /// equal the scalar BSDF's bit for bit (where lanes take both lobes, and where a group
+    /// is below the horizon as a whole), over
+    /// materials from black dielectrics to mirrors (roughness 0), custom dielectric Fresnel,
+    /// directions on and below the horizon, grazing views and NaN-free random ones.
+    #[test]
+    fn lanes_equal_the_scalar_bsdf_bit_for_bit() {
+        use crate::lanes::{Vec2s, Vec3s, LANES};
+        use crate::sampler::Sampler;
+        use crate::sampling::sample_uniform_sphere;
+        let mut rng = Sampler::new(11, 2, 5);
+        let mut materials = vec![
+            MetallicRoughness::new(Rgb::new(0.95, 0.64, 0.54), 1.0, 0.3),
+            MetallicRoughness::new(Rgb::ZERO, 0.0, 0.5),
+            MetallicRoughness::new(Rgb::ONE, 0.0, 0.0),
+            MetallicRoughness::new(Rgb::new(0.2, 0.5, 0.9), 0.4, 1.0),
+            MetallicRoughness::new(Rgb::new(0.8, 0.8, 0.8), 0.0, 0.05).with_dielectric(Rgb::new(0.1, 0.02, 0.0), 0.7),
+        ];
+        while materials.len() < 64 {
+            let c = rng.next_2d().extend(rng.next_1d());
+            let m = MetallicRoughness::new(c, rng.next_1d().round(), rng.next_1d());
+            materials.push(if materials.len() % 3 == 0 { m.with_dielectric(c * 0.3, rng.next_1d()) } else { m });
+        }
+        let mut lanes = MetallicRoughnessLobes::<F32s>::default();
+        let (mut sampled, mut evaluated) = (0, 0);
+        for round in 0..400 {
+            let (mut wo, mut wi, mut u, mut uc) = (Vec3s::default(), Vec3s::default(), Vec2s::default(), F32s::default());
+            let mut cases = Vec::new();
+            for i in 0..LANES {
+                let bsdf = materials[(round * LANES + i) % materials.len()];
+                let mut o = sample_uniform_sphere(rng.next_2d());
+                match i % 8 {
+                    0 => o.z = o.z.abs(),
+                    1 => o = Vec3::new(o.x, o.y, 1e-4).normalize(),
+                    2 => o = Vec3::Z,
+                    _ => o.z = o.z.abs().max(0.05),
+                }
+                let l = if i % 5 == 0 { Vec3::new(-o.x, -o.y, o.z) } else { sample_uniform_sphere(rng.next_2d()) };
+                let (s, c) = (rng.next_2d(), rng.next_1d());
+                lanes.set(i, &bsdf.lobes());
+                wo.set(i, o);
+                wi.set(i, l);
+                u.set(i, s);
+                uc.0[i] = c;
+                cases.push((bsdf, o, l, s, c));
+            }
+            let p_specular = lanes.at_wo(wo);
+            let (f, pdf) = lanes.eval_pdf(p_specular, wo, wi);
+            let sample = lanes.sample(p_specular, wo, u, uc);
+            for (i, &(bsdf, o, l, s, c)) in cases.iter().enumerate() {
+                let (ef, epdf) = bsdf.eval_pdf(o, l);
+                assert_eq!((bits(f.get(i)), pdf.0[i].to_bits()), (bits(ef), epdf.to_bits()), "eval_pdf, lane {i}: {bsdf:?}");
+                evaluated += (epdf > 0.0) as usize;
+                let expected = bsdf.sample(o, Vec2::new(s.x, s.y), c);
+                assert_eq!(sample.ok.0[i], expected.is_some(), "sample, lane {i}: {bsdf:?}, wo {o}");
+                if let Some(e) = expected {
+                    let got = (bits(sample.wi.get(i)), bits(sample.f.get(i)), sample.pdf.0[i].to_bits());
+                    assert_eq!(got, (bits(e.wi), bits(e.f), e.pdf.to_bits()), "sample, lane {i}: {bsdf:?}");
+                    sampled += 1;
+                }
+            }
+        }
+        assert!(sampled > 3000 && evaluated > 2000, "{sampled} samples, {evaluated} values");
     }
 }

@@ -20,6 +20,7 @@
 //! }
 //! ```
 
+use crate::lanes::{MaskOps, Real, V2, V3};
 use crate::sampling::sin_cos_turns;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -101,27 +102,28 @@ impl GgxDistribution {
         self.alpha_y
     }
 
+    /// The distribution's formulas ([`Ggx`]) for one direction.
+    #[inline(always)]
+    pub(crate) fn formulas(&self) -> Ggx<f32> {
+        Ggx {
+            alpha_x: self.alpha_x,
+            alpha_y: self.alpha_y,
+        }
+    }
+
     /// The normal distribution D(h) in 1/sr, normalised so that ∫ D(h) h.z dω_h = 1 over the
     /// upper hemisphere; zero for `h.z ≤ 0`. `h` must be a unit vector. Bounded by
     /// 1 / (π αx αy).
     #[inline]
     pub fn d(&self, h: Vec3) -> f32 {
-        if h.z <= 0.0 {
-            return 0.0;
-        }
-        let sx = h.x / self.alpha_x;
-        let sy = h.y / self.alpha_y;
-        let e = sx * sx + sy * sy + h.z * h.z;
-        1.0 / (PI * self.alpha_x * self.alpha_y * e * e)
+        self.formulas().d(h.into())
     }
 
     /// √(w.z² + αx² w.x² + αy² w.y²): |w.z| times √(1 + α² tan² θ), the common factor of
     /// Λ, G1, G2 and the visible-normal density. At least `min(1, α)` for unit `w`.
     #[inline]
     fn projected_length(&self, w: Vec3) -> f32 {
-        let ax = self.alpha_x * w.x;
-        let ay = self.alpha_y * w.y;
-        (w.z * w.z + ax * ax + ay * ay).sqrt()
+        self.formulas().projected_length(w.into())
     }
 
     /// Smith's auxiliary function Λ(w) = (√(1 + α² tan² θ) − 1) / 2, with α the roughness
@@ -169,9 +171,7 @@ impl GgxDistribution {
     /// bounded below by 10⁻³⁰, so V is finite even for directions on the horizon.
     #[inline]
     pub fn visibility(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let denominator =
-            wi.z.abs() * self.projected_length(wo) + wo.z.abs() * self.projected_length(wi);
-        0.5 / denominator.max(MIN_VISIBILITY_DENOMINATOR)
+        self.formulas().visibility(wo.into(), wi.into())
     }
 
     /// Draws a microfacet normal from the distribution of normals visible from `wo`,
@@ -182,24 +182,7 @@ impl GgxDistribution {
     /// vector with `h.z ≥ 0`; its density is [`Self::visible_normal_pdf`].
     #[inline]
     pub fn sample_visible_normal(&self, wo: Vec3, u: Vec2) -> Vec3 {
-        // Warp to the hemisphere configuration (α = 1).
-        let wo_std = Vec3::new(wo.x * self.alpha_x, wo.y * self.alpha_y, wo.z.max(0.0))
-            .try_normalize()
-            .unwrap_or(Vec3::Z);
-        // Uniform point on the spherical cap z ∈ [−wo_std.z, 1].
-        let (sin_phi, cos_phi) = sin_cos_turns(u.x);
-        let z = (1.0 - u.y) * (1.0 + wo_std.z) - wo_std.z;
-        let sin_theta = (1.0 - z * z).max(0.0).sqrt();
-        let cap = Vec3::new(sin_theta * cos_phi, sin_theta * sin_phi, z);
-        // Halfway vector in the hemisphere configuration, warped back to the ellipsoid.
-        let h_std = cap + wo_std;
-        Vec3::new(
-            h_std.x * self.alpha_x,
-            h_std.y * self.alpha_y,
-            h_std.z.max(0.0),
-        )
-        .try_normalize()
-        .unwrap_or(Vec3::Z)
+        self.formulas().sample_visible_normal(wo.into(), u.into()).into()
     }
 
     /// Density (1/sr, over microfacet normals `h`) of [`Self::sample_visible_normal`]:
@@ -237,10 +220,9 @@ impl GgxDistribution {
         if wo.z < 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        match half_vector(wo, wi) {
-            Some(h) => self.d(h) / (2.0 * (wo.z + self.projected_length(wo))),
-            None => 0.0,
-        }
+        let (wo, wi) = (V3::from(wo), V3::from(wi));
+        let (h, has_half) = half_vector_or_z(wo, wi);
+        self.formulas().reflection_pdf(wo, wi, h, has_half)
     }
 }
 
@@ -248,7 +230,82 @@ impl GgxDistribution {
 /// from the surface).
 #[inline]
 pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {
-    2.0 * w.dot(n) * n - w
+    reflect_about(V3::from(w), V3::from(n)).into()
+}
+
+/// The formulas of [`GgxDistribution`] over [`Real`] values, written once for one direction
+/// (`f32`, what [`GgxDistribution`]'s methods evaluate) and for [`LANES`] of them (`F32s`,
+/// the lane kernels), with masks where one direction would return early: the same bits per
+/// lane. The roughnesses are taken as given (a [`GgxDistribution`]'s, already clamped).
+///
+/// [`LANES`]: crate::lanes::LANES
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Ggx<R> {
+    pub alpha_x: R,
+    pub alpha_y: R,
+}
+
+impl<R: Real> Ggx<R> {
+    /// [`GgxDistribution::d`]: D(h) in 1/sr, 0 for h.z ≤ 0.
+    #[inline(always)]
+    pub fn d(&self, h: V3<R>) -> R {
+        let sx = h.x / self.alpha_x;
+        let sy = h.y / self.alpha_y;
+        let e = sx * sx + sy * sy + h.z * h.z;
+        let d = R::splat(1.0) / (R::splat(PI) * self.alpha_x * self.alpha_y * e * e);
+        R::select(h.z.le(R::splat(0.0)), R::splat(0.0), d)
+    }
+
+    /// √(w.z² + αx² w.x² + αy² w.y²), the length of `w` in the stretched configuration.
+    #[inline(always)]
+    pub fn projected_length(&self, w: V3<R>) -> R {
+        let ax = self.alpha_x * w.x;
+        let ay = self.alpha_y * w.y;
+        (w.z * w.z + ax * ax + ay * ay).sqrt()
+    }
+
+    /// [`GgxDistribution::visibility`]: G2 / (4 |wo.z| |wi.z|) in closed form.
+    #[inline(always)]
+    pub fn visibility(&self, wo: V3<R>, wi: V3<R>) -> R {
+        let denominator = wi.z.abs() * self.projected_length(wo) + wo.z.abs() * self.projected_length(wi);
+        R::splat(0.5) / denominator.max(R::splat(MIN_VISIBILITY_DENOMINATOR))
+    }
+
+    /// [`GgxDistribution::sample_visible_normal`]: a unit microfacet normal with z ≥ 0.
+    #[inline(always)]
+    pub fn sample_visible_normal(&self, wo: V3<R>, u: V2<R>) -> V3<R> {
+        let zero = R::splat(0.0);
+        let wo_std = V3::new(wo.x * self.alpha_x, wo.y * self.alpha_y, wo.z.max(zero)).normalize_or(Vec3::Z);
+        let (sin_phi, cos_phi) = sin_cos_turns(u.x);
+        let z = (R::splat(1.0) - u.y) * (R::splat(1.0) + wo_std.z) - wo_std.z;
+        let sin_theta = (R::splat(1.0) - z * z).max(zero).sqrt();
+        let h_std = V3::new(sin_theta * cos_phi, sin_theta * sin_phi, z) + wo_std;
+        V3::new(h_std.x * self.alpha_x, h_std.y * self.alpha_y, h_std.z.max(zero)).normalize_or(Vec3::Z)
+    }
+
+    /// [`GgxDistribution::reflection_pdf`] given the half vector `h` of `wo` and `wi`, where
+    /// `has_half` ([`half_vector_or_z`]): D(h) / (2 (wo.z + |wo|_α)), 0 where wo.z < 0,
+    /// wi.z ≤ 0 or no half vector.
+    #[inline(always)]
+    pub fn reflection_pdf(&self, wo: V3<R>, wi: V3<R>, h: V3<R>, has_half: R::Mask) -> R {
+        let zero = R::splat(0.0);
+        let pdf = self.d(h) / (R::splat(2.0) * (wo.z + self.projected_length(wo)));
+        R::select(has_half & !wo.z.lt(zero) & wi.z.gt(zero), pdf, zero)
+    }
+}
+
+/// [`reflect`] over [`Real`] values: `w` mirrored about the unit normal `n`.
+#[inline(always)]
+pub(crate) fn reflect_about<R: Real>(w: V3<R>, n: V3<R>) -> V3<R> {
+    n * (R::splat(2.0) * w.dot(n)) - w
+}
+
+/// [`half_vector`] over [`Real`] values: normalize(wo + wi) where it exists (the mask),
+/// +z elsewhere (the scalar code's `unwrap_or(Vec3::Z)`).
+#[inline(always)]
+pub(crate) fn half_vector_or_z<R: Real>(wo: V3<R>, wi: V3<R>) -> (V3<R>, R::Mask) {
+    let (h, has_half) = (wo + wi).try_normalize();
+    (has_half.select(h, V3::splat(Vec3::Z)), has_half)
 }
 
 /// The reflection half vector normalize(wo + wi); `None` when `wo + wi` is (nearly) zero.
@@ -260,8 +317,8 @@ pub fn half_vector(wo: Vec3, wi: Vec3) -> Option<Vec3> {
 /// Schlick's weight (1 − cos θ)⁵ with cos θ clamped to [0, 1]; cos θ is the cosine between a
 /// direction and the microfacet normal (wo·h).
 #[inline]
-pub fn schlick_weight(cos_theta: f32) -> f32 {
-    let m = (1.0 - cos_theta).clamp(0.0, 1.0);
+pub fn schlick_weight<R: Real>(cos_theta: R) -> R {
+    let m = (R::splat(1.0) - cos_theta).clamp(0.0, 1.0);
     let m2 = m * m;
     m2 * m2 * m
 }

@@ -13,6 +13,7 @@
 //! [`tabulated_sampling::TabulatedBrdf`]; which BSDF a material gets is decided in
 //! [`crate::material`].
 
+use crate::lanes::{Real, V2, V3};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -20,7 +21,6 @@ pub mod albedo;
 pub mod lambert;
 pub mod merl;
 pub mod metallic_roughness;
-pub(crate) mod metallic_roughness_lanes;
 pub mod microfacet;
 pub mod nbrdf;
 pub mod neural;
@@ -63,6 +63,45 @@ pub trait Bxdf {
     /// Value and density together (one evaluation for BSDFs that share work between them).
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
         (self.eval(wo, wi), self.pdf(wo, wi))
+    }
+}
+
+/// The formulas of a BxDF written once over [`Real`] values: for one shading point (`f32`,
+/// what its [`Bxdf`] implementation evaluates) and for [`LANES`](crate::lanes::LANES) shading
+/// points with their own parameters at once (`F32s`, the path tracer's lane kernels). Masks
+/// stand where one point would return early, so each lane gets the scalar bits.
+pub(crate) trait RealBxdf<R: Real> {
+    /// What the value, density and sample share for one `wo` (e.g. a lobe probability).
+    type AtWo: Copy;
+
+    /// The part of the evaluation that depends on `wo` alone.
+    fn at_wo(&self, wo: V3<R>) -> Self::AtWo;
+
+    /// [`Bxdf::eval_pdf`]: value (1/sr) and density (1/sr), zero below either horizon.
+    fn eval_pdf(&self, at: Self::AtWo, wo: V3<R>, wi: V3<R>) -> (V3<R>, R);
+
+    /// [`Bxdf::sample`]: where [`RealSample::ok`], the direction, its value and density.
+    fn sample(&self, at: Self::AtWo, wo: V3<R>, u: V2<R>, uc: R) -> RealSample<R>;
+}
+
+/// A [`RealBxdf::sample`]: where `ok`, what [`Bxdf::sample`] gives as `Some`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RealSample<R: Real> {
+    pub ok: R::Mask,
+    pub wi: V3<R>,
+    pub f: V3<R>,
+    pub pdf: R,
+}
+
+impl RealSample<f32> {
+    /// The sample as [`Bxdf::sample`] returns it.
+    #[inline(always)]
+    pub fn into_option(self) -> Option<BsdfSample> {
+        self.ok.then(|| BsdfSample {
+            wi: self.wi.into(),
+            f: self.f.into(),
+            pdf: self.pdf,
+        })
     }
 }
 

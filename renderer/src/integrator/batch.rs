@@ -1,7 +1,7 @@
 //! [`PathTracer::step`] for a batch of paths: each vertex's random numbers are drawn and
 //! its light chosen one by one; those on Lambertian and metallic-roughness surfaces are
 //! scattered [`LANES`](crate::lanes::LANES) at a time under any light ([`DiffuseLanes`],
-//! [`GlossyLanes`]; on uniform materials pushed as their hits, the kernel finding their
+//! [`GlossyLanes`]: their formulas instantiated for lanes; on uniform materials pushed as their hits, the kernel finding their
 //! surface points, elsewhere begun one by one), those on decoded neural
 //! materials, NBRDF networks and MERL tables with their values evaluated together after all
 //! were sampled ([`DeferredScatter`]: one batched forward pass per net, table entries
@@ -10,8 +10,8 @@
 //! still in cache.
 
 use super::deferred::DeferredScatter;
-use super::diffuse_lanes::DiffuseLanes;
-use super::glossy_lanes::GlossyLanes;
+use super::bxdf_lanes::{DiffuseLanes, GlossyLanes};
+use super::hit_lanes::HitAt;
 use super::scattered_lanes::LaneGroup;
 use super::light_lanes::LaneLight;
 use super::{Draws, PathState, PathTracer, Scattered, Strategy};
@@ -124,32 +124,27 @@ impl PathTracer {
                 let draws = self.draw(scene, path);
                 let beta = path.beta;
                 if let Some((lane_hit, &(bsdf, double_sided), light)) = self.lane_begin(scene, path, &hit, &draws) {
-                    let (b, direction) = (hit.barycentric, path.ray.direction);
+                    let at = HitAt { hit: &lane_hit, barycentric: hit.barycentric, direction: path.ray.direction, double_sided };
                     let settle = |i, p, s| self.settle(paths, results, i, p, s);
                     match bsdf {
-                        Bsdf::Lambert(l) => diffuse.push(i, light_only, |lanes| lanes.push_hit(&lane_hit, b, direction, double_sided, l.albedo, beta, &draws, light), settle),
-                        Bsdf::MetallicRoughness(m) => glossy.push(i, light_only, |lanes| lanes.push_hit(&lane_hit, b, direction, double_sided, &m, beta, &draws, light), settle),
-                        _ => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
+                        Bsdf::Lambert(l) => diffuse.push(i, light_only, |lanes| lanes.push_hit(&at, &l.lobe(), beta, &draws, light), settle),
+                        Bsdf::MetallicRoughness(m) => glossy.push(i, light_only, |lanes| lanes.push_hit(&at, &m.lobes(), beta, &draws, light), settle),
+                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
                     }
                     continue;
                 }
                 let Some(v) = self.begin_drawn(scene, path, hit, draws) else {
                     continue;
                 };
+                // Every kind's route, in one exhaustive match: a kind added to `Bsdf` does not
+                // compile until it is given one (lanes, deferred batch, or one by one).
                 let settle = |i, p, s| self.settle(paths, results, i, p, s);
-                if let Bsdf::Lambert(b) = &v.bsdf {
-                    diffuse.push(i, light_only, |lanes| lanes.push(&v, b.albedo, beta, self.lane_light(scene, &v)), settle);
-                } else if let Bsdf::MetallicRoughness(bsdf) = &v.bsdf {
-                    glossy.push(i, light_only, |lanes| lanes.push(&v, bsdf, beta, self.lane_light(scene, &v)), settle);
-                } else if let Bsdf::Neural(bsdf) = v.bsdf {
-                    neural.push(self, scene, i, &v, bsdf, beta);
-                } else if let Bsdf::Nbrdf(bsdf) = v.bsdf {
-                    nbrdf.push(self, scene, i, &v, bsdf, beta);
-                } else if let Bsdf::Merl(bsdf) = v.bsdf {
-                    merl.push(self, scene, i, &v, bsdf, beta);
-                } else {
-                    let s = self.scatter(scene, &v, beta);
-                    self.settle(paths, results, i, v.sp.p, s);
+                match v.bsdf {
+                    Bsdf::Lambert(b) => diffuse.push(i, light_only, |lanes| lanes.push(&v, &b.lobe(), beta, self.lane_light(scene, &v)), settle),
+                    Bsdf::MetallicRoughness(b) => glossy.push(i, light_only, |lanes| lanes.push(&v, &b.lobes(), beta, self.lane_light(scene, &v)), settle),
+                    Bsdf::Neural(b) => neural.push(self, scene, i, &v, b, beta),
+                    Bsdf::Nbrdf(b) => nbrdf.push(self, scene, i, &v, b, beta),
+                    Bsdf::Merl(b) => merl.push(self, scene, i, &v, b, beta),
                 }
             }
             neural.scatter(self, |i, p, s| self.settle(paths, results, i, p, s));

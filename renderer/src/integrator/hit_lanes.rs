@@ -8,6 +8,17 @@ use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::render_scene::{surface_points_lanes, LaneHit, SurfaceLanes};
 use glam::{Vec2, Vec3};
 
+/// A hit whose surface point a lane kernel finds: a ray of direction `direction` reaching
+/// `hit`'s triangle at barycentric coordinates `barycentric`, on a material that is
+/// `double_sided` or not.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HitAt<'a> {
+    pub hit: &'a LaneHit,
+    pub barycentric: Vec2,
+    pub direction: Vec3,
+    pub double_sided: bool,
+}
+
 /// The surface points of up to [`LANES`] vertices: those pushed found, and what finding
 /// the others needs (their hit, ray direction and whether their material is double-sided).
 #[derive(Clone, Debug, Default)]
@@ -50,11 +61,10 @@ impl HitLanes {
         self.from_hit[i] = false;
     }
 
-    /// Lane `i` is the point a ray of direction `direction` reaches at barycentric
-    /// coordinates `barycentric` of `hit`'s triangle, whose material is `double_sided` or
-    /// not.
+    /// Lane `i` is the point `at`'s ray reaches.
     #[inline(always)]
-    pub fn set_hit(&mut self, i: usize, hit: &LaneHit, barycentric: Vec2, direction: Vec3, double_sided: bool) {
+    pub fn set_hit(&mut self, i: usize, at: &HitAt) {
+        let HitAt { hit, barycentric, direction, double_sided } = *at;
         for (corners, &corner) in self.corners.iter_mut().zip(&hit.corners) {
             corners.set(i, corner);
         }
@@ -106,9 +116,9 @@ mod tests {
     use super::*;
     use crate::accel::{Hit, Ray};
     use crate::bsdf::Bsdf;
-    use crate::integrator::diffuse_lanes::DiffuseLanes;
-    use crate::integrator::glossy_lanes::GlossyLanes;
-    use crate::integrator::light_lanes::LaneLight;
+    use crate::bsdf::lambert::LambertLobe;
+    use crate::bsdf::metallic_roughness::MetallicRoughnessLobes;
+    use crate::integrator::bxdf_lanes::{BxdfLanes, LaneBxdf};
     use crate::integrator::scattered_lanes::{scatter, LaneKernel, ScatteredLanes};
     use crate::integrator::{PathState, PathTracer, Strategy};
     use crate::render_scene::RenderScene;
@@ -157,19 +167,13 @@ mod tests {
                         continue;
                     }
                     let counts = if kernel == 0 {
-                        check::<DiffuseLanes>(&scene, &tracer, &cases, |lanes, v, bsdf, beta, light| match bsdf {
-                            Bsdf::Lambert(b) => lanes.push(v, b.albedo, beta, light),
-                            _ => unreachable!(),
-                        }, |lanes, hit, b, direction, double_sided, bsdf, beta, draws, light| match bsdf {
-                            Bsdf::Lambert(l) => lanes.push_hit(hit, b, direction, double_sided, l.albedo, beta, draws, light),
+                        check::<LambertLobe<F32s>>(&scene, &tracer, &cases, |bsdf| match bsdf {
+                            Bsdf::Lambert(b) => b.lobe(),
                             _ => unreachable!(),
                         })
                     } else {
-                        check::<GlossyLanes>(&scene, &tracer, &cases, |lanes, v, bsdf, beta, light| match bsdf {
-                            Bsdf::MetallicRoughness(m) => lanes.push(v, m, beta, light),
-                            _ => unreachable!(),
-                        }, |lanes, hit, b, direction, double_sided, bsdf, beta, draws, light| match bsdf {
-                            Bsdf::MetallicRoughness(m) => lanes.push_hit(hit, b, direction, double_sided, m, beta, draws, light),
+                        check::<MetallicRoughnessLobes<F32s>>(&scene, &tracer, &cases, |bsdf| match bsdf {
+                            Bsdf::MetallicRoughness(m) => m.lobes(),
                             _ => unreachable!(),
                         })
                     };
@@ -233,18 +237,11 @@ mod tests {
         smooth: usize,
     }
 
-    /// Pushes `cases` into kernel `K` in groups (begun with `push_vertex`, or as their hit
-    /// with `push_hit`) and compares each lane with the scalar code.
-    #[allow(clippy::type_complexity)]
-    fn check<'s, K: LaneKernel + Default>(
-        scene: &'s RenderScene,
-        tracer: &PathTracer,
-        cases: &[Case],
-        push_vertex: impl Fn(&mut K, &Vertex<'s>, &Bsdf<'s>, Rgb, LaneLight<'s>),
-        push_hit: impl Fn(&mut K, &LaneHit, Vec2, Vec3, bool, &Bsdf<'s>, Rgb, &super::super::Draws, LaneLight<'s>),
-    ) -> Counts {
+    /// Pushes `cases` into the kernel of BSDF `B` (`one` gives a vertex's parameters) in
+    /// groups, begun or as their hit, and compares each lane with the scalar code.
+    fn check<'s, B: LaneBxdf>(scene: &'s RenderScene, tracer: &PathTracer, cases: &[Case], one: impl Fn(&Bsdf<'s>) -> B::One) -> Counts {
         let strategy = tracer.strategy;
-        let (mut lanes, mut out) = (K::default(), ScatteredLanes::default());
+        let (mut lanes, mut out) = (BxdfLanes::<B>::default(), ScatteredLanes::default());
         let mut counts = Counts { from_hits: 0, ended: 0, shadows: 0, smooth: 0 };
         for group in cases.chunks(LANES) {
             lanes.clear();
@@ -258,9 +255,10 @@ mod tests {
                 assert_eq!(format!("{:?}", drawn.sampler), format!("{:?}", begun.sampler), "the same numbers drawn");
                 let (lane_hit, &(bsdf, double_sided), light) = tracer.lane_begin(scene, &drawn, hit, &draws).expect("begins in lanes");
                 match (vertex, as_hit) {
-                    (Some(v), false) => push_vertex(&mut lanes, &v, &bsdf, state.beta, tracer.lane_light(scene, &v)),
+                    (Some(v), false) => lanes.push(&v, &one(&bsdf), state.beta, tracer.lane_light(scene, &v)),
                     _ => {
-                        push_hit(&mut lanes, &lane_hit, hit.barycentric, state.ray.direction, double_sided, &bsdf, state.beta, &draws, light);
+                        let at = HitAt { hit: &lane_hit, barycentric: hit.barycentric, direction: state.ray.direction, double_sided };
+                        lanes.push_hit(&at, &one(&bsdf), state.beta, &draws, light);
                         counts.from_hits += 1;
                         counts.smooth += !lane_hit.flat as usize;
                     }

@@ -1,5 +1,5 @@
-//! The light samples of a lane kernel's vertices ([`super::diffuse_lanes`],
-//! [`super::glossy_lanes`]) and their next-event estimation, per lane with the scalar code's
+//! The light samples of a lane kernel's vertices ([`super::bxdf_lanes`]) and their
+//! next-event estimation, per lane with the scalar code's
 //! operations (so the same bits).
 //!
 //! A vertex pushes its chosen light as a [`LaneLight`]: an untextured emissive triangle or
@@ -12,14 +12,15 @@
 //!
 //! [`PathTracer::scatter`]: super::PathTracer
 
-use super::scattered_lanes::{offset_ray_origin, power_heuristic, ScatteredLanes};
+use super::scattered_lanes::ScatteredLanes;
+use crate::sampling::power_heuristic;
 use super::{PathTracer, Strategy, Vertex, SHADOW_EPSILON};
-use crate::accel::interpolate_point_lanes;
+use crate::accel::{barycentric_point, offset_origin};
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::lights::area::TriangleLight;
 use crate::lights::environment::Environment;
 use crate::lights::LightSample;
-use crate::render_scene::RenderScene;
+use crate::render_scene::{RenderScene, SurfaceLanes};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -232,7 +233,7 @@ impl<'s> LightLanes<'s> {
         let lower = ux.lt(uy);
         let b0 = lower.select(ux * 0.5, ux - uy * 0.5);
         let b1 = lower.select(uy - ux * 0.5, uy * 0.5);
-        let (q, q_error) = interpolate_point_lanes(self.corners, Vec2s { x: b1, y: 1.0 - b0 - b1 });
+        let (q, q_error) = barycentric_point(self.corners, Vec2s { x: b1, y: 1.0 - b0 - b1 });
         let to = q - p;
         let d2 = to.dot(to);
         let distance = d2.sqrt();
@@ -240,33 +241,30 @@ impl<'s> LightLanes<'s> {
         let cos_light = -direction.dot(self.normal);
         let pdf = d2 / (cos_light * self.area);
         let ok = !d2.le(zero) & !cos_light.le(zero) & pdf.is_finite();
-        (ok, direction, pdf, offset_ray_origin(q, q_error, self.normal, -direction))
+        (ok, direction, pdf, offset_origin(q, q_error, self.normal, -direction))
     }
 }
 
 /// Next-event estimation (`PathTracer::light_term` and `light_contribution`) into `out`'s
-/// shadow rays, per lane: light samples `l` at points `p` (with rounding bounds `p_error`)
-/// whose geometric normals facing the arriving rays are `ng`, where the BSDF's value toward
-/// the light is `f` (1/sr), its density `bsdf_pdf`, and the light's direction has local z
+/// shadow rays, per lane: light samples `l` at the `surface` points (their positions, rounding
+/// bounds and geometric normals facing the arriving rays), where the BSDF's value toward the
+/// light is `f` (1/sr) and its density `bsdf_pdf`, and the light's direction has local z
 /// `wi_z`; `beta` the throughputs. `light_only` weighs samples by 1 instead of the power
 /// heuristic (as delta lights always are).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn next_event(
     l: &LightSamples,
-    p: Vec3s,
-    p_error: Vec3s,
-    ng: Vec3s,
+    surface: &SurfaceLanes,
     wi_z: F32s,
-    f: Vec3s,
-    bsdf_pdf: F32s,
+    (f, bsdf_pdf): (Vec3s, F32s),
     beta: Vec3s,
     light_only: bool,
     out: &mut ScatteredLanes,
 ) {
+    let (p, p_error, ng) = (surface.p, surface.p_error, surface.ng);
     let zero = F32s::splat(0.0);
     let shadow_ok = l.ok & l.direction.dot(ng).gt(zero) & wi_z.gt(zero) & f.max_element().gt(zero);
-    let origin = offset_ray_origin(p, p_error, ng, l.direction);
+    let origin = offset_origin(p, p_error, ng, l.direction);
     let unweighted = l.delta | Mask([light_only; LANES]);
     let w = unweighted.select(F32s::splat(1.0), power_heuristic(l.pdf, bsdf_pdf));
     out.shadow_ok = shadow_ok.0;

@@ -6,9 +6,8 @@
 //! lighting, and −1 is unlimited (Russian roulette ends paths).
 
 mod batch;
+mod bxdf_lanes;
 mod deferred;
-mod diffuse_lanes;
-mod glossy_lanes;
 mod hit_lanes;
 mod light_lanes;
 mod scattered_lanes;

@@ -1,6 +1,5 @@
-//! What the lane kernels ([`super::diffuse_lanes`], [`super::glossy_lanes`]) give per lane,
-//! and the integrator's helpers they share, per lane with the scalar code's operations (so
-//! the same bits).
+//! What the lane kernels ([`super::bxdf_lanes`]) give per lane, their dispatch to the
+//! widest vector instructions the CPU has, and the grouping of vertices sixteen at a time.
 
 use super::{Continuation, Scattered, ShadowTest};
 use crate::accel::Ray;
@@ -132,29 +131,4 @@ unsafe fn scatter_avx512<K: LaneKernel>(kernel: &K, light_only: bool, out: &mut 
 #[target_feature(enable = "avx2")]
 unsafe fn scatter_avx2<K: LaneKernel>(kernel: &K, light_only: bool, out: &mut ScatteredLanes) {
     kernel.scatter_lanes(light_only, out)
-}
-
-/// [`crate::accel::offset_ray_origin`] per lane.
-#[inline(always)]
-pub(crate) fn offset_ray_origin(p: Vec3s, p_error: Vec3s, n: Vec3s, w: Vec3s) -> Vec3s {
-    let zero = F32s::splat(0.0);
-    let d = n.abs().dot(p_error);
-    let offset = w.dot(n).lt(zero).select3(-n * d, n * d);
-    let po = p + offset;
-    let away = |o: F32s| o.eq(zero).select(zero, o.signum());
-    let away = Vec3s {
-        x: away(offset.x),
-        y: away(offset.y),
-        z: away(offset.z),
-    };
-    po + away * (po.abs() * f32::EPSILON + f32::MIN_POSITIVE)
-}
-
-/// [`crate::sampling::power_heuristic`] per lane.
-#[inline(always)]
-pub(crate) fn power_heuristic(f: F32s, g: F32s) -> F32s {
-    let (f2, g2) = (f * f, g * g);
-    let sum = f2 + g2;
-    let ratio = sum.eq(F32s::splat(0.0)).select(F32s::splat(0.0), f2 / sum);
-    f2.is_infinite().select(F32s::splat(1.0), ratio)
 }

@@ -11,7 +11,7 @@ use crate::color::luminance;
 use crate::error::{Error, Result};
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::sampling::{
-    sample_uniform_sphere, sample_uniform_sphere_lanes, sin_cos_turns, sin_cos_turns_lanes, uniform_sphere_pdf, Distribution2D,
+    sample_uniform_sphere, sin_cos_turns, uniform_sphere, uniform_sphere_pdf, Distribution2D,
 };
 use super::LightSample;
 use crate::scene::{EnvironmentSource, EnvironmentSpec};
@@ -288,7 +288,7 @@ impl Environment {
         match &self.kind {
             &Kind::Constant(radiance) => EnvironmentSamples {
                 ok: Mask([true; LANES]),
-                direction: sample_uniform_sphere_lanes(u),
+                direction: uniform_sphere(u),
                 radiance: Vec3s::splat(radiance),
                 pdf: F32s::splat(uniform_sphere_pdf()),
             },
@@ -362,8 +362,8 @@ pub fn uv_to_direction(uv: Vec2) -> Vec3 {
 /// [`uv_to_direction`] per lane, with the same operations (so the same bits).
 #[inline(always)]
 pub fn uv_to_direction_lanes(uv: Vec2s) -> Vec3s {
-    let (st, ct) = sin_cos_turns_lanes(uv.y * 0.5);
-    let (s, c) = sin_cos_turns_lanes(uv.x);
+    let (st, ct) = sin_cos_turns(uv.y * 0.5);
+    let (s, c) = sin_cos_turns(uv.x);
     Vec3s {
         x: st * -s,
         y: ct,
