@@ -18,9 +18,8 @@ use renderer::metrics::{display_values, ImageError};
 use renderer::film::Region;
 use renderer::render::{Budget, RenderStats, Renderer};
 use renderer::neural::latent_library::LatentLibrary;
-use renderer::material::Binding;
 use renderer::render_scene::RenderScene;
-use renderer::scene::{SceneDescription, SurfaceModel};
+use renderer::scene::SceneDescription;
 use sweep::{FrameRange, SweepSpec};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -177,33 +176,6 @@ struct StatsFile<'a> {
     render: &'a RenderStats,
 }
 
-/// Applies `--bind` to the scene's materials: a value with `:` is a [`Binding`] (relative
-/// paths from the current directory), one without names a latent code (which needs a latent
-/// file).
-fn bind_materials(description: &mut SceneDescription, binds: &[(String, String)], latents: &LatentLibrary) -> Result<()> {
-    for (material, value) in binds {
-        let names: Vec<String> = description.materials.iter().map(|m| m.name.clone()).collect();
-        let Some(m) = description.materials.iter_mut().find(|m| &m.name == material) else {
-            return Err(renderer::Error::UnknownName {
-                what: "material (in --bind)",
-                name: material.clone(),
-                available: names,
-            }
-            .into());
-        };
-        let binding = if value.contains(':') {
-            Binding::parse(value, Path::new(""))?
-        } else if latents.is_empty() {
-            bail!("invalid value for --bind: {material}={value}: a latent name needs --material FILE");
-        } else {
-            latents.latent(value)?;
-            Binding::Neural(value.clone())
-        };
-        m.model = SurfaceModel::Bound(binding);
-    }
-    Ok(())
-}
-
 /// What every render of this invocation shares.
 struct Job<'a> {
     args: &'a Args,
@@ -328,8 +300,7 @@ fn run(args: Args) -> Result<()> {
     for warning in &description.warnings {
         eprintln!("warning: {warning}");
     }
-    bind_materials(&mut description, &args.bind, &latents)?;
-    latents.bind_equal_names(&mut description);
+    renderer::material::bind_scene(&mut description, &args.bind, &latents)?;
     let aspect = args.resolution.map(|(w, h)| w as f32 / h as f32);
     let camera = description.camera_or_default(args.camera.as_deref(), aspect)?;
     let (width, height) = args.resolution.unwrap_or_else(|| {

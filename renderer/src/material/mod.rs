@@ -1,25 +1,31 @@
 //! Material → BSDF: the one place that decides which BSDF a material's surface gets.
 //!
-//! A [`Material`] says how it scatters with a [`SurfaceModel`]: Lambert and glTF
-//! metallic-roughness are built per shading point from the material's (textured) parameters;
-//! a [`Binding`] names a BSDF made from data (a MERL table, an NBRDF network, a latent code),
-//! opened once into a [`SharedBsdf`] that every shading point of the materials bound to it
-//! shares. [`SceneMaterials`] holds a scene's materials prepared this way: it opens only what
-//! some triangle uses, each distinct binding once. [`MaterialBsdf`] is one such BSDF on its
-//! own, for other renderers (the plugins).
+//! A [`Material`] says how it scatters with a [`SurfaceModel`](crate::scene::SurfaceModel):
+//! Lambert and glTF metallic-roughness are built per shading point from the material's
+//! (textured) parameters; a [`Binding`] names a BSDF made from data (a MERL table, an NBRDF
+//! network, a latent code), opened once into a [`SharedBsdf`] that every shading point of
+//! the materials bound to it shares. Which of these a material gets — the command line's
+//! `--bind`, the scene file's `extras`, a latent code of the same name, or its own
+//! parameters — is decided by the precedence in [`binding`]. [`SceneMaterials`] holds a
+//! scene's materials prepared this way: it opens only what some triangle uses, each distinct
+//! binding once. [`MaterialBsdf`] is one such BSDF on its own, for other renderers (the
+//! plugins).
 
 pub mod binding;
 pub mod standalone;
 
-pub use binding::{Binding, BINDING_FORMS};
+pub use crate::scene::{Binding, BINDING_FORMS};
+pub use binding::bind_scene;
 pub use standalone::MaterialBsdf;
+
+use binding::Surface;
 
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::{Bsdf, Lambert, MetallicRoughness};
 use crate::neural::latent_library::LatentLibrary;
-use crate::scene::{AlphaMode, Material, NormalMap, SurfaceModel, Texture, TextureRef};
+use crate::scene::{AlphaMode, Material, NormalMap, Texture, TextureRef};
 use crate::{Error, Result, Rgb};
 use glam::Vec2;
 use std::collections::HashMap;
@@ -144,23 +150,23 @@ pub struct SceneMaterials {
 impl SceneMaterials {
     /// Opens the bindings of the materials marked `used` (each distinct binding once, latent
     /// codes from `latents`). Without latent files a material bound to a latent code falls
-    /// back to its glTF metallic-roughness parameters ([`SceneMaterials::unbound_neural`]);
-    /// unused bound materials get nothing opened.
+    /// back to its glTF metallic-roughness parameters ([`binding`]'s rule 4,
+    /// [`SceneMaterials::unbound_neural`]); unused bound materials get nothing opened.
     pub fn prepare(materials: Vec<Material>, textures: Vec<Texture>, used: &[bool], latents: &LatentLibrary) -> Result<Self> {
         let mut shared = Vec::new();
         let mut opened: HashMap<&Binding, usize> = HashMap::new();
         let mut unbound_neural = Vec::new();
         let mut kinds = Vec::with_capacity(materials.len());
         for (material, &is_used) in materials.iter().zip(used) {
-            kinds.push(match &material.model {
-                SurfaceModel::Lambert => Kind::Lambert,
-                SurfaceModel::MetallicRoughness => Kind::MetallicRoughness,
-                SurfaceModel::Bound(_) if !is_used => Kind::Lambert,
-                SurfaceModel::Bound(Binding::Neural(name)) if latents.is_empty() => {
-                    unbound_neural.push((material.name.clone(), name.clone()));
+            kinds.push(match binding::surface(&material.model, latents) {
+                Surface::Lambert => Kind::Lambert,
+                Surface::MetallicRoughness => Kind::MetallicRoughness,
+                Surface::Bound(_) | Surface::LatentWithoutFile(_) if !is_used => Kind::Lambert,
+                Surface::LatentWithoutFile(name) => {
+                    unbound_neural.push((material.name.clone(), name.to_string()));
                     Kind::MetallicRoughness
                 }
-                SurfaceModel::Bound(binding) => Kind::Shared(match opened.get(binding) {
+                Surface::Bound(binding) => Kind::Shared(match opened.get(binding) {
                     Some(&i) => i,
                     None => {
                         shared.push(SharedBsdf::open(binding, latents)?);

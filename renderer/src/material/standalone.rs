@@ -62,32 +62,12 @@ impl MaterialBsdf {
     /// is decoded. A latent file needs `name`; a table or network must not get one. Errors
     /// name the file or the unknown code (listing the available ones).
     pub fn open(path: &Path, name: Option<&str>) -> Result<Self> {
-        let text = path.to_string_lossy();
-        let is_table = path.extension().is_some_and(|e| e == "binary");
-        let is_network = text.ends_with(".npy") || crate::neural::nbrdf::tensor_paths(path)[0].is_file();
-        let binding = if is_table {
-            Binding::Merl(path.to_path_buf())
-        } else if is_network {
-            Binding::Nbrdf(path.to_path_buf())
-        } else {
-            let Some(name) = name else {
-                return Err(Error::InvalidArgument {
-                    flag: "material name".to_string(),
-                    reason: format!("{} is a latent file: name one of its codes", path.display()),
-                });
-            };
-            let latents = LatentLibrary::load(&[path])?;
-            return Ok(MaterialBsdf {
-                bsdf: SharedBsdf::open(&Binding::Neural(name.to_string()), &latents)?,
-            });
+        let binding = super::binding::file_binding(path, name)?;
+        let latents = match binding {
+            Binding::Neural(_) => LatentLibrary::load(&[path])?,
+            Binding::Merl(_) | Binding::Nbrdf(_) => LatentLibrary::default(),
         };
-        if let Some(name) = name {
-            return Err(Error::InvalidArgument {
-                flag: "material name".to_string(),
-                reason: format!("'{name}' given for {}, which holds one material", path.display()),
-            });
-        }
-        Self::from_binding(&binding, &LatentLibrary::default())
+        Self::from_binding(&binding, &latents)
     }
 
     /// Opens a latent file and decodes the latent vector `v` (any code, e.g. an edited one)

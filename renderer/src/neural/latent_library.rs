@@ -3,18 +3,13 @@
 //! the codes it binds. The f_ref table of a file (17.5 MB as f32) is converted on the first
 //! decode from that file and shared by every code decoded from it.
 //!
-//! Binding rules (see also [`crate::scene::gltf`]): a material binds latent NAME through
-//! `extras: {"neural": "NAME"}`, through `render --bind MATERIAL=NAME`, or — for materials
-//! without an explicit binding — by having the same name as a latent code
-//! ([`LatentLibrary::bind_equal_names`]). Names are searched in the files in the order given;
-//! the first file holding a name wins.
+//! Names are searched in the files in the order given; the first file holding a name wins.
+//! Which materials bind which codes is decided by the material module's binding rules.
 
 use crate::bsdf::neural::{NeuralBsdf, ReferenceValues};
 use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use crate::formats::latent_file::LatentFile;
 use crate::neural::reference::ReferenceTable;
-use crate::material::Binding;
-use crate::scene::{SceneDescription, SurfaceModel};
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
@@ -224,20 +219,6 @@ impl LatentLibrary {
             .clone();
         NeuralBsdf::new(label, file.decode(&code.z, code.offset, &code.residual), reference, file.mapping, file.epsilon, &TabulatedSamplerConfig::default())
             .map_err(|e| Error::invalid_file(&f.path, format!("decoding '{label}': {e}")))
-    }
-
-    /// Binds every material without an explicit binding whose name equals a latent name to
-    /// that latent; returns the names of the materials bound.
-    pub fn bind_equal_names(&self, description: &mut SceneDescription) -> Vec<String> {
-        let names = self.names();
-        let mut bound = Vec::new();
-        for m in &mut description.materials {
-            if !matches!(m.model, SurfaceModel::Bound(_)) && names.contains(&m.name) {
-                m.model = SurfaceModel::Bound(Binding::Neural(m.name.clone()));
-                bound.push(m.name.clone());
-            }
-        }
-        bound
     }
 }
 

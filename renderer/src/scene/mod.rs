@@ -1,15 +1,16 @@
 //! Scene descriptions as loaded from files (glTF, OBJ), before acceleration structures and
 //! light samplers are built. Everything is in world space, y up, scene units.
 
-use crate::material::Binding;
 use crate::{Error, Result, Rgb};
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use std::path::{Path, PathBuf};
 
+pub mod binding;
 pub mod gltf;
 pub mod obj;
 pub mod texture;
 
+pub use binding::{Binding, BINDING_FORMS};
 pub use texture::{Texture, TextureRef};
 
 /// All triangles of a scene: those placed once, in world space, followed by the

@@ -68,10 +68,9 @@
 
 use super::texture::{texture_transform, Encoding, Filter, Wrap};
 use super::{
-    smooth_vertex_normals, AlphaMode, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Instance, Material,
-    Mesh, NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef,
+    smooth_vertex_normals, AlphaMode, Binding, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Instance,
+    Material, Mesh, NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef,
 };
-use crate::material::Binding;
 use crate::{Error, Result, Rgb};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::camera::Projection;
