@@ -16,7 +16,7 @@ use renderer::formats::image_io::{write_image, ImageFormat, ToneMap};
 use renderer::integrator::PathTracer;
 use renderer::metrics::{display_values, ImageError};
 use renderer::film::Region;
-use renderer::render::{Budget, RenderStats, Renderer};
+use renderer::render::{Budget, Monitor, RenderStats, Renderer};
 use renderer::neural::latent_library::LatentLibrary;
 use renderer::render_scene::RenderScene;
 use renderer::scene::SceneDescription;
@@ -246,7 +246,10 @@ impl Job<'_> {
         };
         let (film, stats) = self
             .pool
-            .install(|| renderer.render_region(width, height, region, self.budget, &self.cancel, &progress, &mut after_pass));
+            .install(|| {
+                let monitor = Monitor { cancel: &self.cancel, progress: &progress, after_pass: &mut after_pass };
+                renderer.render_region(width, height, region, self.budget, monitor)
+            });
         bar.finish_and_clear();
         (film, stats, error_rows)
     }

@@ -42,6 +42,19 @@ pub enum Budget {
     Time(Duration),
 }
 
+/// How the caller follows and stops a render ([`Renderer::render_region`]).
+pub struct Monitor<'a> {
+    /// Set (e.g. by Ctrl-C) to stop: the tiles under way finish and the render returns the
+    /// film as it stands.
+    pub cancel: &'a AtomicBool,
+    /// Called with the number of samples of each tile as it finishes (a progress bar), from
+    /// any thread.
+    pub progress: &'a (dyn Fn(u64) + Sync),
+    /// Called after each pass with the film and the time since the render began (an error
+    /// log, a time-budget display).
+    pub after_pass: &'a mut dyn FnMut(&Film, Duration),
+}
+
 /// Counts of one or more passes.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PassCounters {
@@ -298,23 +311,15 @@ impl<'a> Renderer<'a> {
         progress: &(dyn Fn(u64) + Sync),
         after_pass: &mut dyn FnMut(&Film, Duration),
     ) -> (Film, RenderStats) {
-        self.render_region(width, height, Region::whole(width, height), budget, cancel, progress, after_pass)
+        let monitor = Monitor { cancel, progress, after_pass };
+        self.render_region(width, height, Region::whole(width, height), budget, monitor)
     }
 
     /// [`Renderer::render`] of `region` of the image only: with a sample budget, its pixels
     /// equal the whole render's bit for bit (a time budget gives each region its own sample
     /// count). `region` must lie inside the image.
-    #[allow(clippy::too_many_arguments)]
-    pub fn render_region(
-        &self,
-        width: u32,
-        height: u32,
-        region: Region,
-        budget: Budget,
-        cancel: &AtomicBool,
-        progress: &(dyn Fn(u64) + Sync),
-        after_pass: &mut dyn FnMut(&Film, Duration),
-    ) -> (Film, RenderStats) {
+    pub fn render_region(&self, width: u32, height: u32, region: Region, budget: Budget, monitor: Monitor<'_>) -> (Film, RenderStats) {
+        let Monitor { cancel, progress, after_pass } = monitor;
         assert!(region.is_within(width, height), "region {region} outside the {width}x{height} image");
         let start = Instant::now();
         let mut film = Film::of_region(width, height, region);
@@ -576,7 +581,8 @@ mod tests {
         let mut regions: Vec<Region> = ["3,5,29,33", "17,17,18,18", "0,34,37,35", "36,0,37,35"].iter().map(|r| r.parse().unwrap()).collect();
         regions.extend((1..=3).map(|k| Region::band(w, h, k, 3).unwrap()));
         for region in regions {
-            let (film, stats) = renderer.render_region(w, h, region, Budget::Spp(spp), &never, &|_| {}, &mut |_, _| {});
+            let monitor = Monitor { cancel: &never, progress: &|_| {}, after_pass: &mut |_, _| {} };
+            let (film, stats) = renderer.render_region(w, h, region, Budget::Spp(spp), monitor);
             let part = film.mean();
             assert_eq!(part.len(), region.pixel_count());
             assert_eq!((stats.width, stats.height, stats.region, stats.spp), (w, h, region, spp as f64));
