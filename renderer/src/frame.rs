@@ -24,13 +24,13 @@ impl Frame {
     /// World direction to local coordinates.
     #[inline]
     pub fn to_local(&self, v: Vec3) -> Vec3 {
-        Vec3::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
+        to_local(self.s.into(), self.t.into(), self.n.into(), v.into()).into()
     }
 
     /// Local direction to world coordinates.
     #[inline]
     pub fn to_world(&self, v: Vec3) -> Vec3 {
-        self.s * v.x + self.t * v.y + self.n * v.z
+        to_world(self.s.into(), self.t.into(), self.n.into(), v.into()).into()
     }
 }
 
@@ -44,6 +44,19 @@ pub(crate) fn tangents<R: Real>(n: V3<R>) -> (V3<R>, V3<R>) {
     let s = V3::new(R::splat(1.0) + sign * n.x * n.x * a, sign * b, -sign * n.x);
     let t = V3::new(b, sign + n.y * n.y * a, -n.y);
     (s, t)
+}
+
+/// [`Frame::to_local`] over [`Real`] values: world direction `v` in the frame (s, t, n).
+#[inline(always)]
+pub(crate) fn to_local<R: Real>(s: V3<R>, t: V3<R>, n: V3<R>, v: V3<R>) -> V3<R> {
+    V3::new(v.dot(s), v.dot(t), v.dot(n))
+}
+
+/// [`Frame::to_world`] over [`Real`] values: local direction `v` of the frame (s, t, n) in
+/// world space.
+#[inline(always)]
+pub(crate) fn to_world<R: Real>(s: V3<R>, t: V3<R>, n: V3<R>, v: V3<R>) -> V3<R> {
+    s * v.x + t * v.y + n * v.z
 }
 
 #[cfg(test)]

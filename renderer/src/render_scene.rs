@@ -452,17 +452,13 @@ impl SurfaceLanes {
     /// World direction `v` in the lanes' shading frames.
     #[inline(always)]
     pub fn to_local(&self, v: Vec3s) -> Vec3s {
-        Vec3s {
-            x: v.dot(self.s),
-            y: v.dot(self.t),
-            z: v.dot(self.n),
-        }
+        crate::frame::to_local(self.s, self.t, self.n, v)
     }
 
     /// Local direction `v` in world space.
     #[inline(always)]
     pub fn to_world(&self, v: Vec3s) -> Vec3s {
-        self.s * v.x + self.t * v.y + self.n * v.z
+        crate::frame::to_world(self.s, self.t, self.n, v)
     }
 }
 

@@ -15,8 +15,7 @@
 use super::hit_lanes::{HitAt, HitLanes};
 use super::light_lanes::{next_event, LaneLight, LightLanes};
 use super::scattered_lanes::{LaneKernel, ScatteredLanes};
-use super::{Draws, Vertex};
-use crate::accel::offset_origin;
+use super::{continue_path, Draws, Vertex};
 use crate::bsdf::lambert::LambertLobe;
 use crate::bsdf::metallic_roughness::MetallicRoughnessLobes;
 use crate::bsdf::RealBxdf;
@@ -132,7 +131,6 @@ impl<B: LaneBxdf> LaneKernel for BxdfLanes<'_, B> {
     /// drawn from the BSDF.
     #[inline(always)]
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes) {
-        let zero = F32s::splat(0.0);
         let (surface, scatters) = self.surface.surface_points();
         let (p, p_error, ng, wo, beta) = (surface.p, surface.p_error, surface.ng, surface.wo, self.beta);
         out.p = p;
@@ -145,20 +143,15 @@ impl<B: LaneBxdf> LaneKernel for BxdfLanes<'_, B> {
         next_event(&light, &surface, wi.z, (f, bsdf_pdf), beta, light_only, out);
         out.shadow_ok = (Mask(out.shadow_ok) & scatters).0;
 
-        // BSDF sampling and continuation().
+        // BSDF sampling and the continuation.
         let sample = self.bsdf.sample(at_wo, wo, self.u, self.uc);
         let wi_world = surface.to_world(sample.wi);
-        let next_beta = beta * (sample.f * (sample.wi.z / sample.pdf));
-        let next_ok = scatters
-            & sample.ok
-            & !wi_world.dot(ng).le(zero)
-            & next_beta.is_finite()
-            & !next_beta.max_element().le(zero);
-        out.next_ok = next_ok.0;
-        out.next_origin = offset_origin(p, p_error, ng, wi_world);
+        let next = continue_path((p, p_error, ng), wi_world, &sample, beta);
+        out.next_ok = (scatters & next.ok).0;
+        out.next_origin = next.origin;
         out.next_direction = wi_world;
-        out.next_beta = next_beta;
-        out.next_pdf = sample.pdf;
+        out.next_beta = next.beta;
+        out.next_pdf = next.pdf;
     }
 }
 

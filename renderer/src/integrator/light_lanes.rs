@@ -13,8 +13,7 @@
 //! [`PathTracer::scatter`]: super::PathTracer
 
 use super::scattered_lanes::ScatteredLanes;
-use crate::sampling::power_heuristic;
-use super::{PathTracer, Strategy, Vertex, SHADOW_EPSILON};
+use super::{shadow_test, PathTracer, RealLightSample, Strategy, Vertex};
 use crate::accel::{barycentric_point, offset_origin};
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::lights::area::TriangleLight;
@@ -261,15 +260,18 @@ pub(crate) fn next_event(
     light_only: bool,
     out: &mut ScatteredLanes,
 ) {
-    let (p, p_error, ng) = (surface.p, surface.p_error, surface.ng);
-    let zero = F32s::splat(0.0);
-    let shadow_ok = l.ok & l.direction.dot(ng).gt(zero) & wi_z.gt(zero) & f.max_element().gt(zero);
-    let origin = offset_origin(p, p_error, ng, l.direction);
-    let unweighted = l.delta | Mask([light_only; LANES]);
-    let w = unweighted.select(F32s::splat(1.0), power_heuristic(l.pdf, bsdf_pdf));
-    out.shadow_ok = shadow_ok.0;
-    out.shadow_origin = origin;
-    out.shadow_direction = l.has_target.select3(l.target - origin, l.direction);
-    out.shadow_t_max = l.has_target.select(F32s::splat(1.0 - SHADOW_EPSILON), F32s::splat(f32::MAX));
-    out.contribution = beta * f * l.radiance * (wi_z * w / l.pdf);
+    let light = RealLightSample {
+        direction: l.direction,
+        radiance: l.radiance,
+        pdf: l.pdf,
+        delta: l.delta,
+        has_target: l.has_target,
+        target: l.target,
+    };
+    let test = shadow_test((surface.p, surface.p_error, surface.ng), &light, wi_z, (f, bsdf_pdf), beta, light_only);
+    out.shadow_ok = (l.ok & test.ok).0;
+    out.shadow_origin = test.origin;
+    out.shadow_direction = test.direction;
+    out.shadow_t_max = test.t_max;
+    out.contribution = test.contribution;
 }

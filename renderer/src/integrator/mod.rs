@@ -14,8 +14,9 @@ mod scattered_lanes;
 
 pub use batch::{BatchBuffers, StepResults};
 
-use crate::accel::{offset_ray_origin, Hit, Ray};
-use crate::bsdf::{Bsdf, BsdfSample, Bxdf};
+use crate::accel::{offset_origin, Hit, Ray};
+use crate::bsdf::{Bsdf, BsdfSample, Bxdf, RealSample};
+use crate::lanes::{MaskOps, Real, V3};
 use crate::lights::environment::MapPoint;
 use crate::lights::LightSample;
 use crate::render_scene::{RenderScene, SurfacePoint};
@@ -314,14 +315,23 @@ impl PathTracer {
     #[inline(always)]
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
     fn light_contribution(&self, sp: &SurfacePoint, beta: Rgb, ls: &LightSample, wi: Vec3, f: Rgb, bsdf_pdf: f32) -> Option<ShadowTest> {
-        if !(wi.z > 0.0 && f.max_element() > 0.0) {
-            return None;
-        }
-        let origin = offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, ls.direction);
-        let w = if self.weighs_light_sample(ls) { power_heuristic(ls.pdf, bsdf_pdf) } else { 1.0 };
-        Some(ShadowTest {
-            ray: shadow_ray(origin, ls.direction, ls.shadow_target),
-            contribution: beta * f * ls.radiance * (wi.z * w / ls.pdf),
+        let light = RealLightSample {
+            direction: ls.direction.into(),
+            radiance: ls.radiance.into(),
+            pdf: ls.pdf,
+            delta: ls.is_delta,
+            has_target: ls.shadow_target.is_some(),
+            target: ls.shadow_target.unwrap_or(Vec3::ZERO).into(),
+        };
+        let at = (sp.p.into(), sp.p_error.into(), sp.ng_facing.into());
+        let test = shadow_test(at, &light, wi.z, (f.into(), bsdf_pdf), beta.into(), self.strategy == Strategy::LightOnly);
+        test.ok.then(|| ShadowTest {
+            ray: Ray {
+                origin: test.origin.into(),
+                direction: test.direction.into(),
+                t_max: test.t_max,
+            },
+            contribution: test.contribution.into(),
         })
     }
 
@@ -384,31 +394,98 @@ fn light_direction(sp: &SurfacePoint, ls: &LightSample) -> Option<Vec3> {
 /// finite.
 #[inline(always)]
 fn continuation(sp: &SurfacePoint, bs: &BsdfSample, beta: Rgb) -> Option<Continuation> {
-    let wi_world = sp.frame.to_world(bs.wi);
-    if wi_world.dot(sp.ng_facing) <= 0.0 {
-        return None;
-    }
-    let beta = beta * bs.weight();
-    if !beta.is_finite() || beta.max_element() <= 0.0 {
-        return None;
-    }
-    Some(Continuation {
-        ray: Ray::new(offset_ray_origin(sp.p, sp.p_error, sp.ng_facing, wi_world), wi_world),
-        beta,
+    let frame = &sp.frame;
+    let wi_world = frame.to_world(bs.wi).into();
+    let sample = RealSample {
+        ok: true,
+        wi: bs.wi.into(),
+        f: bs.f.into(),
         pdf: bs.pdf,
+    };
+    let next = continue_path((sp.p.into(), sp.p_error.into(), sp.ng_facing.into()), wi_world, &sample, beta.into());
+    next.ok.then(|| Continuation {
+        ray: Ray::new(next.origin.into(), wi_world.into()),
+        beta: next.beta.into(),
+        pdf: next.pdf,
     })
 }
 
-/// The shadow ray from `origin` toward a light in `direction`: to the point `target` (an
-/// unnormalised direction, t in (0, 1 − ε)) or, without one, to infinity.
+/// A vertex's position, its rounding bound and its geometric normal facing the arriving ray:
+/// where its shadow rays and continuation leave from.
+pub(crate) type Leaving<R> = (V3<R>, V3<R>, V3<R>);
+
+/// A light sample as next-event estimation weighs it, over [`Real`] values
+/// ([`LightSample`]'s fields for one vertex, or one per lane).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RealLightSample<R: Real> {
+    /// World-space unit direction toward the light.
+    pub direction: V3<R>,
+    pub radiance: V3<R>,
+    /// Solid-angle density (1/sr), selection included; the selection probability of a delta
+    /// light.
+    pub pdf: R,
+    pub delta: R::Mask,
+    /// Where a shadow ray must end `target` (else at infinity).
+    pub has_target: R::Mask,
+    pub target: V3<R>,
+}
+
+/// A shadow test over [`Real`] values: where `ok`, the shadow ray and the contribution its
+/// light adds when unoccluded.
+pub(crate) struct RealShadowTest<R: Real> {
+    pub ok: R::Mask,
+    pub origin: V3<R>,
+    pub direction: V3<R>,
+    pub t_max: R,
+    pub contribution: V3<R>,
+}
+
+/// Next-event estimation written once (the scalar path's `light_contribution` and the lane
+/// kernels'): the shadow test of light sample `l` leaving `at`, where the light's local
+/// direction has z `wi_z`, the BSDF's value toward it is `f` (1/sr) and its density of
+/// sampling it `bsdf_pdf`, for a path of throughput `beta`. Weighted by the power heuristic,
+/// by 1 for delta lights and with `light_only`; not `ok` where the light is below the
+/// geometric or shading surface or the BSDF gives nothing (also where a NaN fails a test).
 #[inline(always)]
-fn shadow_ray(origin: Vec3, direction: Vec3, target: Option<Vec3>) -> Ray {
-    match target {
-        Some(target) => Ray {
-            origin,
-            direction: target - origin,
-            t_max: 1.0 - SHADOW_EPSILON,
-        },
-        None => Ray::new(origin, direction),
+pub(crate) fn shadow_test<R: Real>(at: Leaving<R>, l: &RealLightSample<R>, wi_z: R, (f, bsdf_pdf): (V3<R>, R), beta: V3<R>, light_only: bool) -> RealShadowTest<R> {
+    let (p, p_error, ng) = at;
+    let zero = R::splat(0.0);
+    let ok = l.direction.dot(ng).gt(zero) & wi_z.gt(zero) & f.max_element().gt(zero);
+    let origin = offset_origin(p, p_error, ng, l.direction);
+    let w = if light_only { R::splat(1.0) } else { R::select(l.delta, R::splat(1.0), power_heuristic(l.pdf, bsdf_pdf)) };
+    RealShadowTest {
+        ok,
+        origin,
+        direction: l.has_target.select(l.target - origin, l.direction),
+        t_max: R::select(l.has_target, R::splat(1.0 - SHADOW_EPSILON), R::splat(f32::MAX)),
+        contribution: beta * f * l.radiance * (wi_z * w / l.pdf),
     }
 }
+
+/// A continuation over [`Real`] values: where `ok`, the next ray (from `origin` in the sampled
+/// world direction), the throughput after the vertex and the sample's density.
+pub(crate) struct RealContinuation<R: Real> {
+    pub ok: R::Mask,
+    pub origin: V3<R>,
+    pub beta: V3<R>,
+    pub pdf: R,
+}
+
+/// The continuation written once (the scalar path's `continuation` and the lane kernels'):
+/// BSDF sample `sample` leaving `at` in world direction `wi_world`, for a path of throughput
+/// `beta`; not `ok` where the sample failed, the direction leaves below the geometric surface
+/// or the throughput is zero or not finite.
+#[inline(always)]
+pub(crate) fn continue_path<R: Real>(at: Leaving<R>, wi_world: V3<R>, sample: &RealSample<R>, beta: V3<R>) -> RealContinuation<R> {
+    let (p, p_error, ng) = at;
+    let zero = R::splat(0.0);
+    let beta = beta * (sample.f * (sample.wi.z / sample.pdf));
+    let ok = sample.ok & !wi_world.dot(ng).le(zero) & beta.is_finite() & !beta.max_element().le(zero);
+    RealContinuation {
+        ok,
+        origin: offset_origin(p, p_error, ng, wi_world),
+        beta,
+        pdf: sample.pdf,
+    }
+}
+
