@@ -4,6 +4,7 @@
 //! is written when the render cannot start, and files are replaced atomically.
 
 mod contact_sheet;
+mod energy;
 mod parts;
 mod report;
 mod sweep;
@@ -479,6 +480,11 @@ fn main() -> ExitCode {
     let outcome = if subcommand.as_ref().is_some_and(|a| a == "report") {
         match ReportArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit) {
             Ok(args) => run_report(args),
+            Err(code) => return code,
+        }
+    } else if subcommand.as_ref().is_some_and(|a| a == "energy") {
+        match energy::EnergyArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit) {
+            Ok(args) => energy::run(args),
             Err(code) => return code,
         }
     } else if subcommand.as_ref().is_some_and(|a| a == "merge") {

@@ -2,6 +2,7 @@
 //! reference f32 forward passes of a latent file's model (hypernetwork, encoder), the fast
 //! target net, NBRDF networks, and the library of latent files a render binds codes from.
 
+pub mod energy;
 pub mod latent_library;
 pub mod mapping;
 pub mod mlp;
