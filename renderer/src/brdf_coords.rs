@@ -15,8 +15,8 @@
 //!   coordinates reciprocal. [`isotropic_angles`] and [`network_input`] fold.
 //! - Angles are in radians.
 
-use crate::lanes::{F32s, Vec3s};
-use crate::trig::{atan2, atan2_lanes};
+use crate::lanes::{MaskOps, Real, V3};
+use crate::trig::atan2;
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -50,35 +50,42 @@ pub struct HalfDiffAngles {
 /// Polar angle of a unit vector, accurate near both poles (atan2 rather than acos).
 #[inline]
 pub fn polar_angle(v: Vec3) -> f32 {
+    polar_angle_of(V3::from(v))
+}
+
+/// [`polar_angle`] over [`Real`] values (one vector, or one per lane).
+#[inline(always)]
+fn polar_angle_of<R: Real>(v: V3<R>) -> R {
     atan2((v.x * v.x + v.y * v.y).sqrt(), v.z)
 }
 
 /// Half and difference vectors of (wi, wo). When wi = −wo (no half vector) h is taken as +z.
 #[inline]
 pub fn half_diff(wi: Vec3, wo: Vec3) -> HalfDiff {
+    let (h, d, (cp, sp)) = half_diff_of(V3::from(wi), V3::from(wo));
+    HalfDiff {
+        h: h.into(),
+        d: d.into(),
+        cos_sin_phi_h: (cp, sp),
+    }
+}
+
+/// [`half_diff`] over [`Real`] values (one pair, or one per lane): h, d and (cos φh, sin φh).
+#[inline(always)]
+fn half_diff_of<R: Real>(wi: V3<R>, wo: V3<R>) -> (V3<R>, V3<R>, (R, R)) {
+    let (zero, one) = (R::splat(0.0), R::splat(1.0));
     let s = wi + wo;
-    let len2 = s.length_squared();
-    let h = if len2 > 1e-20 {
-        s / len2.sqrt()
-    } else {
-        Vec3::Z
-    };
+    let len2 = s.dot(s);
+    let len = len2.sqrt();
+    let h = len2.gt(R::splat(1e-20)).select(V3::new(s.x / len, s.y / len, s.z / len), V3::new(zero, zero, one));
     let sin_h = (h.x * h.x + h.y * h.y).sqrt();
-    let (cp, sp) = if sin_h > PHI_H_GUARD {
-        (h.x / sin_h, h.y / sin_h)
-    } else {
-        (1.0, 0.0)
-    };
+    let (cp, sp) = sin_h.gt(R::splat(PHI_H_GUARD)).select((h.x / sin_h, h.y / sin_h), (one, zero));
     // Rotate wi by −φh about z, then by −θh about y (cos θh = h.z, sin θh = sin_h).
     let x1 = cp * wi.x + sp * wi.y;
     let y1 = -sp * wi.x + cp * wi.y;
     let (ct, st) = (h.z, sin_h);
-    let d = Vec3::new(ct * x1 - st * wi.z, y1, st * x1 + ct * wi.z);
-    HalfDiff {
-        h,
-        d,
-        cos_sin_phi_h: (cp, sp),
-    }
+    let d = V3::new(ct * x1 - st * wi.z, y1, st * x1 + ct * wi.z);
+    (h, d, (cp, sp))
 }
 
 /// The four angles of (wi, wo); φd is not folded.
@@ -125,9 +132,10 @@ pub fn fold_phi_d(phi_d: f32) -> f32 {
 }
 
 /// Whether the difference vector must be replaced by (−dx, −dy, dz) to bring φd into [0, π).
-#[inline]
-fn needs_fold(d: Vec3) -> bool {
-    d.y < 0.0 || (d.y == 0.0 && d.x < 0.0)
+#[inline(always)]
+fn needs_fold<R: Real>(d: V3<R>) -> R::Mask {
+    let zero = R::splat(0.0);
+    d.y.lt(zero) | (d.y.eq(zero) & d.x.lt(zero))
 }
 
 /// The isotropic angles (θh, θd, φd) of (wi, wo) with φd folded into [0, π): the coordinates
@@ -135,7 +143,7 @@ fn needs_fold(d: Vec3) -> bool {
 #[inline]
 pub fn isotropic_angles(wi: Vec3, wo: Vec3) -> [f32; 3] {
     let hd = half_diff(wi, wo);
-    let phi_d = if needs_fold(hd.d) {
+    let phi_d = if needs_fold(V3::from(hd.d)) {
         atan2(-hd.d.y, -hd.d.x)
     } else {
         atan2(hd.d.y, hd.d.x)
@@ -157,78 +165,45 @@ pub fn network_input(wi: Vec3, wo: Vec3) -> [f32; 6] {
 /// network input that need more than a copy.
 #[inline]
 fn sin_theta_h_and_folded_d(hd: &HalfDiff) -> (f32, Vec3) {
-    let sin_h = (hd.h.x * hd.h.x + hd.h.y * hd.h.y).sqrt();
-    let d = if needs_fold(hd.d) {
-        Vec3::new(-hd.d.x, -hd.d.y, hd.d.z)
-    } else {
-        hd.d
-    };
-    (sin_h, d)
+    let (sin_h, d) = sin_theta_h_and_folded_d_of(V3::from(hd.h), V3::from(hd.d));
+    (sin_h, d.into())
+}
+
+/// [`sin_theta_h_and_folded_d`] over [`Real`] values, of the half vector `h` and the
+/// difference vector `d`.
+#[inline(always)]
+fn sin_theta_h_and_folded_d_of<R: Real>(h: V3<R>, d: V3<R>) -> (R, V3<R>) {
+    let sin_h = (h.x * h.x + h.y * h.y).sqrt();
+    (sin_h, needs_fold(d).select(V3::new(-d.x, -d.y, d.z), d))
 }
 
 /// [`network_input`] and [`isotropic_angles`] of (wi, wo) together, from one half/difference
 /// computation: the network input and (θh, θd, φd) with φd folded into [0, π).
 #[inline]
 pub fn network_input_and_angles(wi: Vec3, wo: Vec3) -> ([f32; 6], [f32; 3]) {
-    let hd = half_diff(wi, wo);
-    let (sin_h, d) = sin_theta_h_and_folded_d(&hd);
-    let angles = [atan2(sin_h, hd.h.z), polar_angle(d), fold_phi_d(atan2(d.y, d.x))];
-    ([sin_h, 0.0, hd.h.z, d.x, d.y, d.z], angles)
+    network_input_and_angles_of(V3::from(wi), V3::from(wo))
 }
 
-/// [`network_input_and_angles`] of [`LANES`](crate::lanes::LANES) pairs at once, with the
-/// same operations per lane (the same bits), except that φd is folded for angles from
-/// [`crate::trig::atan2`] only ([`fold_phi_d_lanes`]).
+/// [`network_input_and_angles`] over [`Real`] values (one pair, or one per lane; φd folded
+/// by [`fold_atan2_phi_d`], exact for the angles [`crate::trig::atan2`] gives).
 #[inline(always)]
-pub fn network_input_and_angles_lanes(wi: Vec3s, wo: Vec3s) -> ([F32s; 6], [F32s; 3]) {
-    let zero = F32s::splat(0.0);
-    let one = F32s::splat(1.0);
-    // half_diff
-    let s = wi + wo;
-    let len2 = s.dot(s);
-    let len = len2.sqrt();
-    let has_h = len2.gt(F32s::splat(1e-20));
-    let h = Vec3s {
-        x: has_h.select(s.x / len, zero),
-        y: has_h.select(s.y / len, zero),
-        z: has_h.select(s.z / len, one),
-    };
-    let sin_h = (h.x * h.x + h.y * h.y).sqrt();
-    let has_phi = sin_h.gt(F32s::splat(PHI_H_GUARD));
-    let (cp, sp) = (has_phi.select(h.x / sin_h, one), has_phi.select(h.y / sin_h, zero));
-    let x1 = cp * wi.x + sp * wi.y;
-    let y1 = -sp * wi.x + cp * wi.y;
-    let (ct, st) = (h.z, sin_h);
-    let d = Vec3s {
-        x: ct * x1 - st * wi.z,
-        y: y1,
-        z: st * x1 + ct * wi.z,
-    };
-    // sin_theta_h_and_folded_d (sin θh is the same expression as above)
-    let fold = d.y.lt(zero) | (d.y.eq(zero) & d.x.lt(zero));
-    let d = Vec3s {
-        x: fold.select(-d.x, d.x),
-        y: fold.select(-d.y, d.y),
-        z: d.z,
-    };
-    let angles = [
-        atan2_lanes(sin_h, h.z),
-        atan2_lanes((d.x * d.x + d.y * d.y).sqrt(), d.z),
-        fold_phi_d_lanes(atan2_lanes(d.y, d.x)),
-    ];
-    ([sin_h, zero, h.z, d.x, d.y, d.z], angles)
+pub fn network_input_and_angles_of<R: Real>(wi: V3<R>, wo: V3<R>) -> ([R; 6], [R; 3]) {
+    let (h, d, _) = half_diff_of(wi, wo);
+    let (sin_h, d) = sin_theta_h_and_folded_d_of(h, d);
+    let angles = [atan2(sin_h, h.z), polar_angle_of(d), fold_atan2_phi_d(atan2(d.y, d.x))];
+    ([sin_h, R::splat(0.0), h.z, d.x, d.y, d.z], angles)
 }
 
-/// [`fold_phi_d`] per lane for |φd| < 2π or NaN, which every angle from
-/// [`crate::trig::atan2`] is: there `φd % π` is φd itself or φd ∓ π, which is exact
-/// (Sterbenz; the sign of a zero remainder is φd's, as `%` gives it), so the remainder needs
-/// no division.
+/// [`fold_phi_d`] for |φd| < 2π or NaN, which every angle from [`crate::trig::atan2`] is:
+/// there `φd % π` is φd itself or φd ∓ π, which is exact (Sterbenz; the sign of a zero
+/// remainder is φd's, as `%` gives it), so the remainder needs no division. For one value
+/// or one per lane.
 #[inline(always)]
-pub fn fold_phi_d_lanes(phi_d: F32s) -> F32s {
-    let pi = F32s::splat(PI);
-    let r = phi_d.abs().ge(pi).select((phi_d - pi.copysign(phi_d)).copysign(phi_d), phi_d);
-    let r = r.lt(F32s::splat(0.0)).select(r + PI, r);
-    r.ge(pi).select(r - PI, r)
+pub fn fold_atan2_phi_d<R: Real>(phi_d: R) -> R {
+    let pi = R::splat(PI);
+    let r = R::select(phi_d.abs().ge(pi), (phi_d - pi.copysign(phi_d)).copysign(phi_d), phi_d);
+    let r = R::select(r.lt(R::splat(0.0)), r + PI, r);
+    R::select(r.ge(pi), r - PI, r)
 }
 
 /// Boxes that together hold every [`network_input`] of directions above the horizon: θh and
@@ -321,6 +296,7 @@ pub fn rendered_point(theta_h: f32, theta_d: f32, phi_d: f32) -> Option<Rendered
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lanes::{F32s, Vec3s};
     use proptest::prelude::*;
     use std::f32::consts::FRAC_PI_2;
 
@@ -521,7 +497,7 @@ mod tests {
                 wi.set(i, a);
                 wo.set(i, b);
             }
-            let (x, angles) = network_input_and_angles_lanes(wi, wo);
+            let (x, angles) = network_input_and_angles_of(wi, wo);
             for (i, &(a, b)) in chunk.iter().enumerate() {
                 let (want_x, want_angles) = network_input_and_angles(a, b);
                 assert_eq!(x.map(|v| v.0[i].to_bits()), want_x.map(f32::to_bits), "input of ({a}, {b})");
@@ -535,7 +511,7 @@ mod tests {
             for (i, &p) in chunk.iter().enumerate() {
                 v.0[i] = p;
             }
-            let folded = fold_phi_d_lanes(v);
+            let folded = fold_atan2_phi_d(v);
             for (i, &p) in chunk.iter().enumerate() {
                 assert_eq!(folded.0[i].to_bits(), fold_phi_d(p).to_bits(), "fold of {p}");
             }

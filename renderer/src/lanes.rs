@@ -341,6 +341,10 @@ pub trait Real:
     fn eq(self, o: Self) -> Self::Mask;
     fn is_finite(self) -> Self::Mask;
     fn is_infinite(self) -> Self::Mask;
+    /// `f32::is_sign_negative` (NaNs and zeros by their sign bit).
+    fn is_sign_negative(self) -> Self::Mask;
+    /// `f32::acos` (libm's, lane by lane).
+    fn acos(self) -> Self;
 
     /// `f32::clamp` (NaN stays NaN).
     #[inline(always)]
@@ -538,6 +542,16 @@ impl Real for f32 {
     fn is_infinite(self) -> bool {
         f32::is_infinite(self)
     }
+
+    #[inline(always)]
+    fn is_sign_negative(self) -> bool {
+        f32::is_sign_negative(self)
+    }
+
+    #[inline(always)]
+    fn acos(self) -> f32 {
+        f32::acos(self)
+    }
 }
 
 impl Real for F32s {
@@ -621,6 +635,16 @@ impl Real for F32s {
     #[inline(always)]
     fn is_infinite(self) -> Mask {
         F32s::is_infinite(self)
+    }
+
+    #[inline(always)]
+    fn is_sign_negative(self) -> Mask {
+        F32s::is_sign_negative(self)
+    }
+
+    #[inline(always)]
+    fn acos(self) -> F32s {
+        self.map(f32::acos)
     }
 }
 

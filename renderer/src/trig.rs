@@ -6,9 +6,8 @@
 //! (The forward functions, sine and cosine of turns, live with the sampling code that uses
 //! them: [`crate::sampling::sin_cos_turns`].)
 
-use crate::lanes::F32s;
+use crate::lanes::{MaskOps, Real};
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
-use std::ops::{Add, Mul, Sub};
 
 /// tan(π/8): above it the reduced argument is moved to (a − 1)/(a + 1) about π/4.
 const TAN_PI_8: f32 = 0.414_213_57;
@@ -24,58 +23,40 @@ const PI_LO: f32 = -8.742_278e-8;
 /// Cephes' reduction and polynomial: a = min(|x|, |y|) / max(|x|, |y|) ∈ [0, 1], moved to
 /// [−tan π/8, tan π/8] as (a − 1)/(a + 1) about π/4 where it is larger (one division
 /// either way), an odd degree-9 polynomial there, then the octant's reflections.
-#[inline]
-pub fn atan2(y: f32, x: f32) -> f32 {
+///
+/// For one value or, with the same operations per lane, [`crate::lanes::F32s`].
+#[inline(always)]
+pub fn atan2<R: Real>(y: R, x: R) -> R {
     let (ax, ay) = (x.abs(), y.abs());
-    let (lo, hi) = if ay > ax { (ax, ay) } else { (ay, ax) };
+    let swap = ay.gt(ax);
+    let (lo, hi) = swap.select((ax, ay), (ay, ax));
     // Selects, not branches, for the special cases (a branch to libm would keep the
     // compiler from interleaving calls): both infinite is the diagonal, (0, 0) gives t = 0
     // (then ±0 or ±π by the signs), and NaNs propagate.
-    let (lo, hi) = if ax == f32::INFINITY && ay == f32::INFINITY { (1.0, 1.0) } else { (lo, hi) };
-    let far = lo > TAN_PI_8 * hi;
-    let (num, den) = if far { (lo - hi, lo + hi) } else { (lo, if hi == 0.0 { 1.0 } else { hi }) };
+    let inf = R::splat(f32::INFINITY);
+    let one = R::splat(1.0);
+    let (lo, hi) = (ax.eq(inf) & ay.eq(inf)).select((one, one), (lo, hi));
+    let far = lo.gt(hi * TAN_PI_8);
+    let num = R::select(far, lo - hi, lo);
+    let den = R::select(far, lo + hi, R::select(hi.eq(R::splat(0.0)), one, hi));
     let poly = atan_reduced(num / den);
-    let a = if far { (poly + FRAC_PI_4_LO) + FRAC_PI_4 } else { poly };
-    let a = if ay > ax { (FRAC_PI_2_LO - a) + FRAC_PI_2 } else { a };
-    let a = if x.is_sign_negative() { (PI_LO - a) + PI } else { a };
+    let a = R::select(far, (poly + FRAC_PI_4_LO) + FRAC_PI_4, poly);
+    let a = R::select(swap, (R::splat(FRAC_PI_2_LO) - a) + FRAC_PI_2, a);
+    let a = R::select(x.is_sign_negative(), (R::splat(PI_LO) - a) + PI, a);
     a.copysign(y)
 }
 
-/// arctan t for |t| ≤ tan(π/8): Cephes' odd polynomial, for `f32` and, with the same
-/// operations per lane, [`F32s`].
+/// arctan t for |t| ≤ tan(π/8): Cephes' odd polynomial.
 #[inline(always)]
-fn atan_reduced<T>(t: T) -> T
-where
-    T: Copy + Add<T, Output = T> + Mul<T, Output = T> + Add<f32, Output = T> + Sub<f32, Output = T>,
-    f32: Mul<T, Output = T>,
-{
+fn atan_reduced<R: Real>(t: R) -> R {
     let z = t * t;
-    (((8.053_744_5e-2 * z - 1.387_768_6e-1) * z + 1.997_771_1e-1) * z - 3.333_295e-1) * z * t + t
-}
-
-/// [`atan2`] per lane, with the same operations (the same bits).
-#[inline(always)]
-pub fn atan2_lanes(y: F32s, x: F32s) -> F32s {
-    let (ax, ay) = (x.abs(), y.abs());
-    let swap = ay.gt(ax);
-    let (lo, hi) = (swap.select(ax, ay), swap.select(ay, ax));
-    let inf = F32s::splat(f32::INFINITY);
-    let both_infinite = ax.eq(inf) & ay.eq(inf);
-    let one = F32s::splat(1.0);
-    let (lo, hi) = (both_infinite.select(one, lo), both_infinite.select(one, hi));
-    let far = lo.gt(TAN_PI_8 * hi);
-    let num = far.select(lo - hi, lo);
-    let den = far.select(lo + hi, hi.eq(F32s::splat(0.0)).select(one, hi));
-    let poly = atan_reduced(num / den);
-    let a = far.select((poly + FRAC_PI_4_LO) + FRAC_PI_4, poly);
-    let a = swap.select((FRAC_PI_2_LO - a) + FRAC_PI_2, a);
-    let a = x.is_sign_negative().select((PI_LO - a) + PI, a);
-    a.copysign(y)
+    (((z * 8.053_744_5e-2 - 1.387_768_6e-1) * z + 1.997_771_1e-1) * z - 3.333_295e-1) * z * t + t
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lanes::F32s;
 
     /// Error in ulps of the f32 result against f64's atan2 of the same inputs.
     fn ulps(y: f32, x: f32) -> f64 {
@@ -157,7 +138,7 @@ mod tests {
             for (i, &(yi, xi)) in chunk.iter().enumerate() {
                 (y.0[i], x.0[i]) = (yi, xi);
             }
-            let lanes = atan2_lanes(y, x);
+            let lanes = atan2(y, x);
             for (i, &(yi, xi)) in chunk.iter().enumerate() {
                 assert_eq!(lanes.0[i].to_bits(), atan2(yi, xi).to_bits(), "atan2({yi}, {xi})");
             }

@@ -234,8 +234,8 @@ fn net_points_lanes(points: &[Directions], out: &mut Vec<NetPoint>) {
             wo.set(lane, d.wo);
             wi.set(lane, d.wi);
         }
-        let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles_lanes(wi, wo);
-        let coordinates = crate::formats::merl::continuous_coordinates_lanes(theta_h, theta_d, phi_d);
+        let (x, [theta_h, theta_d, phi_d]) = crate::brdf_coords::network_input_and_angles_of(wi, wo);
+        let coordinates = crate::formats::merl::folded_continuous_coordinates(theta_h, theta_d, phi_d);
         out.extend((0..chunk.len()).map(|lane| NetPoint {
             x: x.map(|v| v.0[lane]),
             axes: crate::formats::merl::TrilinearAxes::at(coordinates.map(|v| v.0[lane])),

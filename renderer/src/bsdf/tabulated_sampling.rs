@@ -34,7 +34,7 @@
 
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, sin_cos_turns, Distribution1D, ONE_MINUS_EPSILON};
 use crate::lanes::{F32s, Vec3s, LANES};
-use crate::trig::{atan2, atan2_lanes};
+use crate::trig::atan2;
 use crate::bsdf::{BsdfSample, Bxdf};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -545,9 +545,9 @@ impl TabulatedSampler {
         let hx = c * h.x + s * h.y;
         let hy = -s * h.x + c * h.y;
         let sin2_h = hx * hx + hy * hy;
-        let root_theta = (atan2_lanes(sin2_h.sqrt(), h.z) / FRAC_PI_2).sqrt();
+        let root_theta = (atan2(sin2_h.sqrt(), h.z) / FRAC_PI_2).sqrt();
         let v = sin2_h / (1.0 + h.z);
-        let x = (atan2_lanes(hy, hx).abs() / PI).min(F32s::splat(1.0));
+        let x = (atan2(hy, hx).abs() / PI).min(F32s::splat(1.0));
         std::array::from_fn(|lane| match samplers[lane] {
             Some((sampler, view)) => {
                 let wi_z = wi.z.0[lane];

@@ -13,7 +13,7 @@
 //! Bin centres are the midpoints in these index coordinates, e.g.
 //! θh = ((i + 0.5) / 90)² · π/2, so every centre indexes its own bin.
 
-use crate::lanes::F32s;
+use crate::lanes::Real;
 use crate::{Error, Result, Rgb};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2 as FRAC_PI_2_F64, PI as PI_F64};
@@ -102,21 +102,17 @@ pub fn bin_centre(index: usize) -> [f64; 3] {
 /// interpolate in these.
 #[inline]
 pub fn continuous_coordinates(theta_h: f32, theta_d: f32, phi_d: f32) -> [f32; 3] {
-    use std::f32::consts::{FRAC_PI_2, PI};
-    let uh = (theta_h.max(0.0) / FRAC_PI_2).sqrt() * THETA_H_BINS as f32 - 0.5;
-    let ud = theta_d / FRAC_PI_2 * THETA_D_BINS as f32 - 0.5;
-    let up = crate::brdf_coords::fold_phi_d(phi_d) / PI * PHI_D_BINS as f32 - 0.5;
-    [uh, ud, up]
+    folded_continuous_coordinates(theta_h, theta_d, crate::brdf_coords::fold_phi_d(phi_d))
 }
 
-/// [`continuous_coordinates`] per lane, with the same operations, for angles whose φd is
-/// already folded or comes from [`crate::trig::atan2`] ([`crate::brdf_coords::fold_phi_d_lanes`]).
+/// [`continuous_coordinates`] of angles whose φd is already folded into [0, π), over
+/// [`Real`] values (one point, or one per lane).
 #[inline(always)]
-pub fn continuous_coordinates_lanes(theta_h: F32s, theta_d: F32s, phi_d: F32s) -> [F32s; 3] {
+pub fn folded_continuous_coordinates<R: Real>(theta_h: R, theta_d: R, phi_d: R) -> [R; 3] {
     use std::f32::consts::{FRAC_PI_2, PI};
-    let uh = (theta_h.max(F32s::splat(0.0)) / FRAC_PI_2).sqrt() * THETA_H_BINS as f32 - 0.5;
+    let uh = (theta_h.max(R::splat(0.0)) / FRAC_PI_2).sqrt() * THETA_H_BINS as f32 - 0.5;
     let ud = theta_d / FRAC_PI_2 * THETA_D_BINS as f32 - 0.5;
-    let up = crate::brdf_coords::fold_phi_d_lanes(phi_d) / PI * PHI_D_BINS as f32 - 0.5;
+    let up = phi_d / PI * PHI_D_BINS as f32 - 0.5;
     [uh, ud, up]
 }
 

@@ -9,13 +9,13 @@
 
 use crate::color::luminance;
 use crate::error::{Error, Result};
-use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
+use crate::lanes::{F32s, Mask, Real, Vec2s, Vec3s, LANES, V2, V3};
 use crate::sampling::{
     sample_uniform_sphere, sin_cos_turns, uniform_sphere, uniform_sphere_pdf, Distribution2D,
 };
 use super::LightSample;
 use crate::scene::{EnvironmentSource, EnvironmentSpec};
-use crate::trig::{atan2, atan2_lanes};
+use crate::trig::atan2;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -222,7 +222,7 @@ impl Environment {
                     y: d.y,
                     z: s * d.x + c * d.z,
                 };
-                let uv = direction_to_uv_lanes(local);
+                let uv = direction_uv(local);
                 let sin_theta = (1.0 - local.y * local.y).max(F32s::splat(0.0)).sqrt();
                 let mut points = [MapPoint { uv: Vec2::ZERO, sin_theta: 0.0 }; LANES];
                 for (k, point) in points.iter_mut().enumerate() {
@@ -294,7 +294,7 @@ impl Environment {
             },
             Kind::Image(distribution) => {
                 let (uv, map_pdf, texels) = distribution.sample_continuous_lanes(u);
-                let local = uv_to_direction_lanes(uv);
+                let local = uv_direction(uv);
                 let zero = F32s::splat(0.0);
                 let sin_theta = (1.0 - local.y * local.y).max(zero).sqrt();
                 let mut radiance = Vec3s::default();
@@ -327,23 +327,20 @@ impl Environment {
 /// Image coordinates of a direction in the map's frame (see the module doc).
 #[inline]
 pub fn direction_to_uv(d: Vec3) -> Vec2 {
-    let u = 0.5 + atan2(d.x, -d.z) * (0.5 / PI);
-    let v = d.y.clamp(-1.0, 1.0).acos() / PI;
-    Vec2::new(u.rem_euclid(1.0), v)
+    let uv = direction_uv(V3::from(d));
+    Vec2::new(uv.x, uv.y)
 }
 
-/// [`direction_to_uv`] per lane, with the same operations (so the same bits): the arccosine
-/// is libm's, lane by lane, and the remainder's `%` (a call of `fmodf`) is x − trunc(x) with
-/// x's sign, which is exactly fmod(x, 1) for finite |x| < 2³¹.
+/// [`direction_to_uv`] over [`Real`] values (one direction, or one per lane): the arccosine
+/// is libm's, and u's remainder modulo 1 (`f32::rem_euclid`, whose `%` is a call of `fmodf`)
+/// is x − trunc(x) with x's sign, which is exactly fmod(x, 1) for finite |x| < 2³¹.
 #[inline(always)]
-pub fn direction_to_uv_lanes(d: Vec3s) -> Vec2s {
-    let u = 0.5 + atan2_lanes(d.x, -d.z) * (0.5 / PI);
-    let v = F32s(d.y.0.map(|y| y.clamp(-1.0, 1.0).acos())) / PI;
-    // f32::rem_euclid(u, 1.0).
+pub(crate) fn direction_uv<R: Real>(d: V3<R>) -> V2<R> {
+    let u = R::splat(0.5) + atan2(d.x, -d.z) * (0.5 / PI);
+    let v = d.y.clamp(-1.0, 1.0).acos() / PI;
     let r = (u - u.truncate()).copysign(u);
-    let zero = F32s::splat(0.0);
-    Vec2s {
-        x: r.lt(zero).select(r + 1.0, r),
+    V2 {
+        x: R::select(r.lt(R::splat(0.0)), r + 1.0, r),
         y: v,
     }
 }
@@ -353,22 +350,16 @@ pub fn direction_to_uv_lanes(d: Vec3s) -> Vec2s {
 /// negated ones of u (about one ulp, several times faster than libm's).
 #[inline]
 pub fn uv_to_direction(uv: Vec2) -> Vec3 {
+    uv_direction(V2::from(uv)).into()
+}
+
+/// [`uv_to_direction`] over [`Real`] values (one point, or one per lane).
+#[inline(always)]
+pub(crate) fn uv_direction<R: Real>(uv: V2<R>) -> V3<R> {
     let (st, ct) = sin_cos_turns(uv.y * 0.5);
     let (s, c) = sin_cos_turns(uv.x);
     // sin φ = −sin 2πu and cos φ = −cos 2πu.
-    Vec3::new(st * -s, ct, st * c)
-}
-
-/// [`uv_to_direction`] per lane, with the same operations (so the same bits).
-#[inline(always)]
-pub fn uv_to_direction_lanes(uv: Vec2s) -> Vec3s {
-    let (st, ct) = sin_cos_turns(uv.y * 0.5);
-    let (s, c) = sin_cos_turns(uv.x);
-    Vec3s {
-        x: st * -s,
-        y: ct,
-        z: st * c,
-    }
+    V3::new(st * -s, ct, st * c)
 }
 
 /// Reads an .exr or .hdr image as linear RGB radiance; rejects non-finite or negative texels.
