@@ -13,6 +13,12 @@
 //! - `log-blend`: no decoder: the two tables blended in the mapped space, f + ε =
 //!   (f_A + ε)^(1−t) (f_B + ε)^t, which is what interpolating the mapped values y (or a
 //!   decoder linear in z) gives;
+//! - `proposal`: issue 49's step-3 proposal (docs/training.md): z interpolated, each end's
+//!   residual faded out within τ = 0.25 of its end (weight clamp(1 − distance/τ, 0, 1)²)
+//!   instead of interpolated across, and the offsets interpolated plus a per-channel
+//!   correction ln(ρ_target / ρ) (two iterations) that makes the frame's albedo, averaged
+//!   over the θo of `--theta-o`, the linear blend of its ends' (capped so that no θo exceeds
+//!   1): one decoded net per frame;
 //! - `table`: the linear blend of the two tables (the NBRDF networks of `--nbrdf`), whose
 //!   albedo is the blend of the ends' albedos.
 //!
@@ -82,6 +88,9 @@ pub const DEFAULT_PAIRS: &[(&str, &str)] = &[
     ("paper_blue_rgb", "nickel"),
 ];
 
+/// The proposal's fade: an end's residual weighs clamp(1 − distance / this, 0, 1)².
+const PROPOSAL_FADE: f32 = 0.25;
+
 /// `render energy`.
 #[derive(Parser, Debug)]
 #[command(
@@ -147,17 +156,19 @@ enum Variant {
     Encoder,
     EncoderOfBlend,
     LogBlend,
+    Proposal,
     Table,
 }
 
 impl Variant {
-    const ALL: [Variant; 7] = [
+    const ALL: [Variant; 8] = [
         Variant::Z,
         Variant::ZOffset,
         Variant::Full,
         Variant::Encoder,
         Variant::EncoderOfBlend,
         Variant::LogBlend,
+        Variant::Proposal,
         Variant::Table,
     ];
 
@@ -169,12 +180,13 @@ impl Variant {
             Variant::Encoder => "encoder",
             Variant::EncoderOfBlend => "encoder(blend)",
             Variant::LogBlend => "log-blend",
+            Variant::Proposal => "proposal",
             Variant::Table => "table",
         }
     }
 
     fn needs_code(self) -> bool {
-        matches!(self, Variant::Z | Variant::ZOffset | Variant::Full)
+        matches!(self, Variant::Z | Variant::ZOffset | Variant::Full | Variant::Proposal)
     }
 }
 
@@ -355,6 +367,34 @@ impl Study<'_> {
                         })
                     })
                     .collect()
+            }
+            Variant::Proposal => {
+                let (ca, cb) = (a.code.as_ref().context("no code")?, b.code.as_ref().context("no code")?);
+                let fade = |distance: f32| (1.0 - distance / PROPOSAL_FADE).clamp(0.0, 1.0).powi(2);
+                let (wa, wb) = (fade(t), fade(1.0 - t));
+                let len = ca.residual.len().max(cb.residual.len());
+                let at = |r: &[f32], i: usize| r.get(i).copied().unwrap_or(0.0);
+                let residual: Vec<f32> = (0..len).map(|i| wa * at(&ca.residual, i) + wb * at(&cb.residual, i)).collect();
+                let mut code = Study::code(&ca.z).lerp(&Study::code(&cb.z), t)?;
+                code.offset = [0, 1, 2].map(|c| (1.0 - t) * ca.offset[c] + t * cb.offset[c]);
+                code.residual = residual;
+                let mut albedo = self.albedos_of(&self.decoded(&code, &label)?);
+                if t > 0.0 && t < 1.0 {
+                    let ends = [ca, cb].map(|c| self.decoded(c, &label).map(|d| self.albedos_of(&d)));
+                    let [ea, eb] = ends;
+                    let (ea, eb) = (ea?, eb?);
+                    for _ in 0..2 {
+                        for c in 0..3 {
+                            let target: f64 = ea.iter().zip(&eb).map(|(x, y)| (1.0 - f64::from(t)) * x[c] + f64::from(t) * y[c]).sum();
+                            let now: f64 = albedo.iter().map(|x| x[c]).sum();
+                            let top = albedo.iter().map(|x| x[c]).fold(0.0, f64::max);
+                            let gain = (target / now.max(1e-12)).min(1.0 / top.max(1e-12));
+                            code.offset[c] += gain.ln() as f32;
+                        }
+                        albedo = self.albedos_of(&self.decoded(&code, &label)?);
+                    }
+                }
+                albedo
             }
             Variant::Table => a.albedo.iter().zip(&b.albedo).map(|(x, y)| (1.0 - f64::from(t)) * *x + f64::from(t) * *y).collect(),
         })
