@@ -117,11 +117,18 @@ pub fn uniform_sphere_pdf() -> f32 {
 /// Uniform barycentric coordinates (b1, b2) on a triangle (Heitz 2019, low distortion).
 #[inline]
 pub fn sample_uniform_triangle(u: Vec2) -> Vec2 {
+    let b = uniform_triangle(V2::from(u));
+    Vec2::new(b.x, b.y)
+}
+
+/// [`sample_uniform_triangle`] over [`Real`] values (one point, or one per lane).
+#[inline(always)]
+pub(crate) fn uniform_triangle<R: Real>(u: V2<R>) -> V2<R> {
     // Selects rather than branches: which half u falls in is a coin flip per sample.
-    let lower = u.x < u.y;
-    let b0 = if lower { u.x * 0.5 } else { u.x - u.y * 0.5 };
-    let b1 = if lower { u.y - u.x * 0.5 } else { u.y * 0.5 };
-    Vec2::new(b1, 1.0 - b0 - b1)
+    let lower = u.x.lt(u.y);
+    let b0 = R::select(lower, u.x * 0.5, u.x - u.y * 0.5);
+    let b1 = R::select(lower, u.y - u.x * 0.5, u.y * 0.5);
+    V2 { x: b1, y: R::splat(1.0) - b0 - b1 }
 }
 
 /// Power heuristic with β = 2 for MIS (Veach 1997); `f` and `g` are the two densities

@@ -14,9 +14,9 @@
 
 use super::scattered_lanes::ScatteredLanes;
 use super::{shadow_test, PathTracer, RealLightSample, Strategy, Vertex};
-use crate::accel::{barycentric_point, offset_origin};
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
-use crate::lights::area::TriangleLight;
+use crate::lights::area::{triangle_sample, TriangleLight};
+use crate::lights::punctual::point_illumination;
 use crate::lights::environment::Environment;
 use crate::lights::LightSample;
 use crate::render_scene::{RenderScene, SurfaceLanes};
@@ -192,24 +192,22 @@ impl<'s> LightLanes<'s> {
         };
         let triangle = Mask(self.triangle);
         if triangle.0.iter().any(|&t| t) {
-            let (ok, direction, pdf, target) = self.triangle_samples(p);
-            samples.ok = samples.ok & (!triangle | ok);
-            samples.direction = triangle.select3(direction, samples.direction);
-            samples.pdf = triangle.select(pdf * self.pdf, samples.pdf);
-            samples.target = triangle.select3(target, samples.target);
+            // TriangleLight::sample's geometry.
+            let s = triangle_sample(self.corners, self.normal, self.area, p, self.u);
+            samples.ok = samples.ok & (!triangle | s.ok);
+            samples.direction = triangle.select3(s.direction, samples.direction);
+            samples.pdf = triangle.select(s.pdf * self.pdf, samples.pdf);
+            samples.target = triangle.select3(s.target, samples.target);
         }
         let point = Mask(self.point);
         if point.0.iter().any(|&l| l) {
             // punctual::illuminate of a point light, and LightSet::sample_chosen's target.
-            let to = self.position - p;
-            let d2 = to.dot(to);
-            let distance = d2.sqrt();
-            let direction = to / distance;
-            samples.ok = samples.ok & (!point | d2.gt(F32s::splat(0.0)));
-            samples.direction = point.select3(direction, samples.direction);
-            samples.radiance = point.select3(self.radiance / d2, samples.radiance);
-            samples.has_target = samples.has_target & !point | (point & distance.is_finite());
-            samples.target = point.select3(p + direction * distance, samples.target);
+            let s = point_illumination(self.position, self.radiance, p);
+            samples.ok = samples.ok & (!point | s.ok);
+            samples.direction = point.select3(s.direction, samples.direction);
+            samples.radiance = point.select3(s.value, samples.radiance);
+            samples.has_target = samples.has_target & !point | (point & s.distance.is_finite());
+            samples.target = point.select3(p + s.direction * s.distance, samples.target);
         }
         let from_environment = Mask(self.from_environment);
         if let Some(environment) = self.environment.filter(|_| from_environment.0.iter().any(|&e| e)) {
@@ -220,27 +218,6 @@ impl<'s> LightLanes<'s> {
             samples.pdf = from_environment.select(e.pdf * self.pdf, samples.pdf);
         }
         samples
-    }
-
-    /// `TriangleLight::sample` from `p` per lane (uniform by area, Heitz's mapping): whether
-    /// it gives a sample, its direction, solid-angle density (without the selection) and
-    /// shadow target.
-    #[inline(always)]
-    fn triangle_samples(&self, p: Vec3s) -> (Mask, Vec3s, F32s, Vec3s) {
-        let zero = F32s::splat(0.0);
-        let (ux, uy) = (self.u.x, self.u.y);
-        let lower = ux.lt(uy);
-        let b0 = lower.select(ux * 0.5, ux - uy * 0.5);
-        let b1 = lower.select(uy - ux * 0.5, uy * 0.5);
-        let (q, q_error) = barycentric_point(self.corners, Vec2s { x: b1, y: 1.0 - b0 - b1 });
-        let to = q - p;
-        let d2 = to.dot(to);
-        let distance = d2.sqrt();
-        let direction = to / distance;
-        let cos_light = -direction.dot(self.normal);
-        let pdf = d2 / (cos_light * self.area);
-        let ok = !d2.le(zero) & !cos_light.le(zero) & pdf.is_finite();
-        (ok, direction, pdf, offset_origin(q, q_error, self.normal, -direction))
     }
 }
 

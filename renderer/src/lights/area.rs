@@ -1,8 +1,9 @@
 //! Emissive triangles: one-sided area lights sampled uniformly by area.
 
 use super::LightSample;
-use crate::accel::{interpolate_point, offset_ray_origin};
-use crate::sampling::sample_uniform_triangle;
+use crate::accel::{barycentric_point, offset_origin};
+use crate::lanes::{Real, V2, V3};
+use crate::sampling::{sample_uniform_triangle, uniform_triangle};
 use crate::scene::{Texture, TextureRef};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -111,30 +112,16 @@ impl TriangleLight {
     /// scene's (read where the light has an emissive texture).
     #[inline]
     pub fn sample(&self, p: Vec3, u: Vec2, textures: &[Texture]) -> Option<AreaSample> {
-        let b = sample_uniform_triangle(u);
-        let (q, q_error) = interpolate_point(self.corners, b);
-        let to = q - p;
-        let d2 = to.length_squared();
-        if d2 <= 0.0 {
-            return None;
-        }
-        let distance = d2.sqrt();
-        let direction = to / distance;
-        let cos_light = -direction.dot(self.normal);
-        if cos_light <= 0.0 {
-            return None;
-        }
-        let pdf = d2 / (cos_light * self.area);
-        let radiance = match &self.texture {
-            Some(t) => self.radiance * t.texture.lookup(textures, t.uv(b)),
-            None => self.radiance,
-        };
-        pdf.is_finite().then_some(AreaSample {
-            direction,
-            distance,
-            radiance,
-            pdf,
-            shadow_target: offset_ray_origin(q, q_error, self.normal, -direction),
+        let s = triangle_sample(self.corners.map(V3::from), self.normal.into(), self.area, p.into(), u.into());
+        s.ok.then(|| AreaSample {
+            direction: s.direction.into(),
+            distance: s.distance,
+            radiance: match &self.texture {
+                Some(t) => self.radiance * t.texture.lookup(textures, t.uv(Vec2::new(s.barycentric.x, s.barycentric.y))),
+                None => self.radiance,
+            },
+            pdf: s.pdf,
+            shadow_target: s.target.into(),
         })
     }
 
@@ -148,6 +135,44 @@ impl TriangleLight {
             return 0.0;
         }
         d2 / (cos_light * self.area)
+    }
+}
+
+/// A point drawn on a triangle light, seen from a shading point, over [`Real`] values: where
+/// `ok`, the unit direction toward it, its distance, the solid-angle density (1/sr, without
+/// the light's selection), the shadow ray's target (the point offset off the light) and its
+/// barycentric coordinates (b1, b2).
+pub(crate) struct TriangleSample<R: Real> {
+    pub ok: R::Mask,
+    pub direction: V3<R>,
+    pub distance: R,
+    pub pdf: R,
+    pub target: V3<R>,
+    pub barycentric: V2<R>,
+}
+
+/// [`TriangleLight::sample`]'s geometry written once (one shading point, or one per lane):
+/// a point uniform by area on the triangle (`corners`, unit emitting `normal`, `area`) from
+/// `u` (Heitz's mapping), seen from `p`; not `ok` where it coincides with `p`, faces away or
+/// gives no finite density.
+#[inline(always)]
+pub(crate) fn triangle_sample<R: Real>(corners: [V3<R>; 3], normal: V3<R>, area: R, p: V3<R>, u: V2<R>) -> TriangleSample<R> {
+    let zero = R::splat(0.0);
+    let b = uniform_triangle(u);
+    let (q, q_error) = barycentric_point(corners, b);
+    let to = q - p;
+    let d2 = to.dot(to);
+    let distance = d2.sqrt();
+    let direction = to / distance;
+    let cos_light = -direction.dot(normal);
+    let pdf = d2 / (cos_light * area);
+    TriangleSample {
+        ok: !d2.le(zero) & !cos_light.le(zero) & pdf.is_finite(),
+        direction,
+        distance,
+        pdf,
+        target: offset_origin(q, q_error, normal, -direction),
+        barycentric: b,
     }
 }
 

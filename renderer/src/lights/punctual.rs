@@ -1,5 +1,6 @@
 //! Point, spot and directional lights (delta distributions, sampled deterministically).
 
+use crate::lanes::{Real, V3};
 use crate::scene::PunctualLight;
 use crate::Rgb;
 use glam::Vec3;
@@ -33,15 +34,11 @@ fn spot_falloff(cos_theta: f32, cos_inner: f32, cos_outer: f32) -> f32 {
 pub fn illuminate(light: &PunctualLight, p: Vec3) -> Option<PunctualSample> {
     match *light {
         PunctualLight::Point { position, intensity } => {
-            let to = position - p;
-            let d2 = to.length_squared();
-            (d2 > 0.0).then(|| {
-                let distance = d2.sqrt();
-                PunctualSample {
-                    direction: to / distance,
-                    value: intensity / d2,
-                    distance,
-                }
+            let s = point_illumination(position.into(), intensity.into(), p.into());
+            s.ok.then(|| PunctualSample {
+                direction: s.direction.into(),
+                value: s.value.into(),
+                distance: s.distance,
             })
         }
         PunctualLight::Spot {
@@ -92,6 +89,31 @@ pub fn power_hint(light: &PunctualLight, scene_radius: f32) -> f32 {
         PunctualLight::Directional { irradiance, .. } => {
             PI * scene_radius * scene_radius * luminance(irradiance)
         }
+    }
+}
+
+/// A point light's illumination over [`Real`] values: where `ok`, the unit direction toward
+/// the light, the value (intensity / distance², W/(m² sr) per unit solid angle of a delta
+/// light) and the distance.
+pub(crate) struct PointIllumination<R: Real> {
+    pub ok: R::Mask,
+    pub direction: V3<R>,
+    pub value: V3<R>,
+    pub distance: R,
+}
+
+/// [`illuminate`] of a point light at `position` of intensity `intensity` (W/sr) at `p`,
+/// written once (one shading point, or one per lane); not `ok` at the light itself.
+#[inline(always)]
+pub(crate) fn point_illumination<R: Real>(position: V3<R>, intensity: V3<R>, p: V3<R>) -> PointIllumination<R> {
+    let to = position - p;
+    let d2 = to.dot(to);
+    let distance = d2.sqrt();
+    PointIllumination {
+        ok: d2.gt(R::splat(0.0)),
+        direction: to / distance,
+        value: intensity / d2,
+        distance,
     }
 }
 
