@@ -163,7 +163,7 @@ mod tests {
         let b = Lambert::new(Rgb::ONE);
         for theta in [0.0f32, 0.5, 1.2, 1.55] {
             let wo = Vec3::new(theta.sin(), 0.0, theta.cos());
-            let albedo = chi2::directional_albedo(&b, wo, 10_000);
+            let albedo = crate::bsdf::albedo::directional_albedo(&b, wo, 10_000);
             assert!(
                 (albedo - Rgb::ONE).abs().max_element() < 1e-3,
                 "θo = {theta}: {albedo}"

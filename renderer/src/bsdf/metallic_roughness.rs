@@ -718,7 +718,7 @@ mod tests {
         assert_eq!(plain.with_dielectric(Rgb::splat(DIELECTRIC_F0), 1.0), plain);
         for (f0, f90, metallic, roughness, theta) in [(0.25f32, 1.0f32, 0.0f32, 0.3f32, 30.0f32), (0.04, 0.5, 0.0, 0.5, 60.0), (0.5, 0.5, 0.5, 0.6, 45.0)] {
             let m = MetallicRoughness::new(Rgb::new(0.9, 0.5, 0.2), metallic, roughness).with_dielectric(Rgb::splat(f0), f90);
-            let albedo = chi2::directional_albedo(&m, direction(theta, 0.0), 400_000);
+            let albedo = crate::bsdf::albedo::directional_albedo(&m, direction(theta, 0.0), 400_000);
             for channel in 0..3 {
                 let reference = reference_albedo_with(m.base_color[channel].into(), metallic.into(), roughness.into(), theta.into(), f0.into(), f90.into());
                 assert!((albedo[channel] as f64 - reference).abs() < 2e-3, "{m:?}, θo = {theta}°, channel {channel}: {albedo} vs {reference}");
@@ -738,7 +738,7 @@ mod tests {
             for roughness in [0.3f32, 0.6, 1.0] {
                 for theta in [0.0f32, 30.0, 60.0, 80.0, 89.0] {
                     let m = MetallicRoughness::new(Rgb::ONE, metallic, roughness);
-                    let albedo = chi2::directional_albedo(&m, direction(theta, 0.0), 500_000);
+                    let albedo = crate::bsdf::albedo::directional_albedo(&m, direction(theta, 0.0), 500_000);
                     let at = format!("metallic {metallic}, roughness {roughness}, θo = {theta}°");
                     assert!(albedo.max_element() <= 1.01, "{at}: {albedo}");
                     let reference =
@@ -772,7 +772,7 @@ mod tests {
             (Rgb::new(0.8, 0.3, 0.2), 0.5, 0.5, 45.0),
         ] {
             let m = MetallicRoughness::new(base, metallic, roughness);
-            let albedo = chi2::directional_albedo(&m, direction(theta, 0.0), 500_000);
+            let albedo = crate::bsdf::albedo::directional_albedo(&m, direction(theta, 0.0), 500_000);
             for channel in 0..3 {
                 let reference = reference_albedo(
                     base[channel].into(),

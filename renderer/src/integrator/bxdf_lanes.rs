@@ -203,20 +203,10 @@ mod tests {
                 strategy,
                 ..PathTracer::default()
             };
-            let mut cases = Vec::new();
-            while cases.len() < 16 * 12 + 5 {
-                let origin = scene.bounds_centre + (rng.next_2d().extend(rng.next_1d()) - 0.5) * scene.bounds_radius;
-                let ray = Ray::new(origin, sample_uniform_sphere(rng.next_2d()));
-                let mut state = tracer.start(ray, rng.clone()).expect("depth allows a segment");
-                rng.next_1d();
-                // Every eighth throughput is zero: the continuation must end there.
-                state.beta = if cases.len() % 8 == 0 { Rgb::ZERO } else { rng.next_2d().extend(rng.next_1d()) * 2.0 };
-                let hit = scene.intersect(&ray);
-                let Some(vertex) = tracer.begin(scene, &mut state, hit) else { continue };
-                if let Bsdf::Lambert(b) = vertex.bsdf {
-                    cases.push((vertex, b, state.beta));
-                }
-            }
+            let cases = vertices(scene, &tracer, &mut rng, 16 * 12 + 5, |bsdf| match *bsdf {
+                Bsdf::Lambert(b) => Some(b),
+                _ => None,
+            });
             let (mut lanes, mut out) = (DiffuseLanes::default(), ScatteredLanes::default());
             let (mut shadows, mut ended, mut drawn_by_kernel, mut points, mut pushed_drawn) = (0, 0, 0, 0, 0);
             for group in cases.chunks(LANES) {
@@ -273,20 +263,10 @@ mod tests {
                 strategy,
                 ..PathTracer::default()
             };
-            let mut cases = Vec::new();
-            while cases.len() < 16 * 24 + 7 {
-                let origin = scene.bounds_centre + (rng.next_2d().extend(rng.next_1d()) - 0.5) * scene.bounds_radius;
-                let ray = Ray::new(origin, sample_uniform_sphere(rng.next_2d()));
-                let mut state = tracer.start(ray, rng.clone()).expect("depth allows a segment");
-                rng.next_1d();
-                // Every eighth throughput is zero: the continuation must end there.
-                state.beta = if cases.len() % 8 == 0 { Rgb::ZERO } else { rng.next_2d().extend(rng.next_1d()) * 2.0 };
-                let hit = scene.intersect(&ray);
-                let Some(vertex) = tracer.begin(scene, &mut state, hit) else { continue };
-                if let Bsdf::MetallicRoughness(bsdf) = vertex.bsdf {
-                    cases.push((vertex, bsdf, state.beta));
-                }
-            }
+            let cases = vertices(scene, &tracer, &mut rng, 16 * 24 + 7, |bsdf| match *bsdf {
+                Bsdf::MetallicRoughness(m) => Some(m),
+                _ => None,
+            });
             let (mut lanes, mut out) = (GlossyLanes::default(), ScatteredLanes::default());
             let (mut shadows, mut continued, mut delta, mut environment) = (0, 0, 0, 0);
             for group in cases.chunks(LANES) {
@@ -311,5 +291,25 @@ mod tests {
             assert_eq!(environment > 0, kernel_draws, "{strategy:?}: {environment} environment samples drawn in lanes");
             assert!(continued > cases.len() / 2 && continued < cases.len(), "{strategy:?}: {continued} continue");
         }
+    }
+
+    /// `n` vertices whose BSDF `pick` takes (with what it gives), each with its path's
+    /// throughput, begun by the scalar code from rays inside the scene's bounds in random
+    /// directions; every eighth throughput is zero (the continuation must end there).
+    fn vertices<'s, T>(scene: &'s RenderScene, tracer: &PathTracer, rng: &mut Sampler, n: usize, pick: impl Fn(&Bsdf<'s>) -> Option<T>) -> Vec<(Vertex<'s>, T, Rgb)> {
+        let mut cases = Vec::new();
+        while cases.len() < n {
+            let origin = scene.bounds_centre + (rng.next_2d().extend(rng.next_1d()) - 0.5) * scene.bounds_radius;
+            let ray = Ray::new(origin, sample_uniform_sphere(rng.next_2d()));
+            let mut state = tracer.start(ray, rng.clone()).expect("depth allows a segment");
+            rng.next_1d();
+            state.beta = if cases.len() % 8 == 0 { Rgb::ZERO } else { rng.next_2d().extend(rng.next_1d()) * 2.0 };
+            let hit = scene.intersect(&ray);
+            let Some(vertex) = tracer.begin(scene, &mut state, hit) else { continue };
+            if let Some(bsdf) = pick(&vertex.bsdf) {
+                cases.push((vertex, bsdf, state.beta));
+            }
+        }
+        cases
     }
 }

@@ -3,9 +3,6 @@
 //!
 //! - [`test_bxdf`] / [`test_sampler`]: a chi-square goodness-of-fit test of a sampler against
 //!   its claimed density, after Mitsuba 3's `ChiSquareTest` (`mitsuba/python/chi2.py`);
-//! - [`directional_albedo`] / [`guided_directional_albedo`]: re-exported from
-//!   [`crate::bsdf::albedo`] (production code, used by material-nn's evaluation) for the
-//!   energy-conservation and white-furnace tests;
 //! - [`check_sample_consistency`]: `sample` agrees with `eval` and `pdf`, and is finite.
 //!
 //! # The chi-square test
@@ -49,7 +46,6 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
 use std::fmt::{self, Write as _};
 
-pub use crate::bsdf::albedo::{directional_albedo, guided_directional_albedo};
 
 /// Parameterisation of the sphere on which the chi-square grid is laid out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
