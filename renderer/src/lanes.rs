@@ -1,11 +1,19 @@
-//! Arithmetic on [`LANES`] values at once, for kernels that process that many path vertices
-//! together (structure of arrays).
+//! The number type the renderer's formulas are written over once — [`Real`]: one `f32`, or
+//! [`LANES`] of them ([`F32s`]) for kernels that process that many path vertices together
+//! (structure of arrays) — with its vectors ([`V3`], [`V2`]) and masks ([`MaskOps`]).
 //!
-//! Every operation applies the scalar `f32` operation to each lane, so a kernel written with
-//! these types gives bit for bit the values of the same formulas evaluated one lane at a time
-//! (Rust never fuses a multiply and an add on its own). The loops are fixed-length and
-//! branch-free, which LLVM turns into vector instructions of the width the enclosing
-//! function is compiled for (SSE2 by default, AVX2 or AVX-512 under `#[target_feature]`).
+//! Every lane operation applies the scalar `f32` operation to each lane, so a formula
+//! instantiated for [`F32s`] gives bit for bit the values of the same formula instantiated for
+//! `f32`, lane by lane (Rust never fuses a multiply and an add on its own). Where one value
+//! would return early, a formula computes a mask and selects; [`choose`] branches where all
+//! lanes agree. The loops are fixed-length and branch-free, which LLVM turns into vector
+//! instructions of the width the enclosing function is compiled for (SSE2 by default, AVX2
+//! or AVX-512 under `#[target_feature]`).
+//!
+//! A formula over [`Real`] is named for what it computes (`sampling::cosine_hemisphere`,
+//! `accel::offset_origin`); where callers outside the kernels want `glam` types, a function of
+//! the same meaning (`sampling::sample_cosine_hemisphere`, `accel::offset_ray_origin`) is a
+//! one-line call of it.
 
 // Indexed fixed-length loops are the form LLVM vectorises most reliably here.
 #![allow(clippy::needless_range_loop)]
@@ -807,5 +815,26 @@ mod tests {
         assert!(same(v.dot(v), &|i| v.get(i).dot(v.get(i))));
         assert!(same(v.max_element(), &|i| v.get(i).max_element()));
         assert_eq!(v.is_finite().0.map(|m| m), std::array::from_fn(|i| v.get(i).is_finite()));
+    }
+
+    /// `choose` gives each lane its own side's value, and calls a side only when some lane
+    /// takes it (so one value, or lanes that agree, cost one side).
+    #[test]
+    fn choose_takes_each_lanes_side_and_calls_only_what_is_taken() {
+        let (a, b) = (F32s::splat(1.0), F32s::splat(2.0));
+        let mut mask = [false; LANES];
+        mask[3] = true;
+        let mixed = choose(Mask(mask), || a, || b);
+        assert!((0..LANES).all(|i| mixed.0[i] == if i == 3 { 1.0 } else { 2.0 }));
+        let calls = std::cell::Cell::new(0);
+        let counted = |v: F32s| {
+            calls.set(calls.get() + 1);
+            v
+        };
+        assert_eq!(choose(Mask([true; LANES]), || a, || counted(b)), a);
+        assert_eq!(choose(Mask([false; LANES]), || counted(a), || b), b);
+        assert_eq!(calls.get(), 0);
+        assert_eq!(choose(false, || 1.0f32, || 2.0), 2.0);
+        assert!(Mask(mask).any() && !Mask(mask).all() && Mask([true; LANES]).all());
     }
 }
