@@ -8,7 +8,7 @@ use crate::accel::{gamma, interpolate_point, barycentric_point, Bvh, Hit, Instan
 use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::lanes::{F32s, Mask, Vec2s, Vec3s};
+use crate::lanes::{Mask, MaskOps, Real, Vec2s, Vec3s, V2, V3};
 use crate::neural::latent_library::LatentLibrary;
 use crate::lights::environment::Environment;
 use crate::lights::area::{EmissionTexture, Emitter};
@@ -325,13 +325,11 @@ impl RenderScene {
         }
         let (mut p, mut p_error) = interpolate_point(corners, hit.barycentric);
         let b = hit.barycentric;
-        let b0 = 1.0 - b.x - b.y;
         let mut ns = if flat_normal != Vec3::ZERO {
             flat_normal
         } else {
-            let [i0, i1, i2] = g.triangles[tri];
-            let ns = g.normals[i0 as usize] * b0 + g.normals[i1 as usize] * b.x + g.normals[i2 as usize] * b.y;
-            ns.try_normalize().unwrap_or(ng)
+            let normals = g.triangles[tri].map(|i| V3::from(g.normals[i as usize]));
+            smooth_normal(normals, b.into(), ng.into()).into()
         };
         let material = g.material_ids[tri];
         let normal_map = self.materials.normal_map(material);
@@ -348,11 +346,8 @@ impl RenderScene {
                 return None;
             }
         }
-        let front_face = direction.dot(ng) < 0.0;
-        let ng_facing = if front_face { ng } else { -ng };
-        if ns.dot(ng_facing) < 0.0 {
-            ns = -ns;
-        }
+        let (front_face, ng_facing, facing_ns) = facing(direction.into(), ng.into(), ns.into());
+        let (ng_facing, mut ns) = (ng_facing.into(), facing_ns.into());
         if normal_map.is_some() {
             ns = keep_viewer_above(ns, -direction, ng_facing);
         }
@@ -478,22 +473,37 @@ pub(crate) fn surface_points_lanes(
     barycentric: Vec2s,
     direction: Vec3s,
 ) -> (SurfaceLanes, Mask) {
-    let zero = F32s::splat(0.0);
     let (p, p_error) = barycentric_point(corners, barycentric);
     let mut ns = normals[0];
     if any_smooth {
-        let b0 = 1.0 - barycentric.x - barycentric.y;
-        let interpolated = normals[0] * b0 + normals[1] * barycentric.x + normals[2] * barycentric.y;
-        let (unit, ok) = interpolated.try_normalize();
-        ns = flat.select3(ns, ok.select3(unit, ng));
+        ns = flat.select3(ns, smooth_normal(normals, barycentric, ng));
     }
-    let front_face = direction.dot(ng).lt(zero);
-    let ng_facing = front_face.select3(ng, -ng);
-    let n = ns.dot(ng_facing).lt(zero).select3(-ns, ns);
+    let (front_face, ng_facing, n) = facing(direction, ng, ns);
     let (s, t) = crate::frame::tangents(n);
     let mut surface = SurfaceLanes { p, p_error, ng: ng_facing, s, t, n, wo: Vec3s::default() };
     surface.wo = surface.to_local(-direction);
     (surface, front_face)
+}
+
+/// The unit shading normal interpolated from a triangle's corner normals `normals` at
+/// barycentric coordinates `b` (of corners 1 and 2), `ng` where it has no length; over
+/// [`Real`] values (one point, or one per lane).
+#[inline(always)]
+fn smooth_normal<R: Real>(normals: [V3<R>; 3], b: V2<R>, ng: V3<R>) -> V3<R> {
+    let b0 = R::splat(1.0) - b.x - b.y;
+    let (unit, ok) = (normals[0] * b0 + normals[1] * b.x + normals[2] * b.y).try_normalize();
+    ok.select(unit, ng)
+}
+
+/// The side a ray of direction `direction` meets a surface of geometric normal `ng` from:
+/// whether it is the front (`ng`'s side), the geometric normal facing the ray and the shading
+/// normal `ns` turned to that side; over [`Real`] values (one point, or one per lane).
+#[inline(always)]
+fn facing<R: Real>(direction: V3<R>, ng: V3<R>, ns: V3<R>) -> (R::Mask, V3<R>, V3<R>) {
+    let zero = R::splat(0.0);
+    let front = direction.dot(ng).lt(zero);
+    let ng_facing = front.select(ng, -ng);
+    (front, ng_facing, ns.dot(ng_facing).lt(zero).select(-ns, ns))
 }
 
 /// A normal-mapped shading normal `ns` tilted toward the viewer direction `wo` (unit, on
