@@ -166,13 +166,26 @@ impl Environment {
     }
 
     fn world_to_map(&self, d: Vec3) -> Vec3 {
-        let (c, s) = self.rotation;
-        Vec3::new(c * d.x - s * d.z, d.y, s * d.x + c * d.z)
+        self.world_to_map_of(d.into()).into()
     }
 
     fn map_to_world(&self, d: Vec3) -> Vec3 {
+        self.map_to_world_of(d.into()).into()
+    }
+
+    /// A world direction in the map's frame (its rotation about y undone), over [`Real`]
+    /// values (one direction, or one per lane).
+    #[inline(always)]
+    fn world_to_map_of<R: Real>(&self, d: V3<R>) -> V3<R> {
         let (c, s) = self.rotation;
-        Vec3::new(c * d.x + s * d.z, d.y, -s * d.x + c * d.z)
+        V3::new(d.x * c - d.z * s, d.y, d.x * s + d.z * c)
+    }
+
+    /// A direction of the map's frame in world space, over [`Real`] values.
+    #[inline(always)]
+    fn map_to_world_of<R: Real>(&self, d: V3<R>) -> V3<R> {
+        let (c, s) = self.rotation;
+        V3::new(d.x * c + d.z * s, d.y, d.x * -s + d.z * c)
     }
 
     /// Radiance arriving from world direction `d` (unit), W/(m² sr).
@@ -202,7 +215,7 @@ impl Environment {
                 distribution.prefetch_at(uv);
                 MapPoint {
                     uv,
-                    sin_theta: (1.0 - local.y * local.y).max(0.0).sqrt(),
+                    sin_theta: sin_polar(local.y),
                 }
             }
         }
@@ -215,15 +228,9 @@ impl Environment {
         match &self.kind {
             Kind::Constant(_) => [MapPoint { uv: Vec2::ZERO, sin_theta: 1.0 }; LANES],
             Kind::Image(distribution) => {
-                let (c, s) = self.rotation;
-                // world_to_map per lane.
-                let local = Vec3s {
-                    x: c * d.x - s * d.z,
-                    y: d.y,
-                    z: s * d.x + c * d.z,
-                };
+                let local = self.world_to_map_of(d);
                 let uv = direction_uv(local);
-                let sin_theta = (1.0 - local.y * local.y).max(F32s::splat(0.0)).sqrt();
+                let sin_theta = sin_polar(local.y);
                 let mut points = [MapPoint { uv: Vec2::ZERO, sin_theta: 0.0 }; LANES];
                 for (k, point) in points.iter_mut().enumerate() {
                     let uv = Vec2::new(uv.x.0[k], uv.y.0[k]);
@@ -263,7 +270,7 @@ impl Environment {
                     return None;
                 }
                 let local = uv_to_direction(uv);
-                let sin_theta = (1.0 - local.y * local.y).max(0.0).sqrt();
+                let sin_theta = sin_polar(local.y);
                 if sin_theta <= 0.0 {
                     return None;
                 }
@@ -296,20 +303,14 @@ impl Environment {
                 let (uv, map_pdf, texels) = distribution.sample_continuous_lanes(u);
                 let local = uv_direction(uv);
                 let zero = F32s::splat(0.0);
-                let sin_theta = (1.0 - local.y * local.y).max(zero).sqrt();
+                let sin_theta = sin_polar(local.y);
                 let mut radiance = Vec3s::default();
                 for (k, &texel) in texels.iter().enumerate() {
                     radiance.set(k, texel);
                 }
-                let (c, s) = self.rotation;
                 EnvironmentSamples {
                     ok: !map_pdf.le(zero) & !sin_theta.le(zero),
-                    // map_to_world per lane.
-                    direction: Vec3s {
-                        x: c * local.x + s * local.z,
-                        y: local.y,
-                        z: -s * local.x + c * local.z,
-                    },
+                    direction: self.map_to_world_of(local),
                     radiance,
                     pdf: map_pdf / (2.0 * PI * PI * sin_theta),
                 }
@@ -322,6 +323,13 @@ impl Environment {
     pub fn pdf(&self, d: Vec3) -> f32 {
         self.radiance_pdf(d).1
     }
+}
+
+/// sin θ of a unit direction of the map's frame whose y (the map's pole) is `y`, over
+/// [`Real`] values.
+#[inline(always)]
+fn sin_polar<R: Real>(y: R) -> R {
+    (R::splat(1.0) - y * y).max(R::splat(0.0)).sqrt()
 }
 
 /// Image coordinates of a direction in the map's frame (see the module doc).
