@@ -179,28 +179,6 @@ impl F32s {
     }
 }
 
-impl Mask {
-    /// `a` where the mask is set, `b` elsewhere.
-    #[inline(always)]
-    pub fn select(self, a: F32s, b: F32s) -> F32s {
-        let mut r = [0.0; LANES];
-        for i in 0..LANES {
-            r[i] = if self.0[i] { a.0[i] } else { b.0[i] };
-        }
-        F32s(r)
-    }
-
-    /// [`Mask::select`] on each component.
-    #[inline(always)]
-    pub fn select3(self, a: Vec3s, b: Vec3s) -> Vec3s {
-        Vec3s {
-            x: self.select(a.x, b.x),
-            y: self.select(a.y, b.y),
-            z: self.select(a.z, b.z),
-        }
-    }
-}
-
 macro_rules! mask_ops {
     ($($trait:ident $method:ident $op:tt),*) => {$(
         impl $trait for Mask {
@@ -572,7 +550,11 @@ impl Real for F32s {
 
     #[inline(always)]
     fn select(mask: Mask, a: F32s, b: F32s) -> F32s {
-        mask.select(a, b)
+        let mut r = [0.0; LANES];
+        for i in 0..LANES {
+            r[i] = if mask.0[i] { a.0[i] } else { b.0[i] };
+        }
+        F32s(r)
     }
 
     #[inline(always)]
@@ -735,6 +717,13 @@ impl From<glam::Vec2> for V2<f32> {
     #[inline(always)]
     fn from(v: glam::Vec2) -> V2<f32> {
         V2 { x: v.x, y: v.y }
+    }
+}
+
+impl From<V2<f32>> for glam::Vec2 {
+    #[inline(always)]
+    fn from(v: V2<f32>) -> glam::Vec2 {
+        glam::Vec2::new(v.x, v.y)
     }
 }
 

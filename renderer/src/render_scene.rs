@@ -476,7 +476,7 @@ pub(crate) fn surface_points_lanes(
     let (p, p_error) = barycentric_point(corners, barycentric);
     let mut ns = normals[0];
     if any_smooth {
-        ns = flat.select3(ns, smooth_normal(normals, barycentric, ng));
+        ns = flat.select(ns, smooth_normal(normals, barycentric, ng));
     }
     let (front_face, ng_facing, n) = facing(direction, ng, ns);
     let (s, t) = crate::frame::tangents(n);

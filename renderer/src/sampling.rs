@@ -14,8 +14,7 @@ pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 /// one ulp.
 #[inline]
 pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
-    let d = concentric_disk(V2::from(u));
-    Vec2::new(d.x, d.y)
+    concentric_disk(V2::from(u)).into()
 }
 
 /// [`sample_concentric_disk`] over [`Real`] values (one point, or one per lane).
@@ -117,8 +116,7 @@ pub fn uniform_sphere_pdf() -> f32 {
 /// Uniform barycentric coordinates (b1, b2) on a triangle (Heitz 2019, low distortion).
 #[inline]
 pub fn sample_uniform_triangle(u: Vec2) -> Vec2 {
-    let b = uniform_triangle(V2::from(u));
-    Vec2::new(b.x, b.y)
+    uniform_triangle(V2::from(u)).into()
 }
 
 /// [`sample_uniform_triangle`] over [`Real`] values (one point, or one per lane).

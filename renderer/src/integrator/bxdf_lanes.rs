@@ -137,7 +137,7 @@ impl<B: LaneBxdf> LaneKernel for BxdfLanes<'_, B> {
 
         // Next-event estimation (PathTracer::light_term and light_contribution).
         let light = self.light.samples(p);
-        let wi = surface.to_local(light.direction);
+        let wi = surface.to_local(light.sample.direction);
         let at_wo = self.bsdf.at_wo(wo);
         let (f, bsdf_pdf) = self.bsdf.eval_pdf(at_wo, wo, wi);
         next_event(&light, &surface, wi.z, (f, bsdf_pdf), beta, light_only, out);

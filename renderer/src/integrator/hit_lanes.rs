@@ -4,7 +4,7 @@
 //! code's operations, so the same bits).
 
 use super::Vertex;
-use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
+use crate::lanes::{F32s, Mask, MaskOps, Vec2s, Vec3s, LANES};
 use crate::render_scene::{surface_points_lanes, LaneHit, SurfaceLanes};
 use glam::{Vec2, Vec3};
 
@@ -99,13 +99,13 @@ impl HitLanes {
         let scatters = (front_face | Mask(self.double_sided)) & !hit.wo.z.le(F32s::splat(0.0));
         let (from_hit, found) = (Mask(self.from_hit), &self.found);
         let surface = SurfaceLanes {
-            p: from_hit.select3(hit.p, found.p),
-            p_error: from_hit.select3(hit.p_error, found.p_error),
-            ng: from_hit.select3(hit.ng, found.ng),
-            s: from_hit.select3(hit.s, found.s),
-            t: from_hit.select3(hit.t, found.t),
-            n: from_hit.select3(hit.n, found.n),
-            wo: from_hit.select3(hit.wo, found.wo),
+            p: from_hit.select(hit.p, found.p),
+            p_error: from_hit.select(hit.p_error, found.p_error),
+            ng: from_hit.select(hit.ng, found.ng),
+            s: from_hit.select(hit.s, found.s),
+            t: from_hit.select(hit.t, found.t),
+            n: from_hit.select(hit.n, found.n),
+            wo: from_hit.select(hit.wo, found.wo),
         };
         (surface, !from_hit | scatters)
     }

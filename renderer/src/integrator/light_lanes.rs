@@ -14,7 +14,7 @@
 
 use super::scattered_lanes::ScatteredLanes;
 use super::{shadow_test, PathTracer, RealLightSample, Strategy, Vertex};
-use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
+use crate::lanes::{F32s, Mask, MaskOps, Vec2s, Vec3s, LANES};
 use crate::lights::area::{triangle_sample, TriangleLight};
 use crate::lights::punctual::point_illumination;
 use crate::lights::environment::Environment;
@@ -121,14 +121,7 @@ pub(crate) struct LightLanes<'s> {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct LightSamples {
     pub ok: Mask,
-    /// World-space unit direction toward the light.
-    pub direction: Vec3s,
-    pub radiance: Vec3s,
-    /// Solid-angle density (1/sr), selection included.
-    pub pdf: F32s,
-    pub delta: Mask,
-    pub has_target: Mask,
-    pub target: Vec3s,
+    pub sample: RealLightSample<F32s>,
 }
 
 impl<'s> LightLanes<'s> {
@@ -181,8 +174,8 @@ impl<'s> LightLanes<'s> {
     /// environment's found here, the others as pushed.
     #[inline(always)]
     pub fn samples(&self, p: Vec3s) -> LightSamples {
-        let mut samples = LightSamples {
-            ok: Mask(self.ok),
+        let mut ok = Mask(self.ok);
+        let mut l = RealLightSample {
             direction: self.direction,
             radiance: self.radiance,
             pdf: self.pdf,
@@ -194,30 +187,30 @@ impl<'s> LightLanes<'s> {
         if triangle.0.iter().any(|&t| t) {
             // TriangleLight::sample's geometry.
             let s = triangle_sample(self.corners, self.normal, self.area, p, self.u);
-            samples.ok = samples.ok & (!triangle | s.ok);
-            samples.direction = triangle.select3(s.direction, samples.direction);
-            samples.pdf = triangle.select(s.pdf * self.pdf, samples.pdf);
-            samples.target = triangle.select3(s.target, samples.target);
+            ok = ok & (!triangle | s.ok);
+            l.direction = triangle.select(s.direction, l.direction);
+            l.pdf = triangle.select(s.pdf * self.pdf, l.pdf);
+            l.target = triangle.select(s.target, l.target);
         }
         let point = Mask(self.point);
         if point.0.iter().any(|&l| l) {
             // punctual::illuminate of a point light, and LightSet::sample_chosen's target.
             let s = point_illumination(self.position, self.radiance, p);
-            samples.ok = samples.ok & (!point | s.ok);
-            samples.direction = point.select3(s.direction, samples.direction);
-            samples.radiance = point.select3(s.value, samples.radiance);
-            samples.has_target = samples.has_target & !point | (point & s.distance.is_finite());
-            samples.target = point.select3(p + s.direction * s.distance, samples.target);
+            ok = ok & (!point | s.ok);
+            l.direction = point.select(s.direction, l.direction);
+            l.radiance = point.select(s.value, l.radiance);
+            l.has_target = l.has_target & !point | (point & s.distance.is_finite());
+            l.target = point.select(p + s.direction * s.distance, l.target);
         }
         let from_environment = Mask(self.from_environment);
         if let Some(environment) = self.environment.filter(|_| from_environment.0.iter().any(|&e| e)) {
             let e = environment.sample_lanes(self.u);
-            samples.ok = samples.ok & (!from_environment | e.ok);
-            samples.direction = from_environment.select3(e.direction, samples.direction);
-            samples.radiance = from_environment.select3(e.radiance, samples.radiance);
-            samples.pdf = from_environment.select(e.pdf * self.pdf, samples.pdf);
+            ok = ok & (!from_environment | e.ok);
+            l.direction = from_environment.select(e.direction, l.direction);
+            l.radiance = from_environment.select(e.radiance, l.radiance);
+            l.pdf = from_environment.select(e.pdf * self.pdf, l.pdf);
         }
-        samples
+        LightSamples { ok, sample: l }
     }
 }
 
@@ -237,15 +230,7 @@ pub(crate) fn next_event(
     light_only: bool,
     out: &mut ScatteredLanes,
 ) {
-    let light = RealLightSample {
-        direction: l.direction,
-        radiance: l.radiance,
-        pdf: l.pdf,
-        delta: l.delta,
-        has_target: l.has_target,
-        target: l.target,
-    };
-    let test = shadow_test((surface.p, surface.p_error, surface.ng), &light, wi_z, (f, bsdf_pdf), beta, light_only);
+    let test = shadow_test((surface.p, surface.p_error, surface.ng), &l.sample, wi_z, (f, bsdf_pdf), beta, light_only);
     out.shadow_ok = (l.ok & test.ok).0;
     out.shadow_origin = test.origin;
     out.shadow_direction = test.direction;

@@ -117,7 +117,7 @@ impl TriangleLight {
             direction: s.direction.into(),
             distance: s.distance,
             radiance: match &self.texture {
-                Some(t) => self.radiance * t.texture.lookup(textures, t.uv(Vec2::new(s.barycentric.x, s.barycentric.y))),
+                Some(t) => self.radiance * t.texture.lookup(textures, t.uv(s.barycentric.into())),
                 None => self.radiance,
             },
             pdf: s.pdf,

@@ -335,8 +335,7 @@ fn sin_polar<R: Real>(y: R) -> R {
 /// Image coordinates of a direction in the map's frame (see the module doc).
 #[inline]
 pub fn direction_to_uv(d: Vec3) -> Vec2 {
-    let uv = direction_uv(V3::from(d));
-    Vec2::new(uv.x, uv.y)
+    direction_uv(V3::from(d)).into()
 }
 
 /// [`direction_to_uv`] over [`Real`] values (one direction, or one per lane): the arccosine

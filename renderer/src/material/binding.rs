@@ -136,8 +136,7 @@ pub(crate) fn surface<'a>(model: &'a SurfaceModel, latents: &LatentLibrary) -> S
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::latent_file::tests::small_file;
-    use crate::formats::latent_file::WeightType;
+    use crate::neural::latent_library::tests::library;
     use crate::scene::Material;
 
     fn scene(names: &[&str]) -> SceneDescription {
@@ -145,14 +144,6 @@ mod tests {
             materials: names.iter().map(|n| Material::default_diffuse(n)).collect(),
             ..SceneDescription::default()
         }
-    }
-
-    fn library() -> (tempfile::TempDir, LatentLibrary) {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("latent.bin");
-        small_file(WeightType::F32).write(&path).unwrap();
-        let lib = LatentLibrary::load(&[&path]).unwrap();
-        (dir, lib)
     }
 
     fn pair(material: &str, value: &str) -> (String, String) {

@@ -223,14 +223,16 @@ impl LatentLibrary {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::bsdf::Bxdf;
     use crate::formats::latent_file::tests::small_file;
     use crate::formats::latent_file::WeightType;
     use glam::Vec3;
 
-    fn library() -> (tempfile::TempDir, LatentLibrary) {
+    /// The small test latent file written to a temporary directory (kept alive by the
+    /// returned guard) and loaded.
+    pub(crate) fn library() -> (tempfile::TempDir, LatentLibrary) {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("latent.bin");
         small_file(WeightType::F32).write(&path).unwrap();
