@@ -462,7 +462,6 @@ pub fn run(args: EnergyArgs) -> Result<()> {
     let points = SamplePoints::draw(args.encoder_samples, encoder.peak_share, &reference, args.seed);
     let wos = args.theta_o.iter().map(|d| energy::view_direction(d.to_radians())).collect();
     let study = Study { args: &args, file, reference, points, wos };
-    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
 
     let mut names: Vec<String> = pairs.iter().flat_map(|(a, b)| [a.clone(), b.clone()]).collect();
     names.sort();
@@ -525,6 +524,9 @@ pub fn run(args: EnergyArgs) -> Result<()> {
             )?;
         }
     }
+    // The output directory is made only once there is something to write (a bad pair or
+    // file is refused before).
+    std::fs::create_dir_all(&args.out).with_context(|| format!("{}: cannot create", args.out.display()))?;
     write(&args.out.join("albedo.csv"), &csv)?;
 
     // The dips.
@@ -690,5 +692,5 @@ pub fn run(args: EnergyArgs) -> Result<()> {
 }
 
 fn write(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))
+    renderer::support::write_bytes_atomically(path, text.as_bytes()).with_context(|| format!("{}: cannot write", path.display()))
 }

@@ -172,3 +172,29 @@ fn sweep_writes_frames_contact_sheet_and_errors() {
     );
     assert_clean_failure(&out, &["--frames", "1-3", "3 frames"], dir.path());
 }
+
+/// `render energy` refuses a missing or truncated latent file, a material with no network and
+/// a bad flag value: one line naming the file, name or flag, exit code 2, and no output
+/// directory.
+#[test]
+fn energy_refuses_bad_input_cleanly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let inputs = tempfile::tempdir().expect("tempdir");
+    let truncated = inputs.path().join("truncated.bin");
+    let bytes = std::fs::read(repo_file("scenes/materials/latent.bin")).expect("shipped latents");
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).expect("write");
+    let truncated = truncated.to_string_lossy().into_owned();
+    let nbrdf = repo_file("../shared/data/nbrdf").to_string_lossy().into_owned();
+    let latents = shipped_latents();
+    let cases: [(Vec<&str>, Vec<&str>); 4] = [
+        (vec!["--material", "missing.bin"], vec!["missing.bin"]),
+        (vec!["--material", &truncated], vec!["truncated.bin"]),
+        (vec!["--material", &latents, "--nbrdf", &nbrdf, "--pairs", "nosuch:chrome"], vec!["nosuch"]),
+        (vec!["--material", &latents, "--theta-o", "abc"], vec!["--theta-o", "abc"]),
+    ];
+    for (flags, needles) in cases {
+        let mut args = vec!["energy", "--out", "study"];
+        args.extend(flags);
+        assert_clean_failure(&render(&args, dir.path()), &needles, dir.path());
+    }
+}
