@@ -1,11 +1,14 @@
 //! BSDFs in the local shading frame.
 //!
-//! Convention (pbrt-v4's): z is the shading normal; `wo` points toward the viewer, `wi`
-//! toward the light, both unit vectors pointing away from the surface. [`Bxdf::eval`]
-//! returns f_r(wo, wi) in 1/sr **without** the cosine factor; [`Bxdf::pdf`] is the
-//! solid-angle density (1/sr) with which [`Bxdf::sample`] picks `wi`. All BSDFs of this
-//! crate are opaque reflectors: they return zero value and zero density when `wo` or `wi`
-//! lies below the horizon (z ≤ 0).
+//! Convention (pbrt-v4's): z is the shading normal, turned toward the side the path arrives
+//! from, so `wo` (toward the viewer) has z > 0; `wi` points toward the light; both are unit
+//! vectors pointing away from the surface. [`Bxdf::eval`] returns f(wo, wi) in 1/sr
+//! **without** the cosine factor; [`Bxdf::pdf`] is the solid-angle density (1/sr) with which
+//! [`Bxdf::sample`] picks `wi`. Reflectors (every BSDF but the dielectric) return zero value
+//! and zero density when `wo` or `wi` lies below the horizon (z ≤ 0); a transmitting BSDF
+//! ([`Bxdf::transmits`]) also scatters into z < 0. Lobes concentrated on one direction
+//! (smooth glass) are *delta* lobes: `eval` and `pdf` give them zero, and only `sample`
+//! draws them ([`BsdfSample::delta`]).
 //!
 //! The integrator sees only [`Bsdf`], the one enum over the kinds (static dispatch in the
 //! hot loop); each kind lives in a file of its own. The BSDFs made from data (MERL table,
@@ -32,19 +35,31 @@ pub use metallic_roughness::MetallicRoughness;
 /// One direction drawn by [`Bxdf::sample`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BsdfSample {
-    /// Sampled direction toward the light, local frame, unit length, z > 0.
+    /// Sampled direction toward the light, local frame, unit length; z > 0 for reflection,
+    /// z < 0 for transmission.
     pub wi: Vec3,
-    /// f_r(wo, wi) in 1/sr (no cosine).
+    /// f(wo, wi) in 1/sr (no cosine).
     pub f: Rgb,
-    /// Solid-angle density of `wi` in 1/sr; always > 0 and finite.
+    /// Solid-angle density of `wi` in 1/sr; always > 0 and finite. For a delta lobe, the
+    /// probability of having chosen it (and `f` the lobe's weight times that probability
+    /// over |cos θi|, so that [`BsdfSample::weight`] holds for both).
     pub pdf: f32,
+    /// Whether `wi` comes from a delta lobe (which `eval`/`pdf` do not see, so multiple
+    /// importance sampling must not weigh it).
+    pub delta: bool,
 }
 
 impl BsdfSample {
-    /// The Monte Carlo weight f · cos θi / pdf.
+    /// A sample from a lobe that `eval` and `pdf` describe.
+    #[inline]
+    pub fn new(wi: Vec3, f: Rgb, pdf: f32) -> Self {
+        BsdfSample { wi, f, pdf, delta: false }
+    }
+
+    /// The Monte Carlo weight f · |cos θi| / pdf.
     #[inline]
     pub fn weight(&self) -> Rgb {
-        self.f * (self.wi.z / self.pdf)
+        self.f * (self.wi.z.abs() / self.pdf)
     }
 }
 
@@ -63,6 +78,12 @@ pub trait Bxdf {
     /// Value and density together (one evaluation for BSDFs that share work between them).
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
         (self.eval(wo, wi), self.pdf(wo, wi))
+    }
+
+    /// Whether the BSDF scatters below the horizon (wi.z < 0) too; light arriving from
+    /// behind the surface is sampled only for such BSDFs.
+    fn transmits(&self) -> bool {
+        false
     }
 }
 
@@ -97,11 +118,7 @@ impl RealSample<f32> {
     /// The sample as [`Bxdf::sample`] returns it.
     #[inline(always)]
     pub fn into_option(self) -> Option<BsdfSample> {
-        self.ok.then(|| BsdfSample {
-            wi: self.wi.into(),
-            f: self.f.into(),
-            pdf: self.pdf,
-        })
+        self.ok.then(|| BsdfSample::new(self.wi.into(), self.f.into(), self.pdf))
     }
 }
 

@@ -66,7 +66,7 @@ impl<T: TabulatedBrdf> Bxdf for T {
 
     fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
         let (wi, pdf) = self.sampler().sample_with_pdf(wo, u, uc)?;
-        Some(BsdfSample { wi, f: self.value(wo, wi), pdf })
+        Some(BsdfSample::new(wi, self.value(wo, wi), pdf))
     }
 }
 

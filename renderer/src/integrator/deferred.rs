@@ -249,7 +249,7 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
                 shadow: p.light.and_then(|l| tracer.light_contribution(&p.sp, p.beta, &l.ls, l.wi, value(l.slot?), l.pdf)),
                 next: p
                     .sample
-                    .and_then(|s| continuation(&p.sp, &BsdfSample { wi: s.wi, f: value(s.slot?), pdf: s.pdf }, p.beta)),
+                    .and_then(|s| continuation(&p.sp, &BsdfSample::new(s.wi, value(s.slot?), s.pdf), p.beta)),
             };
             settle(p.path, p.sp.p, scattered);
         }

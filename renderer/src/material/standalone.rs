@@ -448,7 +448,7 @@ mod tests {
             }
             fn sample(&self, wo: Vec3, u: Vec2, _uc: f32) -> Option<BsdfSample> {
                 let s = self.0.sample_2d(wo.to_array(), u.to_array())?;
-                Some(BsdfSample { wi: s.wi.into(), f: s.f.into(), pdf: s.pdf })
+                Some(BsdfSample::new(s.wi.into(), s.f.into(), s.pdf))
             }
         }
         let chrome = MaterialBsdf::open(&shipped(), Some("chrome")).unwrap();
