@@ -21,6 +21,12 @@ What the sphere is:
   Mitsuba gets `principled` with the same base colour, metallic 1 and roughness. Not exact in
   theory: Mitsuba's microfacet uses the separable Smith G1(wi) G1(wo), ours the
   height-correlated G2 (measured: no difference above the noise at roughness 0.3).
+- --preset glass / thin-glass: a copy of scene.gltf whose "preview" material is clear glass
+  (KHR_materials_transmission 1, base colour white, metallic 0, --roughness, KHR_materials_ior
+  --ior; glass adds KHR_materials_volume with thickness 1 and no absorption, so the sphere is
+  solid; without it the surface is thin-walled). Mitsuba gets `dielectric` (roughness 0),
+  `roughdielectric` (GGX, alpha = roughness^2) or `thindielectric` with int_ior --ior,
+  ext_ior 1. Both scale radiance by 1/eta^2 across the boundary.
 - --mitsuba-bsdf JSON replaces Mitsuba's sphere BSDF, e.g. for a neural BRDF plugin:
       --import plugins/python/my_plugin.py \\
       --mitsuba-bsdf '{"type": "neural_brdf", "filename": "...", "material": "alum-bronze"}' \\
@@ -41,6 +47,9 @@ sphere in a constant environment. The render times printed compare the two rende
     python3 assets-scripts/compare_preview_mitsuba.py --preset metallic-roughness
     python3 assets-scripts/compare_preview_mitsuba.py --preset metallic-roughness --stage constant \
         --resolution 256 --spp 512
+    python3 assets-scripts/compare_preview_mitsuba.py --preset glass                   # dielectric
+    python3 assets-scripts/compare_preview_mitsuba.py --preset glass --roughness 0.3   # roughdielectric
+    python3 assets-scripts/compare_preview_mitsuba.py --preset thin-glass              # thindielectric
 """
 
 import argparse
@@ -60,11 +69,44 @@ import make_material_preview as preview  # noqa: E402
 from compare_mitsuba import channel_means, fmt, parse_resolution, run_render, set_variant  # noqa: E402
 
 
-def staged_gltf(scene, out_dir, albedo=None, constant=None):
-    """A copy of `scene` in `out_dir` (buffer and environment referenced by relative paths):
-    with `albedo`, its preview material is Lambert with that albedo; with `constant`, the
-    stage is the sphere alone (no ground, no key light) under a constant environment of that
-    radiance. Returns its path."""
+def diffuse_material(albedo):
+    """The preview material's glTF fields for a Lambertian sphere of `albedo`."""
+    return {"pbrMetallicRoughness": {"baseColorFactor": [float(c) for c in albedo] + [1.0],
+                                     "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "extras": {"bsdf": "diffuse"}}
+
+
+def glass_material(roughness, ior, thin):
+    """The preview material's glTF fields for clear glass: KHR_materials_transmission 1 on a
+    white dielectric of `roughness` (perceptual; GGX alpha = roughness^2) and KHR_materials_ior
+    `ior`; a solid sphere (KHR_materials_volume, thickness > 0, no absorption) unless `thin`."""
+    extensions = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                  "KHR_materials_ior": {"ior": ior}}
+    if not thin:
+        extensions["KHR_materials_volume"] = {"thicknessFactor": 1.0}
+    return {"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                                     "metallicFactor": 0.0, "roughnessFactor": float(roughness)},
+            "extensions": extensions, "extras": {}}
+
+
+def glass_mitsuba_bsdf(roughness, ior, thin):
+    """Mitsuba 3's BSDF for glass_material(): `thindielectric`, `dielectric` or `roughdielectric`
+    (GGX, alpha = roughness^2, visible-normal sampling)."""
+    if thin:
+        if roughness != 0.0:
+            raise SystemExit("Mitsuba 3 has no rough thin dielectric: thin-glass compares at --roughness 0 only")
+        return {"type": "thindielectric", "int_ior": ior, "ext_ior": 1.0}
+    if roughness == 0.0:
+        return {"type": "dielectric", "int_ior": ior, "ext_ior": 1.0}
+    return {"type": "roughdielectric", "distribution": "ggx", "alpha": roughness ** 2,
+            "int_ior": ior, "ext_ior": 1.0}
+
+
+def staged_gltf(scene, out_dir, material=None, constant=None, name="scene"):
+    """A copy of `scene` in `out_dir` named `name`.gltf (buffer and environment referenced by
+    relative paths): with `material` (glTF material fields, e.g. diffuse_material()), its
+    preview material gets those fields; with `constant`, the stage is the sphere alone (no
+    ground, no key light) under a constant environment of that radiance. Returns its path."""
     with open(scene) as f:
         gltf = json.load(f)
     scene_dir = os.path.dirname(os.path.abspath(scene))
@@ -77,25 +119,24 @@ def staged_gltf(scene, out_dir, albedo=None, constant=None):
         env = s.get("extras", {}).get("environment", {})
         if "image" in env:
             env["image"] = os.path.join(rel, env["image"]).replace(os.sep, "/")
-    if albedo is not None:
+    if material is not None:
         found = False
         for m in gltf["materials"]:
             if m.get("name") == preview.PREVIEW_MATERIAL:
-                pbr = m.setdefault("pbrMetallicRoughness", {})
-                pbr["baseColorFactor"] = [float(c) for c in albedo] + [1.0]
-                pbr["metallicFactor"] = 0.0
-                pbr["roughnessFactor"] = 1.0
-                m["extras"] = {"bsdf": "diffuse"}
+                m.update(json.loads(json.dumps(material)))
                 found = True
         if not found:
             raise SystemExit(f"{scene}: no material named {preview.PREVIEW_MATERIAL!r}")
+        used = set(gltf.get("extensionsUsed", []))
+        used.update(material.get("extensions", {}).keys())
+        if used:
+            gltf["extensionsUsed"] = sorted(used)
     if constant is not None:
         keep = {"sphere", "camera"}
         for s in gltf.get("scenes", []):
             s["nodes"] = [i for i in s["nodes"] if gltf["nodes"][i].get("name") in keep]
             s.setdefault("extras", {})["environment"] = {"color": [float(constant)] * 3}
-    name = "scene" + ("-diffuse-sphere" if albedo is not None else "") + ("-constant" if constant is not None else "")
-    path = os.path.join(out_dir, f"{name}.gltf")
+    path = os.path.join(out_dir, f"{name}{'-constant' if constant is not None else ''}.gltf")
     with open(path, "w") as f:
         json.dump(gltf, f, indent=1)
     return path
@@ -204,10 +245,15 @@ def main():
     ap.add_argument("--max-depth", type=int, default=8)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=0, help="Mitsuba threads (default: all cores)")
-    ap.add_argument("--preset", choices=["diffuse", "metallic-roughness"], default=None,
+    ap.add_argument("--preset", choices=["diffuse", "metallic-roughness", "glass", "thin-glass"], default=None,
                     help="our sphere: diffuse = a Lambert copy of the scene, metallic-roughness = scene.gltf "
-                         "as is; and Mitsuba's sphere unless --mitsuba-bsdf is given (default: diffuse, or "
-                         "metallic-roughness with --mitsuba-bsdf)")
+                         "as is, glass / thin-glass = a copy with clear glass of --roughness and --ior (solid, "
+                         "or thin-walled); and Mitsuba's sphere unless --mitsuba-bsdf is given (default: "
+                         "diffuse, or metallic-roughness with --mitsuba-bsdf)")
+    ap.add_argument("--roughness", type=float, default=0.0,
+                    help="glass presets: perceptual roughness (0 = smooth: Mitsuba's dielectric; > 0: "
+                         "roughdielectric with GGX alpha = roughness^2)")
+    ap.add_argument("--ior", type=float, default=1.5, help="glass presets: index of refraction (default 1.5)")
     ap.add_argument("--stage", choices=["studio", "constant"], default="studio",
                     help="studio = the scene as it is (ground, key light, studio environment); constant = "
                          "the sphere alone in a constant environment of radiance --constant")
@@ -242,13 +288,19 @@ def main():
     constant = args.constant if args.stage == "constant" else None
     if preset == "diffuse":
         sphere_bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(args.albedo)}}
-        our_scene = None if args.mitsuba_only else staged_gltf(args.scene, out_dir, args.albedo, constant)
+        our_scene = None if args.mitsuba_only else staged_gltf(
+            args.scene, out_dir, diffuse_material(args.albedo), constant, "scene-diffuse-sphere")
+    elif preset in ("glass", "thin-glass"):
+        thin = preset == "thin-glass"
+        sphere_bsdf = glass_mitsuba_bsdf(args.roughness, args.ior, thin)
+        our_scene = staged_gltf(args.scene, out_dir, glass_material(args.roughness, args.ior, thin), constant,
+                                f"scene-{preset}-r{args.roughness:g}-ior{args.ior:g}")
     else:
         our_scene = args.scene if constant is None else staged_gltf(args.scene, out_dir, None, constant)
         sphere_bsdf = {"type": "principled",
                        "base_color": {"type": "rgb", "value": preview.PREVIEW_BASE_COLOR[:3]},
                        "metallic": 1.0, "roughness": preview.PREVIEW_ROUGHNESS}
-    label = preset
+    label = preset if preset not in ("glass", "thin-glass") else f"{preset}-r{args.roughness:g}-ior{args.ior:g}"
     if args.mitsuba_bsdf is not None:
         sphere_bsdf, label = args.mitsuba_bsdf, f"{preset}-custom"
     if constant is not None:

@@ -21,6 +21,7 @@ use crate::Rgb;
 use glam::{Vec2, Vec3};
 
 pub mod albedo;
+pub mod dielectric;
 pub mod lambert;
 pub mod merl;
 pub mod metallic_roughness;
@@ -28,9 +29,12 @@ pub mod microfacet;
 pub mod nbrdf;
 pub mod neural;
 pub mod tabulated_sampling;
+pub mod transmission;
 
+pub use dielectric::Dielectric;
 pub use lambert::Lambert;
 pub use metallic_roughness::MetallicRoughness;
+pub use transmission::Transmission;
 
 /// One direction drawn by [`Bxdf::sample`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -150,6 +154,8 @@ pub enum Bsdf<'a> {
     Nbrdf(&'a nbrdf::NbrdfBsdf),
     /// A decoded FreNBRDF/HyperBRDF latent code.
     Neural(&'a neural::NeuralBsdf),
+    /// glTF metallic-roughness with transmission: glass mixed with an opaque part.
+    Transmission(Transmission),
 }
 
 macro_rules! dispatch {
@@ -160,6 +166,7 @@ macro_rules! dispatch {
             Bsdf::Merl($b) => $e,
             Bsdf::Nbrdf($b) => $e,
             Bsdf::Neural($b) => $e,
+            Bsdf::Transmission($b) => $e,
         }
     };
 }
@@ -180,5 +187,9 @@ impl Bxdf for Bsdf<'_> {
     #[inline]
     fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
         dispatch!(self, b => b.eval_pdf(wo, wi))
+    }
+    #[inline]
+    fn transmits(&self) -> bool {
+        dispatch!(self, b => b.transmits())
     }
 }

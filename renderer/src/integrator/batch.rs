@@ -5,7 +5,7 @@
 //! surface points, elsewhere begun one by one), those on decoded neural
 //! materials, NBRDF networks and MERL tables with their values evaluated together after all
 //! were sampled ([`DeferredScatter`]: one batched forward pass per net, table entries
-//! prefetched), the others one by one. Each vertex's path is advanced as soon as its
+//! prefetched), the others (transmitting surfaces) one by one. Each vertex's path is advanced as soon as its
 //! vertex is scattered (a lane group's paths right after the group), while its result is
 //! still in cache.
 
@@ -121,6 +121,7 @@ impl PathTracer {
                 // again.
                 let Some(hit) = hit else { continue };
                 let path = &mut paths[i as usize];
+                path.attenuate(hit.t);
                 let draws = self.draw(scene, path);
                 let beta = path.beta;
                 if let Some((lane_hit, &(bsdf, double_sided), light)) = self.lane_begin(scene, path, &hit, &draws) {
@@ -129,7 +130,7 @@ impl PathTracer {
                     match bsdf {
                         Bsdf::Lambert(l) => diffuse.push(i, light_only, |lanes| lanes.push_hit(&at, &l.lobe(), beta, &draws, light), settle),
                         Bsdf::MetallicRoughness(m) => glossy.push(i, light_only, |lanes| lanes.push_hit(&at, &m.lobes(), beta, &draws, light), settle),
-                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
+                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Transmission(_) => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
                     }
                     continue;
                 }
@@ -145,6 +146,10 @@ impl PathTracer {
                     Bsdf::Neural(b) => neural.push(self, scene, i, &v, b, beta),
                     Bsdf::Nbrdf(b) => nbrdf.push(self, scene, i, &v, b, beta),
                     Bsdf::Merl(b) => merl.push(self, scene, i, &v, b, beta),
+                    Bsdf::Transmission(_) => {
+                        let scattered = self.scatter(scene, &v, beta);
+                        self.settle(paths, results, i, v.sp.p, scattered);
+                    }
                 }
             }
             neural.scatter(self, |i, p, s| self.settle(paths, results, i, p, s));

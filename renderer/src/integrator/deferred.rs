@@ -260,6 +260,6 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
 /// the BSDF's value and density); `None` where the light is below the geometric surface.
 #[inline]
 fn pending_light(tracer: &PathTracer, sp: &SurfacePoint, ls: LightSample) -> Option<PendingLight> {
-    let wi = light_direction(sp, &ls)?;
+    let wi = light_direction(sp, &ls, false)?;
     Some(PendingLight { ls, wi, weighed: tracer.weighs_light_sample(&ls), pdf: 0.0, slot: None })
 }

@@ -85,7 +85,27 @@ pub struct PathState {
     prev_bsdf_pdf: Option<f32>,
     /// Origin of the vertex `ray` leaves.
     prev_p: Vec3,
+    /// Absorption coefficient (1/m, per channel) of the volume `ray` travels through: zero
+    /// outside every volume (see [`PathState::attenuate`]).
+    sigma_a: Rgb,
     pub sampler: Sampler,
+}
+
+impl PathState {
+    /// Beer–Lambert absorption along the segment just traced, `t` metres long (the closest
+    /// hit's distance; `ray` directions are unit vectors): the throughput times
+    /// exp(−σa t) inside a volume, unchanged outside.
+    ///
+    /// Volumes (glTF `KHR_materials_volume`) are entered by transmission through the front
+    /// of a surface of their material and left by transmission through its back, into
+    /// vacuum: a path inside a volume that crosses into another (nested or overlapping
+    /// volumes) takes the inner one's absorption and, leaving it, none.
+    #[inline(always)]
+    pub(crate) fn attenuate(&mut self, t: f32) {
+        if self.sigma_a != Rgb::ZERO {
+            self.beta *= (-self.sigma_a * t).exp();
+        }
+    }
 }
 
 /// Light sampled at a vertex: its contribution counts when `ray` is unoccluded.
@@ -129,6 +149,12 @@ pub(crate) struct Continuation {
     pub beta: Rgb,
     /// Density of the sampled direction, 1/sr.
     pub pdf: f32,
+    /// Whether the direction comes from a delta lobe (emission it finds is not weighed by
+    /// MIS: light sampling cannot find it).
+    pub delta: bool,
+    /// The absorption coefficient of the volume the ray enters (zero leaving one), where it
+    /// crosses into or out of a volume; `None` where it stays in the same medium.
+    pub sigma_a: Option<Rgb>,
 }
 
 /// What a vertex scatters into: a shadow test from the light sample and the continuation.
@@ -171,6 +197,7 @@ impl PathTracer {
             segments: 1,
             prev_bsdf_pdf: None,
             prev_p: ray.origin,
+            sigma_a: Rgb::ZERO,
             sampler,
         })
     }
@@ -221,6 +248,7 @@ impl PathTracer {
             self.escape(scene, path);
             return None;
         };
+        path.attenuate(hit.t);
         let draws = self.draw(scene, path);
         self.begin_drawn(scene, path, hit, draws)
     }
@@ -239,7 +267,8 @@ impl PathTracer {
         }
     }
 
-    /// [`Self::begin`] at `hit`, the vertex's random numbers drawn.
+    /// [`Self::begin`] at `hit`, the vertex's random numbers drawn and the segment's
+    /// absorption applied ([`PathState::attenuate`]).
     #[inline(always)]
     fn begin_drawn<'s>(&self, scene: &'s RenderScene, path: &mut PathState, hit: Hit, draws: Draws) -> Option<Vertex<'s>> {
         let ray = path.ray;
@@ -277,7 +306,15 @@ impl PathTracer {
         let shadow = self
             .light_sample(scene, vertex)
             .and_then(|ls| self.light_term(&bsdf, &sp, wo, beta, &ls));
-        let next = bsdf.sample(wo, u, uc).and_then(|bs| continuation(&sp, &bs, beta));
+        let next = bsdf.sample(wo, u, uc).and_then(|bs| {
+            let mut next = continuation(&sp, &bs, beta)?;
+            if bs.wi.z < 0.0 {
+                // Transmission: into the material's volume through its front, out through
+                // its back; thin-walled surfaces have none.
+                next.sigma_a = scene.materials.volume_absorption(sp.material).map(|s| if sp.front_face { s } else { Rgb::ZERO });
+            }
+            Some(next)
+        });
         Scattered { shadow, next }
     }
 
@@ -295,7 +332,7 @@ impl PathTracer {
     /// cannot contribute.
     #[inline(always)]
     fn light_term<B: Bxdf>(&self, bsdf: &B, sp: &SurfacePoint, wo: Vec3, beta: Rgb, ls: &LightSample) -> Option<ShadowTest> {
-        let wi = light_direction(sp, ls)?;
+        let wi = light_direction(sp, ls, bsdf.transmits())?;
         let (f, bsdf_pdf) = bsdf.eval_pdf(wo, wi);
         self.light_contribution(sp, beta, ls, wi, f, bsdf_pdf)
     }
@@ -351,8 +388,11 @@ impl PathTracer {
             }
             path.beta /= q;
         }
-        path.prev_bsdf_pdf = Some(next.pdf);
+        path.prev_bsdf_pdf = (!next.delta).then_some(next.pdf);
         path.prev_p = p;
+        if let Some(sigma_a) = next.sigma_a {
+            path.sigma_a = sigma_a;
+        }
         path.ray = next.ray;
         true
     }
@@ -382,16 +422,17 @@ impl PathTracer {
 }
 
 /// The direction of light sample `ls` in the local frame of `sp`, `None` where it leaves
-/// below the geometric surface (also where a NaN makes the test fail).
+/// below the geometric surface (also where a NaN makes the test fail) and the BSDF does not
+/// transmit (`transmits` false).
 #[inline(always)]
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
-fn light_direction(sp: &SurfacePoint, ls: &LightSample) -> Option<Vec3> {
-    (ls.direction.dot(sp.ng_facing) > 0.0).then(|| sp.frame.to_local(ls.direction))
+fn light_direction(sp: &SurfacePoint, ls: &LightSample, transmits: bool) -> Option<Vec3> {
+    (transmits || ls.direction.dot(sp.ng_facing) > 0.0).then(|| sp.frame.to_local(ls.direction))
 }
 
-/// The continuation of BSDF sample `bs` at `sp` for a path of throughput `beta`; `None` where
-/// the direction leaves below the geometric surface or the throughput becomes zero or not
-/// finite.
+/// The continuation of BSDF sample `bs` at `sp` for a path of throughput `beta`, in the same
+/// medium; `None` where the direction leaves on the other side of the geometric surface than
+/// of the shading surface or the throughput becomes zero or not finite.
 #[inline(always)]
 fn continuation(sp: &SurfacePoint, bs: &BsdfSample, beta: Rgb) -> Option<Continuation> {
     let frame = &sp.frame;
@@ -407,6 +448,8 @@ fn continuation(sp: &SurfacePoint, bs: &BsdfSample, beta: Rgb) -> Option<Continu
         ray: Ray::new(next.origin.into(), wi_world.into()),
         beta: next.beta.into(),
         pdf: next.pdf,
+        delta: bs.delta,
+        sigma_a: None,
     })
 }
 
@@ -444,13 +487,16 @@ pub(crate) struct RealShadowTest<R: Real> {
 /// kernels'): the shadow test of light sample `l` leaving `at`, where the light's local
 /// direction has z `wi_z`, the BSDF's value toward it is `f` (1/sr) and its density of
 /// sampling it `bsdf_pdf`, for a path of throughput `beta`. Weighted by the power heuristic,
-/// by 1 for delta lights and with `light_only`; not `ok` where the light is below the
-/// geometric or shading surface or the BSDF gives nothing (also where a NaN fails a test).
+/// by 1 for delta lights and with `light_only`; not `ok` where the light lies on different
+/// sides of the geometric and the shading surface, on the shading horizon, or the BSDF gives
+/// nothing (reflectors give nothing below the horizon; also where a NaN fails a test).
 #[inline(always)]
 pub(crate) fn shadow_test<R: Real>(at: Leaving<R>, l: &RealLightSample<R>, wi_z: R, (f, bsdf_pdf): (V3<R>, R), beta: V3<R>, light_only: bool) -> RealShadowTest<R> {
     let (p, p_error, ng) = at;
     let zero = R::splat(0.0);
-    let ok = l.direction.dot(ng).gt(zero) & wi_z.gt(zero) & f.max_element().gt(zero);
+    let ng_side = wi_z.lt(zero).select(-ng, ng);
+    let cos_i = wi_z.abs();
+    let ok = l.direction.dot(ng_side).gt(zero) & cos_i.gt(zero) & f.max_element().gt(zero);
     let origin = offset_origin(p, p_error, ng, l.direction);
     let w = if light_only { R::splat(1.0) } else { R::select(l.delta, R::splat(1.0), power_heuristic(l.pdf, bsdf_pdf)) };
     RealShadowTest {
@@ -458,7 +504,7 @@ pub(crate) fn shadow_test<R: Real>(at: Leaving<R>, l: &RealLightSample<R>, wi_z:
         origin,
         direction: l.has_target.select(l.target - origin, l.direction),
         t_max: R::select(l.has_target, R::splat(1.0 - SHADOW_EPSILON), R::splat(f32::MAX)),
-        contribution: beta * f * l.radiance * (wi_z * w / l.pdf),
+        contribution: beta * f * l.radiance * (cos_i * w / l.pdf),
     }
 }
 
@@ -473,14 +519,16 @@ pub(crate) struct RealContinuation<R: Real> {
 
 /// The continuation written once (the scalar path's `continuation` and the lane kernels'):
 /// BSDF sample `sample` leaving `at` in world direction `wi_world`, for a path of throughput
-/// `beta`; not `ok` where the sample failed, the direction leaves below the geometric surface
-/// or the throughput is zero or not finite.
+/// `beta`; not `ok` where the sample failed, the direction leaves on another side of the
+/// geometric surface than of the shading surface (below it for reflection, above it for
+/// transmission) or the throughput is zero or not finite.
 #[inline(always)]
 pub(crate) fn continue_path<R: Real>(at: Leaving<R>, wi_world: V3<R>, sample: &RealSample<R>, beta: V3<R>) -> RealContinuation<R> {
     let (p, p_error, ng) = at;
     let zero = R::splat(0.0);
-    let beta = beta * (sample.f * (sample.wi.z / sample.pdf));
-    let ok = sample.ok & !wi_world.dot(ng).le(zero) & beta.is_finite() & !beta.max_element().le(zero);
+    let beta = beta * (sample.f * (sample.wi.z.abs() / sample.pdf));
+    let ng_side = sample.wi.z.lt(zero).select(-ng, ng);
+    let ok = sample.ok & !wi_world.dot(ng_side).le(zero) & beta.is_finite() & !beta.max_element().le(zero);
     RealContinuation {
         ok,
         origin: offset_origin(p, p_error, ng, wi_world),

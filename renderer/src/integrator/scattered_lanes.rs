@@ -40,6 +40,8 @@ impl ScatteredLanes {
                 ray: Ray::new(self.next_origin.get(i), self.next_direction.get(i)),
                 beta: self.next_beta.get(i),
                 pdf: self.next_pdf.0[i],
+                delta: false,
+                sigma_a: None,
             }),
         }
     }

@@ -23,7 +23,7 @@ use binding::Surface;
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
-use crate::bsdf::{Bsdf, Lambert, MetallicRoughness};
+use crate::bsdf::{Bsdf, Dielectric, Lambert, MetallicRoughness, Transmission};
 use crate::neural::latent_library::LatentLibrary;
 use crate::scene::{AlphaMode, Material, NormalMap, Texture, TextureRef};
 use crate::{Error, Result, Rgb};
@@ -129,6 +129,8 @@ fn resolve_nbrdf_prefix(path: &Path) -> Result<PathBuf> {
 enum Kind {
     Lambert,
     MetallicRoughness,
+    /// Metallic-roughness with transmission ([`Transmission`]).
+    Transmission,
     /// Index into [`SceneMaterials::shared`].
     Shared(usize),
 }
@@ -160,6 +162,7 @@ impl SceneMaterials {
         for (material, &is_used) in materials.iter().zip(used) {
             kinds.push(match binding::surface(&material.model, latents) {
                 Surface::Lambert => Kind::Lambert,
+                Surface::MetallicRoughness if material.transmits() => Kind::Transmission,
                 Surface::MetallicRoughness => Kind::MetallicRoughness,
                 Surface::Bound(_) | Surface::LatentWithoutFile(_) if !is_used => Kind::Lambert,
                 Surface::LatentWithoutFile(name) => {
@@ -193,7 +196,7 @@ impl SceneMaterials {
                         let (f0, f90) = m.dielectric_fresnel();
                         Bsdf::MetallicRoughness(MetallicRoughness::new(m.base_color, m.metallic, m.roughness).with_dielectric(f0, f90))
                     }
-                    Kind::Shared(_) => return None,
+                    Kind::Transmission | Kind::Shared(_) => return None,
                 };
                 uniform.then_some((bsdf, m.double_sided))
             })
@@ -225,12 +228,14 @@ impl SceneMaterials {
 
     /// The BSDF of `material` at a point seen from its front (`front_face`) or back, with
     /// texture coordinates of a set from `uv(set)` (called only when the material's BSDF
-    /// reads a texture: base colour, metallic-roughness); `None` where the surface does not
-    /// scatter (the back of a single-sided material).
+    /// reads a texture: base colour, metallic-roughness, transmission); `None` where the
+    /// surface does not scatter (the back of a single-sided opaque material; transmitting
+    /// materials scatter on both sides, since light inside them leaves through their back).
     #[inline]
     pub fn bsdf(&self, material: u32, front_face: bool, uv: impl Fn(u32) -> Vec2) -> Option<Bsdf<'_>> {
         let m = &self.materials[material as usize];
-        if !front_face && !m.double_sided {
+        let kind = self.kinds[material as usize];
+        if !front_face && !m.double_sided && kind != Kind::Transmission {
             return None;
         }
         let lookup = |t: &TextureRef| t.lookup(&self.textures, uv(t.tex_coord));
@@ -238,18 +243,34 @@ impl SceneMaterials {
             Some(t) => m.base_color * lookup(t),
             None => m.base_color,
         };
-        Some(match self.kinds[material as usize] {
+        let metallic_roughness = || match &m.metallic_roughness_texture {
+            Some(t) => {
+                let texel = lookup(t);
+                (m.metallic * texel.z, m.roughness * texel.y)
+            }
+            None => (m.metallic, m.roughness),
+        };
+        Some(match kind {
             Kind::Lambert => Bsdf::Lambert(Lambert { albedo: base() }),
             Kind::MetallicRoughness => {
-                let (metallic, roughness) = match &m.metallic_roughness_texture {
-                    Some(t) => {
-                        let texel = lookup(t);
-                        (m.metallic * texel.z, m.roughness * texel.y)
-                    }
-                    None => (m.metallic, m.roughness),
-                };
+                let (metallic, roughness) = metallic_roughness();
                 let (f0, f90) = m.dielectric_fresnel();
                 Bsdf::MetallicRoughness(MetallicRoughness::new(base(), metallic, roughness).with_dielectric(f0, f90))
+            }
+            Kind::Transmission => {
+                let (metallic, roughness) = metallic_roughness();
+                let transmission = match &m.transmission_texture {
+                    Some(t) => m.transmission * lookup(t).x,
+                    None => m.transmission,
+                };
+                let base = base();
+                // The relative index across the surface from the side the path arrives on;
+                // a thin-walled surface is the same seen from either side.
+                let ior = m.ior.max(1.0);
+                let eta = if front_face || m.volume.is_none() { ior } else { 1.0 / ior };
+                let glass = Dielectric::new(eta, roughness).with_tint(base);
+                let glass = if m.volume.is_none() { glass.thin() } else { glass };
+                Bsdf::Transmission(Transmission::new(base, metallic, roughness, transmission, m.dielectric_fresnel(), glass))
             }
             Kind::Shared(i) => self.shared[i].as_bsdf(),
         })
@@ -282,6 +303,13 @@ impl SceneMaterials {
             Some(t) if m.emission.max_element() > 0.0 => m.emission * t.lookup(&self.textures, uv(t.tex_coord)),
             _ => m.emission,
         }
+    }
+
+    /// The absorption coefficient σa (1/m) inside `material`'s volume; `None` where its
+    /// surfaces are thin-walled or do not transmit ([`crate::scene::Material::volume`]).
+    #[inline]
+    pub fn volume_absorption(&self, material: u32) -> Option<Rgb> {
+        self.materials[material as usize].volume.map(|v| v.sigma_a)
     }
 
     /// `material`'s normal map, if it has one.

@@ -211,6 +211,36 @@ pub struct Material {
     /// reflection, in [0, 1]; 1 by default) and specular colour (linear, scales its F0).
     pub specular: f32,
     pub specular_color: Rgb,
+    /// `KHR_materials_transmission`'s factor in [0, 1]: the fraction of the dielectric base
+    /// that transmits (a glass BSDF, tinted by the base colour) instead of scattering
+    /// diffusely; 0 by default (opaque).
+    pub transmission: f32,
+    /// A transmission texture (linear): its red channel multiplies `transmission`.
+    pub transmission_texture: Option<TextureRef>,
+    /// The volume its surfaces enclose (`KHR_materials_volume` with a thickness > 0); `None`:
+    /// the surface is thin-walled (light passes through it without refraction).
+    pub volume: Option<Volume>,
+}
+
+/// A homogeneous absorbing volume inside a closed mesh (glTF `KHR_materials_volume`):
+/// light travelling d metres through it keeps exp(−σa d) of its radiance (Beer–Lambert).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Volume {
+    /// Absorption coefficient σa in 1/m per channel: −ln(attenuationColor) /
+    /// attenuationDistance (zero for the default infinite distance).
+    pub sigma_a: Rgb,
+}
+
+impl Volume {
+    /// The volume whose light keeps `color` (linear, in (0, 1]) of its radiance after
+    /// `distance` metres (> 0; infinite: no absorption), as `KHR_materials_volume` states
+    /// it; `None` where a value is outside those ranges.
+    pub fn from_attenuation(color: Rgb, distance: f32) -> Option<Volume> {
+        let valid = color.min_element() > 0.0 && color.max_element() <= 1.0 && distance > 0.0;
+        valid.then(|| Volume {
+            sigma_a: if distance == f32::INFINITY { Rgb::ZERO } else { -Rgb::new(color.x.ln(), color.y.ln(), color.z.ln()) / distance },
+        })
+    }
 }
 
 /// A tangent-space normal map: texel (r, g, b) ↦ n = normalize((2r − 1) s, (2g − 1) s, 2b − 1)
@@ -256,7 +286,15 @@ impl Material {
             ior: 1.5,
             specular: 1.0,
             specular_color: Rgb::ONE,
+            transmission: 0.0,
+            transmission_texture: None,
+            volume: None,
         }
+    }
+
+    /// Whether the surface transmits light somewhere (a transmission factor > 0).
+    pub fn transmits(&self) -> bool {
+        self.transmission > 0.0
     }
 
     /// The dielectric's Fresnel reflectance at normal and grazing incidence, (f0, f90), as
@@ -282,6 +320,7 @@ impl Material {
             self.metallic_roughness_texture.as_ref(),
             self.emissive_texture.as_ref(),
             self.normal_texture.as_ref().map(|n| &n.texture),
+            self.transmission_texture.as_ref(),
         ]
         .into_iter()
         .flatten()

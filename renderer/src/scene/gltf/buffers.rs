@@ -4,11 +4,13 @@
 use super::*;
 
 /// The glTF extensions the loader reads (see the module documentation).
-pub(super) const SUPPORTED_EXTENSIONS: [&str; 5] = [
+pub(super) const SUPPORTED_EXTENSIONS: [&str; 7] = [
     "KHR_lights_punctual",
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",
     "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_volume",
     "KHR_texture_transform",
 ];
 

@@ -19,7 +19,14 @@
 //!   [`Material::emission`] and [`Material::emissive_texture`], `normalTexture` (linear, with
 //!   its `scale`) as [`Material::normal_texture`], `alphaMode` and `alphaCutoff` with the
 //!   base colour's alpha ([`AlphaMode`]), `KHR_materials_ior` and `KHR_materials_specular`'s
-//!   factors ([`Material::dielectric_fresnel`]; its textures are ignored with a warning).
+//!   factors ([`Material::dielectric_fresnel`]; its textures are ignored with a warning),
+//!   `KHR_materials_transmission`'s factor times its texture's red channel
+//!   ([`Material::transmission`]: that part of the dielectric base is glass, tinted by the
+//!   base colour) and `KHR_materials_volume` ([`Material::volume`]: with a thickness factor
+//!   greater than 0 the surfaces enclose an absorbing volume, σa from the attenuation colour and
+//!   distance; without it, or with thickness 0, transmitting surfaces are thin-walled, as
+//!   the specification says; the thickness texture, a rasteriser's approximation, is not
+//!   needed by a path tracer and ignored).
 //!   Textures: PNG or JPEG (8/16-bit; EXR and HDR as linear), each image decoded once per
 //!   encoding and shared; the sampler's `wrapS`/`wrapT` (repeat, clamp, mirrored repeat) and
 //!   `magFilter` (nearest or bilinear; no mipmaps) and `KHR_texture_transform` (also on
@@ -56,9 +63,9 @@
 //!   read by the renderer's environment code, not here.
 //!
 //! - Not read: animations, skins and morph targets (the rest pose is used), sparse
-//!   accessors, and extensions other than the five named above. A file that *requires* another
+//!   accessors, and extensions other than the seven named above. A file that *requires* another
 //!   extension (`extensionsRequired`) is an error naming it; one that only *uses* another
-//!   (`extensionsUsed`, e.g. `KHR_materials_transmission`, `KHR_texture_transform`) loads
+//!   (`extensionsUsed`, e.g. `KHR_materials_clearcoat`) loads
 //!   with a warning naming it once ([`SceneDescription::warnings`]), and its materials render
 //!   with their core parameters.
 //!
@@ -69,7 +76,7 @@
 use super::texture::{texture_transform, Encoding, Filter, Wrap};
 use super::{
     smooth_vertex_normals, AlphaMode, Binding, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Instance,
-    Material, Mesh, NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef,
+    Material, Mesh, NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef, Volume,
 };
 use crate::{Error, Result, Rgb};
 use ::gltf::accessor::{DataType, Dimensions};
@@ -446,6 +453,32 @@ impl Loader<'_> {
         if !(ior == 0.0 || ior >= 1.0) || !specular.is_finite() || !specular_color.is_finite() {
             return Err(self.invalid(format!("material '{name}' has an invalid KHR_materials_ior or KHR_materials_specular (ior {ior}, specular {specular}, colour {specular_color}): ior must be 0 or at least 1 and the factors finite")));
         }
+        let (transmission, transmission_texture) = match material.transmission() {
+            Some(tr) => {
+                let texture = match tr.transmission_texture() {
+                    Some(info) => Some(self.texture_ref(document, &TextureUse::info(&info), Encoding::Linear, &name, "transmission")?),
+                    None => None,
+                };
+                (tr.transmission_factor(), texture)
+            }
+            None => (0.0, None),
+        };
+        if !(0.0..=1.0).contains(&transmission) {
+            return Err(self.invalid(format!("material '{name}' has KHR_materials_transmission factor {transmission} (must be in [0, 1])")));
+        }
+        let volume = match material.volume() {
+            Some(v) if v.thickness_factor() > 0.0 => {
+                let color = Rgb::from_array(v.attenuation_color());
+                let distance = v.attenuation_distance();
+                Some(Volume::from_attenuation(color, distance).ok_or_else(|| {
+                    self.invalid(format!("material '{name}' has an invalid KHR_materials_volume (attenuationColor {color}, attenuationDistance {distance}): the colour must be in (0, 1] and the distance > 0"))
+                })?)
+            }
+            Some(v) if v.thickness_factor() < 0.0 || v.thickness_factor().is_nan() => {
+                return Err(self.invalid(format!("material '{name}' has KHR_materials_volume thicknessFactor {} (must be ≥ 0)", v.thickness_factor())));
+            }
+            _ => None,
+        };
         let model = surface_model(material.extras(), &name, self.base)
             .map_err(|reason| self.invalid(reason))?;
         let result = Material {
@@ -464,6 +497,9 @@ impl Loader<'_> {
             ior,
             specular: specular.clamp(0.0, 1.0),
             specular_color: specular_color.max(Rgb::ZERO),
+            transmission,
+            transmission_texture,
+            volume,
             name,
         };
         if !result.base_color.is_finite() || !result.emission.is_finite() || !a.is_finite() {
