@@ -22,9 +22,10 @@ What it does
    renderer treats that colour as constant radiance in W/(m^2 sr), and so does a Cycles
    Background of strength 1 (a camera ray that misses returns exactly that colour).
    An `environment.image` is not supported here (the script stops with a message).
-3. The camera: the imported camera object named "camera" (the importer names objects after
-   their nodes; it sets `angle_y` = yfov and `sensor_fit` = VERTICAL, so the vertical field
-   of view is kept for any aspect ratio, as in our renderer).
+3. The camera: the imported camera object named "camera", else the only camera object (the
+   importer names objects after their nodes; Blender's exporter names a node after its Blender
+   object, e.g. "Camera"). The importer sets `angle_y` = yfov and `sensor_fit` = VERTICAL, so
+   the vertical field of view is kept for any aspect ratio, as in our renderer.
 4. Cycles on the CPU, path tracing, `--spp` samples with adaptive sampling off, no denoising,
    no clamping (sample_clamp_direct = sample_clamp_indirect = 0), no glossy filter
    (blur_glossy = 0), light sampling threshold 0, caustics on, a fixed seed.
@@ -585,7 +586,11 @@ def render_scene(opts):
 
     cam = bpy.data.objects.get("camera")
     if cam is None or cam.type != "CAMERA":
-        sys.exit("cycles_reference.py: no camera object named 'camera' after the import")
+        cameras = [o for o in bpy.data.objects if o.type == "CAMERA"]
+        if len(cameras) != 1:
+            sys.exit("cycles_reference.py: no camera object named 'camera' (nor a single camera) "
+                     "after the import")
+        cam = cameras[0]
     scene.camera = cam
     print("camera %r: angle_y %.4f deg, sensor_fit %s, clip %.3g..%.3g, at %s" % (
         cam.name, math.degrees(cam.data.angle_y), cam.data.sensor_fit, cam.data.clip_start,
