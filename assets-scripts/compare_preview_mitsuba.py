@@ -27,6 +27,13 @@ What the sphere is:
   solid; without it the surface is thin-walled). Mitsuba gets `dielectric` (roughness 0),
   `roughdielectric` (GGX, alpha = roughness^2) or `thindielectric` with int_ior --ior,
   ext_ior 1. Both scale radiance by 1/eta^2 across the boundary.
+- --preset coat: a copy whose "preview" material is a clear coat alone (KHR_materials_clearcoat 1,
+  roughness --roughness, over a black base with KHR_materials_specular 0). Mitsuba gets
+  `roughplastic` (GGX, alpha = roughness^2, int_ior 1.5, black diffuse): the same lobe, but with
+  the exact Fresnel at the microfacet (wo.h) where glTF's layering takes Schlick's at the
+  macroscopic angle (0.04 + 0.96 (1 - mu_o)^5) and Mitsuba's separable Smith G1 G1 where ours
+  is height-correlated, so the two agree only approximately (no Mitsuba BSDF layers a coat the
+  way glTF specifies).
 - --mitsuba-bsdf JSON replaces Mitsuba's sphere BSDF, e.g. for a neural BRDF plugin:
       --import plugins/python/my_plugin.py \\
       --mitsuba-bsdf '{"type": "neural_brdf", "filename": "...", "material": "alum-bronze"}' \\
@@ -100,6 +107,18 @@ def glass_mitsuba_bsdf(roughness, ior, thin):
         return {"type": "dielectric", "int_ior": ior, "ext_ior": 1.0}
     return {"type": "roughdielectric", "distribution": "ggx", "alpha": roughness ** 2,
             "int_ior": ior, "ext_ior": 1.0}
+
+
+def coat_material(roughness):
+    """The preview material's glTF fields for a clear coat alone: KHR_materials_clearcoat 1 of
+    `roughness` over a black dielectric whose own specular is off (KHR_materials_specular 0),
+    so all the sphere reflects is the coat's lobe."""
+    return {"pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0],
+                                     "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0,
+                                                       "clearcoatRoughnessFactor": float(roughness)},
+                           "KHR_materials_specular": {"specularFactor": 0.0}},
+            "extras": {}}
 
 
 def staged_gltf(scene, out_dir, material=None, constant=None, name="scene"):
@@ -245,7 +264,7 @@ def main():
     ap.add_argument("--max-depth", type=int, default=8)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=0, help="Mitsuba threads (default: all cores)")
-    ap.add_argument("--preset", choices=["diffuse", "metallic-roughness", "glass", "thin-glass"], default=None,
+    ap.add_argument("--preset", choices=["diffuse", "metallic-roughness", "glass", "thin-glass", "coat"], default=None,
                     help="our sphere: diffuse = a Lambert copy of the scene, metallic-roughness = scene.gltf "
                          "as is, glass / thin-glass = a copy with clear glass of --roughness and --ior (solid, "
                          "or thin-walled); and Mitsuba's sphere unless --mitsuba-bsdf is given (default: "
@@ -295,12 +314,18 @@ def main():
         sphere_bsdf = glass_mitsuba_bsdf(args.roughness, args.ior, thin)
         our_scene = staged_gltf(args.scene, out_dir, glass_material(args.roughness, args.ior, thin), constant,
                                 f"scene-{preset}-r{args.roughness:g}-ior{args.ior:g}")
+    elif preset == "coat":
+        sphere_bsdf = {"type": "roughplastic", "distribution": "ggx", "alpha": max(args.roughness, 0.01) ** 2,
+                       "int_ior": 1.5, "ext_ior": 1.0, "diffuse_reflectance": {"type": "rgb", "value": [0.0] * 3}}
+        our_scene = staged_gltf(args.scene, out_dir, coat_material(args.roughness), constant,
+                                f"scene-coat-r{args.roughness:g}")
     else:
         our_scene = args.scene if constant is None else staged_gltf(args.scene, out_dir, None, constant)
         sphere_bsdf = {"type": "principled",
                        "base_color": {"type": "rgb", "value": preview.PREVIEW_BASE_COLOR[:3]},
                        "metallic": 1.0, "roughness": preview.PREVIEW_ROUGHNESS}
-    label = preset if preset not in ("glass", "thin-glass") else f"{preset}-r{args.roughness:g}-ior{args.ior:g}"
+    label = {"glass": f"{preset}-r{args.roughness:g}-ior{args.ior:g}", "thin-glass": f"{preset}-r{args.roughness:g}-ior{args.ior:g}",
+             "coat": f"coat-r{args.roughness:g}"}.get(preset, preset)
     if args.mitsuba_bsdf is not None:
         sphere_bsdf, label = args.mitsuba_bsdf, f"{preset}-custom"
     if constant is not None:

@@ -453,6 +453,12 @@ mod tests {
             Neural,
             Merl,
             Nbrdf,
+            /// Rough glass (one by one, transmitted paths with their volume).
+            Glass,
+            /// Smooth glass (delta lobes).
+            SmoothGlass,
+            /// Metallic-roughness under a sheen and a clear coat (one by one).
+            Layered,
         }
         let cases = [
             ("cornell-box", 8, Strategy::Mis, Sphere::Gltf, false),
@@ -473,6 +479,10 @@ mod tests {
             // deferred vertices draw either kind's samples in lanes).
             ("material-preview", 6, Strategy::Mis, Sphere::Gltf, true),
             ("material-preview", 5, Strategy::LightOnly, Sphere::Gltf, true),
+            ("material-preview", 8, Strategy::Mis, Sphere::Glass, false),
+            ("material-preview", 8, Strategy::LightOnly, Sphere::SmoothGlass, false),
+            ("material-preview", 8, Strategy::BsdfOnly, Sphere::SmoothGlass, false),
+            ("material-preview", 6, Strategy::Mis, Sphere::Layered, false),
         ];
         for (name, max_depth, strategy, sphere, constant_environment) in cases {
             let mut description = crate::testing::data::shipped_scene(name);
@@ -481,13 +491,25 @@ mod tests {
                 spec.source = crate::scene::EnvironmentSource::Constant(Rgb::new(0.9, 1.0, 1.2));
             }
             let camera = description.camera(None).expect("camera").clone();
+            if matches!(sphere, Sphere::Glass | Sphere::SmoothGlass | Sphere::Layered) {
+                let m = description.materials.iter_mut().find(|m| m.name == "preview").expect("the preview material");
+                if sphere == Sphere::Layered {
+                    m.clearcoat = Some(crate::scene::Clearcoat { factor: 0.8, texture: None, roughness: 0.1, roughness_texture: None, normal_texture: None });
+                    m.sheen = Some(crate::scene::SheenLayer { color: Rgb::new(0.6, 0.5, 0.7), color_texture: None, roughness: 0.4, roughness_texture: None });
+                } else {
+                    m.transmission = 1.0;
+                    m.metallic = 0.0;
+                    m.roughness = if sphere == Sphere::Glass { 0.3 } else { 0.0 };
+                    m.volume = crate::scene::Volume::from_attenuation(Rgb::new(0.9, 0.7, 0.5), 2.0);
+                }
+            }
             let latents = match sphere {
-                Sphere::Gltf => &crate::neural::latent_library::LatentLibrary::default(),
+                Sphere::Gltf | Sphere::Glass | Sphere::SmoothGlass | Sphere::Layered => &crate::neural::latent_library::LatentLibrary::default(),
                 _ => crate::testing::data::shipped_latents(),
             };
             let mut scene = RenderScene::with_latents(description, latents).expect("scene");
             let slots = scene.materials.neural_slots();
-            assert_eq!(slots.len(), (sphere != Sphere::Gltf) as usize, "{name}: the sphere's neural binding");
+            assert_eq!(slots.len(), matches!(sphere, Sphere::Neural | Sphere::Merl | Sphere::Nbrdf) as usize, "{name}: the sphere's neural binding");
             if sphere == Sphere::Merl {
                 let table = crate::testing::bsdfs::merl_fitted_table("alum-bronze");
                 let merl = crate::bsdf::merl::MerlBsdf::new(&table, Default::default(), &Default::default());

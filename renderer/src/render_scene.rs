@@ -87,6 +87,10 @@ pub struct SurfacePoint {
     /// True when the ray hit the front (counter-clockwise) side.
     pub front_face: bool,
     pub material: u32,
+    /// The clear coat's normal in the local shading frame, turned to the viewer's side:
+    /// z, except under a clear coat whose normal differs from the shading normal (the
+    /// base's normal map does not bend the coat; the coat's own normal map does).
+    pub coat_normal: Vec3,
 }
 
 impl RenderScene {
@@ -333,6 +337,12 @@ impl RenderScene {
         };
         let material = g.material_ids[tri];
         let normal_map = self.materials.normal_map(material);
+        // The clear coat's normal where it is not the shading normal: the interpolated
+        // normal under a base normal map, or bent by the coat's own normal map.
+        let mut coat_normal = match self.materials.clearcoat_normal_map(material) {
+            Some(map) => Some(self.mapped_normal(tri, hit.barycentric, ns, map)),
+            None => (normal_map.is_some() && self.materials.has_clearcoat(material)).then_some(ns),
+        };
         if let Some(map) = normal_map {
             ns = self.mapped_normal(tri, hit.barycentric, ns, map);
         }
@@ -342,6 +352,7 @@ impl RenderScene {
             (p, p_error) = placement.to_world(p, p_error);
             ng = (placement.normal_matrix * Vec3A::from(ng)).normalize_or_zero().into();
             ns = Vec3::from(placement.normal_matrix * Vec3A::from(ns)).try_normalize().unwrap_or(ng);
+            coat_normal = coat_normal.map(|n| Vec3::from(placement.normal_matrix * Vec3A::from(n)).try_normalize().unwrap_or(ng));
             if ng == Vec3::ZERO {
                 return None;
             }
@@ -351,16 +362,25 @@ impl RenderScene {
         if normal_map.is_some() {
             ns = keep_viewer_above(ns, -direction, ng_facing);
         }
+        let frame = Frame::from_normal(ns);
+        let coat_normal = match coat_normal {
+            Some(n) => {
+                let n = if n.dot(ng_facing) < 0.0 { -n } else { n };
+                frame.to_local(keep_viewer_above(n, -direction, ng_facing))
+            }
+            None => Vec3::Z,
+        };
         Some(SurfacePoint {
             p,
             p_error,
             ng,
-            frame: Frame::from_normal(ns),
+            frame,
             ng_facing,
             triangle: hit.triangle,
             barycentric: b,
             front_face,
             material,
+            coat_normal,
         })
     }
 
@@ -403,7 +423,7 @@ impl RenderScene {
     /// a single-sided material).
     #[inline]
     pub fn bsdf(&self, sp: &SurfacePoint) -> Option<Bsdf<'_>> {
-        self.materials.bsdf(sp.material, sp.front_face, |set| self.uv(sp, set))
+        self.materials.bsdf(sp.material, sp.front_face, |set| self.uv(sp, set), sp.coat_normal)
     }
 
     /// Radiance emitted at a surface point toward the ray that hit it (front side only).

@@ -23,16 +23,19 @@ use glam::{Vec2, Vec3};
 pub mod albedo;
 pub mod dielectric;
 pub mod lambert;
+pub mod layered;
 pub mod merl;
 pub mod metallic_roughness;
 pub mod microfacet;
 pub mod nbrdf;
 pub mod neural;
+pub mod sheen;
 pub mod tabulated_sampling;
 pub mod transmission;
 
 pub use dielectric::Dielectric;
 pub use lambert::Lambert;
+pub use layered::Layered;
 pub use metallic_roughness::MetallicRoughness;
 pub use transmission::Transmission;
 
@@ -156,6 +159,8 @@ pub enum Bsdf<'a> {
     Neural(&'a neural::NeuralBsdf),
     /// glTF metallic-roughness with transmission: glass mixed with an opaque part.
     Transmission(Transmission),
+    /// Any of the others under glTF's sheen and clear coat.
+    Layered(Layered<'a>),
 }
 
 macro_rules! dispatch {
@@ -167,6 +172,7 @@ macro_rules! dispatch {
             Bsdf::Nbrdf($b) => $e,
             Bsdf::Neural($b) => $e,
             Bsdf::Transmission($b) => $e,
+            Bsdf::Layered($b) => $e,
         }
     };
 }

@@ -5,7 +5,7 @@
 //! surface points, elsewhere begun one by one), those on decoded neural
 //! materials, NBRDF networks and MERL tables with their values evaluated together after all
 //! were sampled ([`DeferredScatter`]: one batched forward pass per net, table entries
-//! prefetched), the others (transmitting surfaces) one by one. Each vertex's path is advanced as soon as its
+//! prefetched), the others (transmitting and layered surfaces) one by one. Each vertex's path is advanced as soon as its
 //! vertex is scattered (a lane group's paths right after the group), while its result is
 //! still in cache.
 
@@ -130,7 +130,7 @@ impl PathTracer {
                     match bsdf {
                         Bsdf::Lambert(l) => diffuse.push(i, light_only, |lanes| lanes.push_hit(&at, &l.lobe(), beta, &draws, light), settle),
                         Bsdf::MetallicRoughness(m) => glossy.push(i, light_only, |lanes| lanes.push_hit(&at, &m.lobes(), beta, &draws, light), settle),
-                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Transmission(_) => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
+                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Transmission(_) | Bsdf::Layered(_) => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
                     }
                     continue;
                 }
@@ -146,7 +146,7 @@ impl PathTracer {
                     Bsdf::Neural(b) => neural.push(self, scene, i, &v, b, beta),
                     Bsdf::Nbrdf(b) => nbrdf.push(self, scene, i, &v, b, beta),
                     Bsdf::Merl(b) => merl.push(self, scene, i, &v, b, beta),
-                    Bsdf::Transmission(_) => {
+                    Bsdf::Transmission(_) | Bsdf::Layered(_) => {
                         let scattered = self.scatter(scene, &v, beta);
                         self.settle(paths, results, i, v.sp.p, scattered);
                     }

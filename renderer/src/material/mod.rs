@@ -23,7 +23,9 @@ use binding::Surface;
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
-use crate::bsdf::{Bsdf, Dielectric, Lambert, MetallicRoughness, Transmission};
+use crate::bsdf::layered::{Base, Coat};
+use crate::bsdf::sheen::Sheen;
+use crate::bsdf::{Bsdf, Dielectric, Lambert, Layered, MetallicRoughness, Transmission};
 use crate::neural::latent_library::LatentLibrary;
 use crate::scene::{AlphaMode, Material, NormalMap, Texture, TextureRef};
 use crate::{Error, Result, Rgb};
@@ -189,6 +191,8 @@ impl SceneMaterials {
                 let uniform = m.base_color_texture.is_none()
                     && (kind != Kind::MetallicRoughness || m.metallic_roughness_texture.is_none())
                     && m.normal_texture.is_none()
+                    && m.clearcoat.is_none()
+                    && m.sheen.is_none()
                     && !(m.emission.max_element() > 0.0);
                 let bsdf = match kind {
                     Kind::Lambert => Bsdf::Lambert(Lambert { albedo: m.base_color }),
@@ -228,11 +232,36 @@ impl SceneMaterials {
 
     /// The BSDF of `material` at a point seen from its front (`front_face`) or back, with
     /// texture coordinates of a set from `uv(set)` (called only when the material's BSDF
-    /// reads a texture: base colour, metallic-roughness, transmission); `None` where the
-    /// surface does not scatter (the back of a single-sided opaque material; transmitting
-    /// materials scatter on both sides, since light inside them leaves through their back).
+    /// reads a texture: base colour, metallic-roughness, transmission, clear coat, sheen)
+    /// and its clear coat's normal `coat_normal` in the local shading frame (z where it is
+    /// the shading normal; [`crate::render_scene::SurfacePoint::coat_normal`]); `None` where
+    /// the surface does not scatter (the back of a single-sided opaque material;
+    /// transmitting materials scatter on both sides, since light inside them leaves through
+    /// their back). A sheen or clear coat wraps the material's BSDF in [`Layered`].
     #[inline]
-    pub fn bsdf(&self, material: u32, front_face: bool, uv: impl Fn(u32) -> Vec2) -> Option<Bsdf<'_>> {
+    pub fn bsdf(&self, material: u32, front_face: bool, uv: impl Fn(u32) -> Vec2, coat_normal: glam::Vec3) -> Option<Bsdf<'_>> {
+        let bsdf = self.base_bsdf(material, front_face, &uv)?;
+        let m = &self.materials[material as usize];
+        if m.clearcoat.is_none() && m.sheen.is_none() {
+            return Some(bsdf);
+        }
+        let lookup = |t: &TextureRef| t.lookup(&self.textures, uv(t.tex_coord));
+        let sheen = m.sheen.map(|s| {
+            let color = s.color_texture.as_ref().map_or(s.color, |t| s.color * lookup(t));
+            let roughness = s.roughness_texture.as_ref().map_or(s.roughness, |t| s.roughness * t.lookup_alpha(&self.textures, uv(t.tex_coord)));
+            Sheen::new(color, roughness)
+        });
+        let coat = m.clearcoat.map(|c| {
+            let weight = c.texture.as_ref().map_or(c.factor, |t| c.factor * lookup(t).x);
+            let roughness = c.roughness_texture.as_ref().map_or(c.roughness, |t| c.roughness * lookup(t).y);
+            Coat::new(weight, roughness, coat_normal)
+        });
+        Some(Bsdf::Layered(Layered::new(Base::of(bsdf)?, sheen, coat)))
+    }
+
+    /// [`Self::bsdf`] without the layers.
+    #[inline]
+    fn base_bsdf(&self, material: u32, front_face: bool, uv: &impl Fn(u32) -> Vec2) -> Option<Bsdf<'_>> {
         let m = &self.materials[material as usize];
         let kind = self.kinds[material as usize];
         if !front_face && !m.double_sided && kind != Kind::Transmission {
@@ -310,6 +339,18 @@ impl SceneMaterials {
     #[inline]
     pub fn volume_absorption(&self, material: u32) -> Option<Rgb> {
         self.materials[material as usize].volume.map(|v| v.sigma_a)
+    }
+
+    /// Whether `material` has a clear coat.
+    #[inline]
+    pub fn has_clearcoat(&self, material: u32) -> bool {
+        self.materials[material as usize].clearcoat.is_some()
+    }
+
+    /// The normal map of `material`'s clear coat, if it has one.
+    #[inline]
+    pub fn clearcoat_normal_map(&self, material: u32) -> Option<&NormalMap> {
+        self.materials[material as usize].clearcoat.as_ref()?.normal_texture.as_ref()
     }
 
     /// `material`'s normal map, if it has one.
@@ -419,12 +460,39 @@ mod tests {
         let materials = SceneMaterials::prepare(vec![textured.clone(), plain.clone()], vec![texture], &[true, true], &LatentLibrary::default()).unwrap();
         let (wo, wi) = (unit(0.4, 0.0), unit(0.5, 2.0));
         for (u, metallic, roughness) in [(0.25, 1.0, 0.4), (0.75, 0.0, 0.8)] {
-            let bsdf = materials.bsdf(0, true, |_| glam::Vec2::new(u, 0.5)).unwrap();
+            let bsdf = materials.bsdf(0, true, |_| glam::Vec2::new(u, 0.5), Vec3::Z).unwrap();
             let expected = MetallicRoughness::new(textured.base_color, metallic, roughness);
             assert_eq!(bsdf.eval(wo, wi), expected.eval(wo, wi), "u = {u}");
         }
-        let bsdf = materials.bsdf(1, true, |_| panic!("no texture, no texture coordinates")).unwrap();
+        let bsdf = materials.bsdf(1, true, |_| panic!("no texture, no texture coordinates"), Vec3::Z).unwrap();
         assert_eq!(bsdf.eval(wo, wi), MetallicRoughness::new(plain.base_color, plain.metallic, plain.roughness).eval(wo, wi));
+    }
+
+    /// A neural paint under a clear coat: a material bound to a latent code with
+    /// `KHR_materials_clearcoat` shades as the decoded network under the coat (its value
+    /// away from the coat's lobe is the network's times 1 − c F_c), and the coat adds its
+    /// highlight in the mirror direction.
+    #[test]
+    fn a_neural_material_can_sit_under_a_clear_coat() {
+        use crate::bsdf::layered::{Base, Coat};
+        use crate::scene::{Clearcoat, Material, SurfaceModel};
+        let latents = crate::testing::data::shipped_latents();
+        let name = latents.names()[0].to_string();
+        let coated = Material {
+            model: SurfaceModel::Bound(Binding::Neural(name.clone())),
+            clearcoat: Some(Clearcoat { factor: 1.0, texture: None, roughness: 0.05, roughness_texture: None, normal_texture: None }),
+            ..Material::default_diffuse("varnished")
+        };
+        let materials = SceneMaterials::prepare(vec![coated], Vec::new(), &[true], latents).unwrap();
+        let bsdf = materials.bsdf(0, true, |_| glam::Vec2::ZERO, Vec3::Z).unwrap();
+        let Bsdf::Layered(layered) = bsdf else { panic!("expected a layered BSDF, got {bsdf:?}") };
+        let Base::Neural(neural) = layered.base() else { panic!("expected a neural base") };
+        let coat = Coat::new(1.0, 0.05, Vec3::Z);
+        let (wo, wi) = (unit(0.5, 0.0), unit(0.9, 2.0));
+        let expected = neural.eval(wo, wi) * (1.0 - coat.reflectance(wo));
+        assert!((bsdf.eval(wo, wi) - expected).abs().max_element() <= 1e-5 * expected.max_element().max(1.0), "{} vs {expected}", bsdf.eval(wo, wi));
+        let mirror = Vec3::new(-wo.x, -wo.y, wo.z);
+        assert!(bsdf.eval(wo, mirror).min_element() > neural.eval(wo, mirror).max_element(), "the coat's highlight");
     }
 
     #[test]

@@ -220,6 +220,37 @@ pub struct Material {
     /// The volume its surfaces enclose (`KHR_materials_volume` with a thickness > 0); `None`:
     /// the surface is thin-walled (light passes through it without refraction).
     pub volume: Option<Volume>,
+    /// A clear coat over the material (`KHR_materials_clearcoat`).
+    pub clearcoat: Option<Clearcoat>,
+    /// A sheen over the material's base, under any clear coat (`KHR_materials_sheen`).
+    pub sheen: Option<SheenLayer>,
+}
+
+/// `KHR_materials_clearcoat`: a GGX dielectric coat (index 1.5) over the material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clearcoat {
+    /// `clearcoatFactor` in [0, 1], times `texture`'s red channel (linear).
+    pub factor: f32,
+    pub texture: Option<TextureRef>,
+    /// `clearcoatRoughnessFactor` (perceptual, α = r²) in [0, 1], times
+    /// `roughness_texture`'s green channel (linear).
+    pub roughness: f32,
+    pub roughness_texture: Option<TextureRef>,
+    /// `clearcoatNormalTexture`; without it the coat has the interpolated vertex normal
+    /// (the base's normal map does not bend it).
+    pub normal_texture: Option<NormalMap>,
+}
+
+/// `KHR_materials_sheen`: a Charlie sheen over the material's base.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SheenLayer {
+    /// `sheenColorFactor` (linear) times `color_texture` (sRGB).
+    pub color: Rgb,
+    pub color_texture: Option<TextureRef>,
+    /// `sheenRoughnessFactor` (perceptual, α = r²) in [0, 1] times `roughness_texture`'s
+    /// alpha channel.
+    pub roughness: f32,
+    pub roughness_texture: Option<TextureRef>,
 }
 
 /// A homogeneous absorbing volume inside a closed mesh (glTF `KHR_materials_volume`):
@@ -289,6 +320,8 @@ impl Material {
             transmission: 0.0,
             transmission_texture: None,
             volume: None,
+            clearcoat: None,
+            sheen: None,
         }
     }
 
@@ -321,6 +354,11 @@ impl Material {
             self.emissive_texture.as_ref(),
             self.normal_texture.as_ref().map(|n| &n.texture),
             self.transmission_texture.as_ref(),
+            self.clearcoat.as_ref().and_then(|c| c.texture.as_ref()),
+            self.clearcoat.as_ref().and_then(|c| c.roughness_texture.as_ref()),
+            self.clearcoat.as_ref().and_then(|c| c.normal_texture.as_ref()).map(|n| &n.texture),
+            self.sheen.as_ref().and_then(|s| s.color_texture.as_ref()),
+            self.sheen.as_ref().and_then(|s| s.roughness_texture.as_ref()),
         ]
         .into_iter()
         .flatten()

@@ -4,10 +4,12 @@
 use super::*;
 
 /// The glTF extensions the loader reads (see the module documentation).
-pub(super) const SUPPORTED_EXTENSIONS: [&str; 7] = [
+pub(super) const SUPPORTED_EXTENSIONS: [&str; 9] = [
     "KHR_lights_punctual",
+    "KHR_materials_clearcoat",
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",
+    "KHR_materials_sheen",
     "KHR_materials_specular",
     "KHR_materials_transmission",
     "KHR_materials_volume",

@@ -78,6 +78,7 @@ use super::{
     smooth_vertex_normals, AlphaMode, Binding, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Instance,
     Material, Mesh, NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef, Volume,
 };
+use super::{Clearcoat, SheenLayer};
 use crate::{Error, Result, Rgb};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::camera::Projection;
@@ -479,6 +480,8 @@ impl Loader<'_> {
             }
             _ => None,
         };
+        let clearcoat = self.clearcoat(document, material, &name)?;
+        let sheen = self.sheen(document, material, &name)?;
         let model = surface_model(material.extras(), &name, self.base)
             .map_err(|reason| self.invalid(reason))?;
         let result = Material {
@@ -500,12 +503,85 @@ impl Loader<'_> {
             transmission,
             transmission_texture,
             volume,
+            clearcoat,
+            sheen,
             name,
         };
         if !result.base_color.is_finite() || !result.emission.is_finite() || !a.is_finite() {
             return Err(self.invalid(format!("material '{}' has non-finite factors", result.name)));
         }
         Ok(result)
+    }
+
+    /// A number of an extension's JSON object: `default` where the key is absent, an error
+    /// naming the material where it is not a number in [0, 1].
+    fn unit_factor(&self, object: &Value, extension: &str, key: &str, default: f32, material: &str) -> Result<f32> {
+        match object.get(key) {
+            None => Ok(default),
+            Some(v) => match v.as_f64() {
+                Some(x) if (0.0..=1.0).contains(&x) => Ok(x as f32),
+                _ => Err(self.invalid(format!("material '{material}' has {extension} {key} {v} (must be a number in [0, 1])"))),
+            },
+        }
+    }
+
+    /// The texture an extension's JSON names under `key` (a textureInfo object), if any.
+    fn json_texture(&mut self, document: &Document, object: &Value, key: &str, encoding: Encoding, material: &str, role: &str) -> Result<Option<TextureRef>> {
+        match object.get(key) {
+            None => Ok(None),
+            Some(info) => {
+                let used = TextureUse::json(document, info).map_err(|reason| self.invalid(format!("the {role} texture of material '{material}' {reason}")))?;
+                self.texture_ref(document, &used, encoding, material, role).map(Some)
+            }
+        }
+    }
+
+    /// `KHR_materials_clearcoat` (read from the material's JSON: the `gltf` crate does not
+    /// parse it); `None` without the extension or with a zero factor.
+    fn clearcoat(&mut self, document: &Document, material: &::gltf::Material, name: &str) -> Result<Option<Clearcoat>> {
+        const EXT: &str = "KHR_materials_clearcoat";
+        let Some(object) = material.extension_value(EXT) else {
+            return Ok(None);
+        };
+        let factor = self.unit_factor(object, EXT, "clearcoatFactor", 0.0, name)?;
+        let roughness = self.unit_factor(object, EXT, "clearcoatRoughnessFactor", 0.0, name)?;
+        let texture = self.json_texture(document, object, "clearcoatTexture", Encoding::Linear, name, "clearcoat")?;
+        let roughness_texture = self.json_texture(document, object, "clearcoatRoughnessTexture", Encoding::Linear, name, "clearcoat roughness")?;
+        let normal_texture = match object.get("clearcoatNormalTexture") {
+            Some(info) => {
+                let texture = self.json_texture(document, object, "clearcoatNormalTexture", Encoding::Linear, name, "clearcoat normal")?.expect("present");
+                let scale = match info.get("scale") {
+                    None => 1.0,
+                    Some(v) => v.as_f64().filter(|s| s.is_finite()).ok_or_else(|| self.invalid(format!("material '{name}' has a clearcoatNormalTexture scale {v} that is not a finite number")))? as f32,
+                };
+                Some(NormalMap { texture, scale })
+            }
+            None => None,
+        };
+        Ok((factor > 0.0).then_some(Clearcoat { factor, texture, roughness, roughness_texture, normal_texture }))
+    }
+
+    /// `KHR_materials_sheen` (read from the material's JSON); `None` without the extension
+    /// or with a black sheen colour.
+    fn sheen(&mut self, document: &Document, material: &::gltf::Material, name: &str) -> Result<Option<SheenLayer>> {
+        const EXT: &str = "KHR_materials_sheen";
+        let Some(object) = material.extension_value(EXT) else {
+            return Ok(None);
+        };
+        let color = match object.get("sheenColorFactor") {
+            None => Rgb::ZERO,
+            Some(v) => {
+                let parsed: Option<Vec<f64>> = v.as_array().and_then(|a| a.iter().map(Value::as_f64).collect());
+                match parsed.as_deref() {
+                    Some(&[r, g, b]) if [r, g, b].iter().all(|c| (0.0..=1.0).contains(c)) => Rgb::new(r as f32, g as f32, b as f32),
+                    _ => return Err(self.invalid(format!("material '{name}' has {EXT} sheenColorFactor {v} (must be three numbers in [0, 1])"))),
+                }
+            }
+        };
+        let roughness = self.unit_factor(object, EXT, "sheenRoughnessFactor", 0.0, name)?;
+        let color_texture = self.json_texture(document, object, "sheenColorTexture", Encoding::Srgb, name, "sheen colour")?;
+        let roughness_texture = self.json_texture(document, object, "sheenRoughnessTexture", Encoding::Linear, name, "sheen roughness")?;
+        Ok((color.max_element() > 0.0).then_some(SheenLayer { color, color_texture, roughness, roughness_texture }))
     }
 
     /// A material's texture (`role` names it in messages): its image decoded with
@@ -626,6 +702,20 @@ impl<'a> TextureUse<'a> {
             tex_coord: normal.tex_coord(),
             transform: normal.extension_value("KHR_texture_transform").map(TransformSource::Json),
         }
+    }
+
+    /// A textureInfo object of an extension the `gltf` crate does not parse:
+    /// `{"index": i, "texCoord": n, "extensions": {"KHR_texture_transform": {...}}}`; the
+    /// error says what is wrong with it.
+    fn json(document: &'a Document, info: &'a Value) -> std::result::Result<Self, String> {
+        let index = info.get("index").and_then(Value::as_u64).ok_or_else(|| format!("has no valid index ({info})"))?;
+        let texture = document.textures().nth(index as usize).ok_or_else(|| format!("names texture {index}, which does not exist"))?;
+        let tex_coord = match info.get("texCoord") {
+            None => 0,
+            Some(v) => v.as_u64().and_then(|n| u32::try_from(n).ok()).ok_or_else(|| format!("has an invalid texCoord {v}"))?,
+        };
+        let transform = info.get("extensions").and_then(|e| e.get("KHR_texture_transform")).map(TransformSource::Json);
+        Ok(TextureUse { texture, tex_coord, transform })
     }
 }
 

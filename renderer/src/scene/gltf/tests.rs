@@ -487,6 +487,48 @@ fn transmission_and_volume_are_read() {
     }
 }
 
+/// `KHR_materials_clearcoat` and `KHR_materials_sheen` (read from the JSON): factors,
+/// textures with their texCoord and transform, the coat's normal map and its scale; a zero
+/// coat or black sheen is no layer; bad values are errors naming the material.
+#[test]
+fn clearcoat_and_sheen_are_read() {
+    let mut doc = material_doc(json!([
+        {"name": "coated", "extensions": {"KHR_materials_clearcoat": {
+            "clearcoatFactor": 0.75, "clearcoatRoughnessFactor": 0.25,
+            "clearcoatTexture": {"index": 0}, "clearcoatRoughnessTexture": {"index": 0, "texCoord": 1},
+            "clearcoatNormalTexture": {"index": 0, "scale": 0.5, "extensions": {"KHR_texture_transform": {"scale": [2.0, 2.0]}}}}}},
+        {"name": "velvet", "extensions": {"KHR_materials_sheen": {
+            "sheenColorFactor": [0.5, 0.25, 1.0], "sheenRoughnessFactor": 0.6, "sheenColorTexture": {"index": 0}}}},
+        {"name": "none", "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 0.0}, "KHR_materials_sheen": {}}}
+    ]));
+    doc["textures"] = json!([{"source": 0}]);
+    doc["images"] = json!([{"uri": format!("data:image/png;base64,{}", base64(&two_texel_png()))}]);
+    let scene = load_doc(&doc).expect("load");
+    let by_name = |n: &str| scene.materials.iter().find(|m| m.name == n).unwrap();
+    let coat = by_name("coated").clearcoat.expect("coat");
+    assert_eq!((coat.factor, coat.roughness), (0.75, 0.25));
+    assert!(coat.texture.is_some());
+    assert_eq!(coat.roughness_texture.unwrap().tex_coord, 1);
+    let normal = coat.normal_texture.expect("coat normal map");
+    assert_eq!(normal.scale, 0.5);
+    assert_ne!(normal.texture.transform, crate::scene::TextureRef::new(0).transform, "the texture transform is read");
+    let sheen = by_name("velvet").sheen.expect("sheen");
+    assert_eq!((sheen.color, sheen.roughness), (Rgb::new(0.5, 0.25, 1.0), 0.6));
+    assert!(sheen.color_texture.is_some() && sheen.roughness_texture.is_none());
+    assert!(by_name("none").clearcoat.is_none() && by_name("none").sheen.is_none());
+
+    for (extension, problem) in [
+        (json!({"KHR_materials_clearcoat": {"clearcoatFactor": 2.0}}), "clearcoatFactor 2"),
+        (json!({"KHR_materials_clearcoat": {"clearcoatFactor": 1.0, "clearcoatTexture": {"index": 7}}}), "names texture 7"),
+        (json!({"KHR_materials_sheen": {"sheenColorFactor": [1.0, 0.5]}}), "sheenColorFactor"),
+        (json!({"KHR_materials_sheen": {"sheenColorFactor": [1.0, 1.0, 1.0], "sheenRoughnessFactor": "rough"}}), "sheenRoughnessFactor"),
+    ] {
+        let doc = material_doc(json!([{"name": "bad", "extensions": extension}]));
+        let message = expect_error(&doc, problem);
+        assert!(message.contains("'bad'"), "{message}");
+    }
+}
+
 #[test]
 fn material_extras_choose_the_surface_model() {
     let dir = tempfile::tempdir().expect("tempdir");
