@@ -140,6 +140,33 @@ impl Film {
         }
     }
 
+    /// A film of `region` of a `full_width` × `full_height` image holding the given
+    /// accumulators ([`Film::accumulators`], e.g. read back from a checkpoint); `None` when
+    /// the region does not lie in the image or a vector's length is not its pixel count.
+    pub fn from_accumulators(full_width: u32, full_height: u32, region: Region, sum: Vec<[f64; 3]>, sum_sq: Vec<[f64; 3]>, count: Vec<u32>) -> Option<Self> {
+        let n = region.pixel_count();
+        if !region.is_within(full_width, full_height) || sum.len() != n || sum_sq.len() != n || count.len() != n {
+            return None;
+        }
+        Some(Film {
+            width: region.width(),
+            height: region.height(),
+            full_width,
+            full_height,
+            region,
+            sum,
+            sum_sq,
+            count,
+        })
+    }
+
+    /// The accumulators, row-major from the region's top-left pixel: per-pixel sums of the
+    /// samples, sums of their squares and sample counts. With [`Film::from_accumulators`]
+    /// they give back the same film bit for bit.
+    pub fn accumulators(&self) -> (&[[f64; 3]], &[[f64; 3]], &[u32]) {
+        (&self.sum, &self.sum_sq, &self.count)
+    }
+
     /// Adds a pass's samples of pixel `index`.
     #[inline]
     pub fn merge(&mut self, index: usize, acc: &PixelAccumulator) {

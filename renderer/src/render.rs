@@ -88,6 +88,8 @@ pub struct RenderStats {
     /// Mean samples per rendered pixel actually taken.
     pub spp: f64,
     pub samples: u64,
+    /// Wall time of this run (of the resumed part when `resumed_spp` > 0); the rates are of
+    /// this run's samples and rays.
     pub wall_seconds: f64,
     pub samples_per_second: f64,
     /// Closest-hit plus shadow rays.
@@ -95,6 +97,9 @@ pub struct RenderStats {
     pub rays_per_second: f64,
     /// Samples whose radiance was NaN, infinite or negative and were left out.
     pub discarded_samples: u64,
+    /// Samples per pixel read from a checkpoint, which this run continued (0 when it began
+    /// from nothing); `spp`, `samples`, `rays` and `discarded_samples` count them too.
+    pub resumed_spp: u32,
     pub threads: usize,
     pub max_depth: i32,
     pub seed: u64,
@@ -128,6 +133,75 @@ struct TileScratch<'s> {
     keys: Vec<u64>,
 }
 
+/// The tiles of one pass, rendered but not yet added to the film.
+struct TracedPass {
+    tiles: Tiles,
+    results: Vec<(u32, Vec<PixelAccumulator>, PassCounters)>,
+}
+
+impl TracedPass {
+    /// True when every tile of the pass was rendered (no cancellation cut it short).
+    fn is_complete(&self) -> bool {
+        self.results.len() == self.tiles.count() as usize
+    }
+
+    /// Adds the tiles' samples to `film`; returns their counts.
+    fn merge_into(self, film: &mut Film) -> PassCounters {
+        let (region, w) = (film.region, film.width);
+        let mut total = PassCounters::default();
+        // Each pixel lies in one tile, so the order of the merges does not change the film.
+        for (tile, pixels, counters) in self.results {
+            total.add(&counters);
+            let (x0, y0, x1, y1) = self.tiles.bounds(tile);
+            let mut i = 0;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    film.merge((x - region.x0 + (y - region.y0) * w) as usize, &pixels[i]);
+                    i += 1;
+                }
+            }
+        }
+        total
+    }
+}
+
+/// A render at a pass boundary: the film, the samples per pixel taken so far (whole passes)
+/// and the counts of those samples. A render continued from it ([`Renderer::continue_region`])
+/// with the same scene, camera, integrator, seed and sample budget gives the image of the
+/// uninterrupted render bit for bit, because the passes are sized by the budget and the
+/// samples done alone and each sample draws from its own random stream.
+#[derive(Clone, Debug)]
+pub struct RenderState {
+    pub film: Film,
+    /// Samples per pixel of the passes done (every pixel of the film has had them).
+    pub samples_done: u32,
+    /// Counts of the samples of those passes.
+    pub counters: PassCounters,
+}
+
+impl RenderState {
+    /// A render of `region` of a `width` × `height` image that has not begun.
+    pub fn new(width: u32, height: u32, region: Region) -> Self {
+        RenderState {
+            film: Film::of_region(width, height, region),
+            samples_done: 0,
+            counters: PassCounters::default(),
+        }
+    }
+}
+
+/// The size of the pass that follows `done` samples per pixel under a sample budget of
+/// `spp`: at least 8 passes (an error log of 8 rows or more) of at most MAX_PASS_SAMPLES.
+/// Each tile's pass is one batch of paths, and more samples fill a batch's later, sparser
+/// bounces better: the README's 64-spp render ran 1–5 % faster in 8 passes of 8 than in 16
+/// of 4, the GGX preview and the Cornell box at 256 spp 2–3 % faster in passes of 16 than
+/// of 8 (the neural preview the same within noise). The progress bar moves tile by tile
+/// either way. It depends on `spp` and `done` alone, so a render resumed at a pass boundary
+/// runs the passes that the uninterrupted render runs.
+fn spp_pass_size(spp: u32, done: u32) -> u32 {
+    spp.saturating_sub(done).min(spp.div_ceil(8).clamp(1, MAX_PASS_SAMPLES))
+}
+
 /// What renders one image: scene, camera, integrator and seed.
 pub struct Renderer<'a> {
     pub scene: &'a RenderScene,
@@ -154,7 +228,14 @@ impl<'a> Renderer<'a> {
         cancel: &AtomicBool,
         progress: &(dyn Fn(u64) + Sync),
     ) -> PassCounters {
-        let (region, w) = (film.region, film.width);
+        let pass = self.trace_pass(film, first_sample, count, cancel, progress);
+        pass.merge_into(film)
+    }
+
+    /// The tiles of a pass ([`Renderer::render_pass`]) rendered but not yet added to the
+    /// film: all of them, or those finished before `cancel` was set.
+    fn trace_pass(&self, film: &Film, first_sample: u32, count: u32, cancel: &AtomicBool, progress: &(dyn Fn(u64) + Sync)) -> TracedPass {
+        let region = film.region;
         let tiles = Tiles::new(film.full_width, region);
         let samples = first_sample..first_sample + count;
         let next_tile = AtomicU32::new(0);
@@ -176,20 +257,7 @@ impl<'a> Renderer<'a> {
                 }
             })
             .collect();
-        let mut total = PassCounters::default();
-        // Each pixel lies in one tile, so the order of the merges does not change the film.
-        for (tile, pixels, counters) in results {
-            total.add(&counters);
-            let (x0, y0, x1, y1) = tiles.bounds(tile);
-            let mut i = 0;
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    film.merge((x - region.x0 + (y - region.y0) * w) as usize, &pixels[i]);
-                    i += 1;
-                }
-            }
-        }
-        total
+        TracedPass { tiles, results }
     }
 
     /// Renders samples `first_sample .. first_sample + count` of a tile's pixels as one batch
@@ -319,49 +387,82 @@ impl<'a> Renderer<'a> {
     /// equal the whole render's bit for bit (a time budget gives each region its own sample
     /// count). `region` must lie inside the image.
     pub fn render_region(&self, width: u32, height: u32, region: Region, budget: Budget, monitor: Monitor<'_>) -> (Film, RenderStats) {
+        self.continue_region(RenderState::new(width, height, region), budget, monitor, &mut |_, _| {})
+    }
+
+    /// [`Renderer::render_region`] from `state` (a render at a pass boundary, e.g. read
+    /// from a checkpoint, or [`RenderState::new`]): with a sample budget, the film returned
+    /// equals the uninterrupted render's bit for bit. A time budget counts from this call.
+    ///
+    /// `at_boundary(state, interrupted)` is called at the pass boundaries: after every pass
+    /// but the last (with `interrupted` false), and once when `cancel` stops the render
+    /// (`interrupted` true) with the state after the last whole pass — before the tiles of a
+    /// pass cut short are added to the film that is returned. A render whose budget is
+    /// spent gives no call for its last pass.
+    pub fn continue_region(
+        &self,
+        state: RenderState,
+        budget: Budget,
+        monitor: Monitor<'_>,
+        at_boundary: &mut dyn FnMut(&RenderState, bool),
+    ) -> (Film, RenderStats) {
         let Monitor { cancel, progress, after_pass } = monitor;
+        let (width, height, region) = (state.film.full_width, state.film.full_height, state.film.region);
         assert!(region.is_within(width, height), "region {region} outside the {width}x{height} image");
         let start = Instant::now();
-        let mut film = Film::of_region(width, height, region);
-        let mut totals = PassCounters::default();
-        let mut done = 0u32;
+        let mut state = state;
+        let resumed_spp = state.samples_done;
+        // Counts of this call's passes alone (the rates in the statistics).
+        let mut session = PassCounters::default();
         loop {
+            let done = state.samples_done;
             let count = match budget {
-                // At least 8 passes (an error log of 8 rows or more) of at most
-                // MAX_PASS_SAMPLES. Each tile's pass is one batch of paths, and more samples
-                // fill a batch's later, sparser bounces better: the README's 64-spp render ran
-                // 1–5 % faster in 8 passes of 8 than in 16 of 4, the GGX preview and the
-                // Cornell box at 256 spp 2–3 % faster in passes of 16 than of 8 (the neural
-                // preview the same within noise). The progress bar moves tile by tile either
-                // way.
-                Budget::Spp(spp) => (spp - done).min(spp.div_ceil(8).clamp(1, MAX_PASS_SAMPLES)),
+                Budget::Spp(spp) => spp_pass_size(spp, done),
                 // One sample per pass at first, then passes growing by a quarter of the
                 // samples done, up to MAX_PASS_SAMPLES as above, as long as one fits in the
                 // time left: an error log gets at least four rows per doubling of the samples
                 // (even on a log-scale time axis), and long renders run the larger batches
                 // that `Budget::Spp` runs.
                 Budget::Time(t) => {
-                    let per_sample = start.elapsed().as_secs_f64() / done.max(1) as f64;
+                    let here = done - resumed_spp;
+                    let per_sample = start.elapsed().as_secs_f64() / here.max(1) as f64;
                     let left = t.as_secs_f64() - start.elapsed().as_secs_f64();
-                    let fits = if done == 0 { 1 } else { (left / per_sample.max(1e-9)) as u32 };
+                    let fits = if here == 0 { 1 } else { (left / per_sample.max(1e-9)) as u32 };
                     (done / 4).clamp(1, MAX_PASS_SAMPLES).min(fits.max(1))
                 }
             };
             if count == 0 {
                 break;
             }
-            let c = self.render_pass(&mut film, done, count, cancel, progress);
-            totals.add(&c);
-            done += count;
-            after_pass(&film, start.elapsed());
+            let pass = self.trace_pass(&state.film, done, count, cancel, progress);
+            let complete = pass.is_complete();
+            if !complete {
+                at_boundary(&state, true);
+            }
+            let c = pass.merge_into(&mut state.film);
+            session.add(&c);
+            state.counters.add(&c);
+            if complete {
+                state.samples_done += count;
+            }
+            after_pass(&state.film, start.elapsed());
+            if !complete {
+                break;
+            }
             let finished = match budget {
-                Budget::Spp(spp) => done >= spp,
+                Budget::Spp(spp) => state.samples_done >= spp,
                 Budget::Time(t) => start.elapsed() >= t,
             };
-            if finished || cancel.load(Ordering::Relaxed) {
+            let cancelled = cancel.load(Ordering::Relaxed);
+            if cancelled || !finished {
+                at_boundary(&state, cancelled);
+            }
+            if finished || cancelled {
                 break;
             }
         }
+        let totals = state.counters;
+        let film = state.film;
         let wall = start.elapsed().as_secs_f64();
         let pixels = region.pixel_count() as u64;
         let rays = totals.rays + totals.shadow_rays;
@@ -372,9 +473,10 @@ impl<'a> Renderer<'a> {
             spp: totals.samples as f64 / pixels as f64,
             samples: totals.samples,
             wall_seconds: wall,
-            samples_per_second: totals.samples as f64 / wall.max(1e-9),
+            samples_per_second: session.samples as f64 / wall.max(1e-9),
             rays,
-            rays_per_second: rays as f64 / wall.max(1e-9),
+            rays_per_second: (session.rays + session.shadow_rays) as f64 / wall.max(1e-9),
+            resumed_spp,
             discarded_samples: totals.discarded,
             threads: rayon::current_num_threads(),
             max_depth: self.integrator.max_depth,

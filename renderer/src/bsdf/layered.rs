@@ -31,7 +31,7 @@ use super::microfacet::GgxDistribution;
 use super::nbrdf::NbrdfBsdf;
 use super::neural::NeuralBsdf;
 use super::sheen::Sheen;
-use super::{Bsdf, BsdfSample, Bxdf, Lambert, MetallicRoughness, Transmission};
+use super::{Bsdf, BsdfSample, Bxdf, Lambert, MetallicRoughness, Mixture, Transmission};
 use crate::frame::Frame;
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use crate::Rgb;
@@ -120,6 +120,7 @@ pub enum Base<'a> {
     Nbrdf(&'a NbrdfBsdf),
     Neural(&'a NeuralBsdf),
     Transmission(Transmission),
+    Mixture(Mixture<'a>),
 }
 
 macro_rules! dispatch_base {
@@ -131,6 +132,7 @@ macro_rules! dispatch_base {
             Base::Nbrdf($b) => $e,
             Base::Neural($b) => $e,
             Base::Transmission($b) => $e,
+            Base::Mixture($b) => $e,
         }
     };
 }
@@ -168,6 +170,7 @@ impl<'a> Base<'a> {
             Bsdf::Nbrdf(b) => Base::Nbrdf(b),
             Bsdf::Neural(b) => Base::Neural(b),
             Bsdf::Transmission(b) => Base::Transmission(b),
+            Bsdf::Mixture(b) => Base::Mixture(b),
             Bsdf::Layered(_) => return None,
         })
     }

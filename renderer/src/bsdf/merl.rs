@@ -49,6 +49,11 @@ impl std::fmt::Debug for MerlBsdf {
 }
 
 impl MerlBsdf {
+    /// Bytes it holds: the values and the sampler's tables.
+    pub fn heap_bytes(&self) -> usize {
+        self.values.len() * std::mem::size_of::<[f32; 3]>() + self.sampler.heap_bytes()
+    }
+
     /// Reads a `.binary` file (validated, see [`MerlTable::read`]) with the default look-up
     /// and sampler.
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {

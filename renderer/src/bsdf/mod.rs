@@ -27,6 +27,7 @@ pub mod layered;
 pub mod merl;
 pub mod metallic_roughness;
 pub mod microfacet;
+pub mod mixture;
 pub mod nbrdf;
 pub mod neural;
 pub mod sheen;
@@ -37,6 +38,7 @@ pub use dielectric::Dielectric;
 pub use lambert::Lambert;
 pub use layered::Layered;
 pub use metallic_roughness::MetallicRoughness;
+pub use mixture::Mixture;
 pub use transmission::Transmission;
 
 /// One direction drawn by [`Bxdf::sample`].
@@ -161,6 +163,8 @@ pub enum Bsdf<'a> {
     Transmission(Transmission),
     /// Any of the others under glTF's sheen and clear coat.
     Layered(Layered<'a>),
+    /// A texture-weighted, tinted mixture of BSDFs made from data.
+    Mixture(Mixture<'a>),
 }
 
 macro_rules! dispatch {
@@ -173,6 +177,7 @@ macro_rules! dispatch {
             Bsdf::Neural($b) => $e,
             Bsdf::Transmission($b) => $e,
             Bsdf::Layered($b) => $e,
+            Bsdf::Mixture($b) => $e,
         }
     };
 }

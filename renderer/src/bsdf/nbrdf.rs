@@ -42,6 +42,11 @@ fn network_point(wo: Vec3, wi: Vec3) -> Option<[f32; network::INPUTS]> {
 }
 
 impl NbrdfBsdf {
+    /// Bytes it holds: the network inline and the sampler's tables.
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of::<NbrdfNetwork>() + self.sampler.heap_bytes()
+    }
+
     /// Loads `<prefix>_fc1.npy` ... `<prefix>_b3.npy` (see [`NbrdfNetwork::load`]) with the
     /// default sampler.
     pub fn load(prefix: impl AsRef<Path>) -> Result<Self> {

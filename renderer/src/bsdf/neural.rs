@@ -111,6 +111,12 @@ impl NeuralBsdf {
     }
 
 
+    /// Bytes it holds: the decoded and the packed net and the sampler's tables (the
+    /// reference table is the latent file's, shared by every code).
+    pub fn heap_bytes(&self) -> usize {
+        self.decoded.heap_bytes() + self.net.heap_bytes() + self.sampler.heap_bytes()
+    }
+
     /// Evaluations (since construction) in which the mapping gave a negative value that was
     /// clamped to 0 in at least one channel.
     pub fn clamped_count(&self) -> u64 {

@@ -317,6 +317,12 @@ fn half_vector_at(v: f32, x: f32, sign: f32) -> Vec3 {
 }
 
 impl TabulatedSampler {
+    /// Bytes of its tables (values, cumulative sums and row distributions).
+    pub fn heap_bytes(&self) -> usize {
+        let per_table = |b: &BilinearTable| (b.values.len() + b.line_cdf.len() + 3 * b.rows.len()) * std::mem::size_of::<f32>();
+        self.tables.iter().map(per_table).sum::<usize>() + self.row_v.len() * std::mem::size_of::<f32>()
+    }
+
     /// Fits the tables from `brdf(wo, wi)` (f_r in 1/sr, local frame, as [`super::Bxdf::eval`]),
     /// the θo nodes in parallel. Negative and non-finite values count as 0.
     ///

@@ -130,7 +130,7 @@ impl PathTracer {
                     match bsdf {
                         Bsdf::Lambert(l) => diffuse.push(i, light_only, |lanes| lanes.push_hit(&at, &l.lobe(), beta, &draws, light), settle),
                         Bsdf::MetallicRoughness(m) => glossy.push(i, light_only, |lanes| lanes.push_hit(&at, &m.lobes(), beta, &draws, light), settle),
-                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Transmission(_) | Bsdf::Layered(_) => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
+                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Transmission(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
                     }
                     continue;
                 }
@@ -146,7 +146,7 @@ impl PathTracer {
                     Bsdf::Neural(b) => neural.push(self, scene, i, &v, b, beta),
                     Bsdf::Nbrdf(b) => nbrdf.push(self, scene, i, &v, b, beta),
                     Bsdf::Merl(b) => merl.push(self, scene, i, &v, b, beta),
-                    Bsdf::Transmission(_) | Bsdf::Layered(_) => {
+                    Bsdf::Transmission(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => {
                         let scattered = self.scatter(scene, &v, beta);
                         self.settle(paths, results, i, v.sp.p, scattered);
                     }

@@ -25,7 +25,7 @@
 //! and [`file_binding`] says what that file binds.
 
 use crate::neural::latent_library::LatentLibrary;
-use crate::scene::{Binding, SceneDescription, SurfaceModel};
+use crate::scene::{Binding, SceneDescription, SurfaceModel, Varying, VaryingForm};
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -77,7 +77,7 @@ fn bind_equal_names(description: &mut SceneDescription, latents: &LatentLibrary)
     let names = latents.names();
     let mut bound = Vec::new();
     for m in &mut description.materials {
-        if !matches!(m.model, SurfaceModel::Bound(_)) && names.contains(&m.name) {
+        if !matches!(m.model, SurfaceModel::Bound(_) | SurfaceModel::Varying(_)) && names.contains(&m.name) {
             m.model = SurfaceModel::Bound(Binding::Neural(m.name.clone()));
             bound.push(m.name.clone());
         }
@@ -117,6 +117,8 @@ pub(crate) enum Surface<'a> {
     MetallicRoughness,
     /// The BSDF made from data that the binding names.
     Bound(&'a Binding),
+    /// BSDFs made from data varied by textures.
+    Varying(&'a Varying),
     /// Rule 4: bound to this latent code while no latent file was given; rendered as
     /// metallic-roughness.
     LatentWithoutFile(&'a str),
@@ -130,6 +132,19 @@ pub(crate) fn surface<'a>(model: &'a SurfaceModel, latents: &LatentLibrary) -> S
         SurfaceModel::MetallicRoughness => Surface::MetallicRoughness,
         SurfaceModel::Bound(Binding::Neural(name)) if latents.is_empty() => Surface::LatentWithoutFile(name),
         SurfaceModel::Bound(binding) => Surface::Bound(binding),
+        SurfaceModel::Varying(v) => match first_latent_name(v) {
+            Some(name) if latents.is_empty() => Surface::LatentWithoutFile(name),
+            _ => Surface::Varying(v),
+        },
+    }
+}
+
+/// The first latent code a varying material names, if any.
+fn first_latent_name(v: &Varying) -> Option<&str> {
+    match &v.form {
+        VaryingForm::One(b) => b.latent_name(),
+        VaryingForm::Mix { parts, .. } => parts.iter().find_map(Binding::latent_name),
+        VaryingForm::Blend { ends, .. } => Some(ends[0].as_str()),
     }
 }
 

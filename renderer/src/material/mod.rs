@@ -25,14 +25,17 @@ use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
 use crate::bsdf::layered::{Base, Coat};
 use crate::bsdf::sheen::Sheen;
-use crate::bsdf::{Bsdf, Dielectric, Lambert, Layered, MetallicRoughness, Transmission};
+use crate::bsdf::mixture::Part;
+use crate::bsdf::{Bsdf, Dielectric, Lambert, Layered, MetallicRoughness, Mixture, Transmission};
 use crate::neural::latent_library::LatentLibrary;
-use crate::scene::{AlphaMode, Material, NormalMap, Texture, TextureRef};
+use crate::scene::{AlphaMode, Material, NormalMap, Texture, TextureRef, Varying, VaryingForm};
 use crate::{Error, Result, Rgb};
 use glam::Vec2;
 use std::collections::HashMap;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::time::Instant;
 
 /// A BSDF made from data, opened once and shared by every shading point of the materials
 /// bound to it.
@@ -66,6 +69,26 @@ impl SharedBsdf {
             }
             Binding::Neural(name) => SharedBsdf::Neural(latents.decode(name)?),
         })
+    }
+
+    /// The BSDF as a part of a [`Mixture`].
+    #[inline]
+    pub fn as_part(&self) -> Part<'_> {
+        match self {
+            SharedBsdf::Merl(b) => Part::Merl(b),
+            SharedBsdf::Nbrdf(b) => Part::Nbrdf(b),
+            SharedBsdf::Neural(b) => Part::Neural(b),
+        }
+    }
+
+    /// Bytes it holds (tables, weights, sampling tables; not a latent file's reference
+    /// table, which its codes share).
+    pub fn heap_bytes(&self) -> usize {
+        match self {
+            SharedBsdf::Merl(b) => b.heap_bytes(),
+            SharedBsdf::Nbrdf(b) => b.heap_bytes(),
+            SharedBsdf::Neural(b) => b.heap_bytes(),
+        }
     }
 
     /// The BSDF for shading.
@@ -135,6 +158,111 @@ enum Kind {
     Transmission,
     /// Index into [`SceneMaterials::shared`].
     Shared(usize),
+    /// Index into [`SceneMaterials::varying`].
+    Varying(usize),
+}
+
+/// Networks decoded along a latent interpolation z(t), t = k / (n − 1) for k = 0 … n − 1:
+/// a `blend` material's BSDF at t mixes the two entries around it, weighted by where t
+/// falls between them. 32 entries: at the midpoints between entries the mixture of the
+/// neighbours is within the error target of the exact decode (docs/neural-textures.md).
+pub const PALETTE_SIZE: usize = 32;
+
+/// A varying material prepared: its parts as slots of [`SceneMaterials::shared`] and its
+/// textures.
+#[derive(Clone, Debug)]
+struct PreparedVarying {
+    parts: PreparedParts,
+    tint: Option<TextureRef>,
+}
+
+#[derive(Clone, Debug)]
+enum PreparedParts {
+    One(usize),
+    Mix { slots: Vec<usize>, weights: TextureRef },
+    /// The palette's entries are the slots `palette`, in order of t.
+    Blend { palette: Range<usize>, t: TextureRef, channel: usize },
+}
+
+/// What preparing a scene's materials decoded and opened ([`SceneMaterials::stats`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct MaterialStats {
+    /// BSDFs made from data opened (tables, networks, decoded codes; palette entries
+    /// included).
+    pub opened: usize,
+    /// Latent codes decoded (palette entries included).
+    pub decoded_codes: usize,
+    /// Palettes decoded for latent blends ([`PALETTE_SIZE`] codes each).
+    pub palettes: usize,
+    /// Bytes the opened BSDFs hold ([`SharedBsdf::heap_bytes`]).
+    pub bytes: usize,
+    /// Bytes of the palettes alone.
+    pub palette_bytes: usize,
+    /// Wall time spent opening and decoding, seconds.
+    pub seconds: f64,
+}
+
+/// Opens a scene's bindings, each distinct one once, and decodes the palettes of its latent
+/// blends, each pair of ends once.
+struct Opener<'l> {
+    latents: &'l LatentLibrary,
+    shared: Vec<SharedBsdf>,
+    opened: HashMap<Binding, usize>,
+    palettes: HashMap<[String; 2], Range<usize>>,
+    stats: MaterialStats,
+}
+
+impl Opener<'_> {
+    /// The slot of `binding`'s BSDF, opened now if it was not.
+    fn open(&mut self, binding: &Binding) -> Result<usize> {
+        if let Some(&slot) = self.opened.get(binding) {
+            return Ok(slot);
+        }
+        self.shared.push(SharedBsdf::open(binding, self.latents)?);
+        self.stats.decoded_codes += matches!(binding, Binding::Neural(_)) as usize;
+        self.opened.insert(binding.clone(), self.shared.len() - 1);
+        Ok(self.shared.len() - 1)
+    }
+
+    fn varying(&mut self, v: &Varying) -> Result<PreparedVarying> {
+        let parts = match &v.form {
+            VaryingForm::One(binding) => PreparedParts::One(self.open(binding)?),
+            VaryingForm::Mix { parts, weights } => PreparedParts::Mix {
+                slots: parts.iter().map(|b| self.open(b)).collect::<Result<_>>()?,
+                weights: *weights,
+            },
+            VaryingForm::Blend { ends, t, channel } => PreparedParts::Blend { palette: self.palette(ends)?, t: *t, channel: *channel },
+        };
+        Ok(PreparedVarying { parts, tint: v.tint })
+    }
+
+    /// The slots of the palette from `ends[0]` to `ends[1]` ([`PALETTE_SIZE`] codes along
+    /// [`LatentCode::lerp`](crate::neural::latent_library::LatentCode::lerp), as
+    /// `render --sweep` decodes them), decoded now if it was not.
+    fn palette(&mut self, ends: &[String; 2]) -> Result<Range<usize>> {
+        if let Some(range) = self.palettes.get(ends) {
+            return Ok(range.clone());
+        }
+        if self.latents.is_empty() {
+            return Err(Error::InvalidArgument {
+                flag: format!("blend {} → {}", ends[0], ends[1]),
+                reason: "latent codes need a latent file (render --material FILE)".to_string(),
+            });
+        }
+        let (a, b) = (self.latents.latent(&ends[0])?, self.latents.latent(&ends[1])?);
+        let start = self.shared.len();
+        for k in 0..PALETTE_SIZE {
+            let t = k as f32 / (PALETTE_SIZE - 1) as f32;
+            let label = format!("{}>{}@{t:.3}", ends[0], ends[1]);
+            let bsdf = self.latents.decode_code(&a.lerp(&b, t)?, &label)?;
+            self.stats.palette_bytes += bsdf.heap_bytes();
+            self.shared.push(SharedBsdf::Neural(bsdf));
+        }
+        self.stats.decoded_codes += PALETTE_SIZE;
+        self.stats.palettes += 1;
+        self.palettes.insert(ends.clone(), start..self.shared.len());
+        Ok(start..self.shared.len())
+    }
 }
 
 /// A scene's materials prepared for shading (see the module documentation).
@@ -146,6 +274,8 @@ pub struct SceneMaterials {
     /// Per material, its [`SceneMaterials::plain_bsdf`] answer.
     plain: Vec<Option<(Bsdf<'static>, bool)>>,
     shared: Vec<SharedBsdf>,
+    varying: Vec<PreparedVarying>,
+    stats: MaterialStats,
     /// Materials that bind a latent code while no latent file was given: (material, latent
     /// name); they render with their glTF parameters.
     unbound_neural: Vec<(String, String)>,
@@ -157,8 +287,9 @@ impl SceneMaterials {
     /// back to its glTF metallic-roughness parameters ([`binding`]'s rule 4,
     /// [`SceneMaterials::unbound_neural`]); unused bound materials get nothing opened.
     pub fn prepare(materials: Vec<Material>, textures: Vec<Texture>, used: &[bool], latents: &LatentLibrary) -> Result<Self> {
-        let mut shared = Vec::new();
-        let mut opened: HashMap<&Binding, usize> = HashMap::new();
+        let started = Instant::now();
+        let mut opener = Opener { latents, shared: Vec::new(), opened: HashMap::new(), palettes: HashMap::new(), stats: MaterialStats::default() };
+        let mut varying = Vec::new();
         let mut unbound_neural = Vec::new();
         let mut kinds = Vec::with_capacity(materials.len());
         for (material, &is_used) in materials.iter().zip(used) {
@@ -166,21 +297,23 @@ impl SceneMaterials {
                 Surface::Lambert => Kind::Lambert,
                 Surface::MetallicRoughness if material.transmits() => Kind::Transmission,
                 Surface::MetallicRoughness => Kind::MetallicRoughness,
-                Surface::Bound(_) | Surface::LatentWithoutFile(_) if !is_used => Kind::Lambert,
+                Surface::Bound(_) | Surface::Varying(_) | Surface::LatentWithoutFile(_) if !is_used => Kind::Lambert,
                 Surface::LatentWithoutFile(name) => {
                     unbound_neural.push((material.name.clone(), name.to_string()));
                     Kind::MetallicRoughness
                 }
-                Surface::Bound(binding) => Kind::Shared(match opened.get(binding) {
-                    Some(&i) => i,
-                    None => {
-                        shared.push(SharedBsdf::open(binding, latents)?);
-                        opened.insert(binding, shared.len() - 1);
-                        shared.len() - 1
-                    }
-                }),
+                Surface::Bound(binding) => Kind::Shared(opener.open(binding)?),
+                Surface::Varying(v) => {
+                    let prepared = opener.varying(v).map_err(|e| Error::InvalidArgument { flag: format!("material '{}'", material.name), reason: e.to_string() })?;
+                    varying.push(prepared);
+                    Kind::Varying(varying.len() - 1)
+                }
             });
         }
+        let Opener { shared, mut stats, .. } = opener;
+        stats.opened = shared.len();
+        stats.bytes = shared.iter().map(SharedBsdf::heap_bytes).sum();
+        stats.seconds = started.elapsed().as_secs_f64();
         let plain = materials
             .iter()
             .zip(&kinds)
@@ -200,7 +333,7 @@ impl SceneMaterials {
                         let (f0, f90) = m.dielectric_fresnel();
                         Bsdf::MetallicRoughness(MetallicRoughness::new(m.base_color, m.metallic, m.roughness).with_dielectric(f0, f90))
                     }
-                    Kind::Transmission | Kind::Shared(_) => return None,
+                    Kind::Transmission | Kind::Shared(_) | Kind::Varying(_) => return None,
                 };
                 uniform.then_some((bsdf, m.double_sided))
             })
@@ -211,8 +344,15 @@ impl SceneMaterials {
             kinds,
             plain,
             shared,
+            varying,
+            stats,
             unbound_neural,
         })
+    }
+
+    /// What preparing decoded and opened, with its memory and time.
+    pub fn stats(&self) -> MaterialStats {
+        self.stats
     }
 
     /// The materials, in scene order.
@@ -302,7 +442,37 @@ impl SceneMaterials {
                 Bsdf::Transmission(Transmission::new(base, metallic, roughness, transmission, m.dielectric_fresnel(), glass))
             }
             Kind::Shared(i) => self.shared[i].as_bsdf(),
+            Kind::Varying(i) => Bsdf::Mixture(self.mixture(&self.varying[i], uv)),
         })
+    }
+
+    /// The mixture a varying material gives at a point whose texture coordinates of a set
+    /// are `uv(set)`.
+    #[inline]
+    fn mixture(&self, v: &PreparedVarying, uv: &impl Fn(u32) -> Vec2) -> Mixture<'_> {
+        let part = |slot: usize| self.shared[slot].as_part();
+        // RGBA at the point.
+        let lookup = |t: &TextureRef| {
+            let at = uv(t.tex_coord);
+            let rgb = t.lookup(&self.textures, at);
+            [rgb.x, rgb.y, rgb.z, t.lookup_alpha(&self.textures, at)]
+        };
+        let tint = v.tint.as_ref().map_or(Rgb::ONE, |t| Rgb::from_slice(&lookup(t)[..3]));
+        match &v.parts {
+            PreparedParts::One(slot) => Mixture::new(&[(part(*slot), 1.0)], tint),
+            PreparedParts::Mix { slots, weights } => {
+                let w = lookup(weights);
+                let parts: [(Part<'_>, f32); 4] = std::array::from_fn(|k| (part(slots[k.min(slots.len() - 1)]), if k < slots.len() { w[k] } else { 0.0 }));
+                Mixture::new(&parts[..slots.len()], tint)
+            }
+            PreparedParts::Blend { palette, t, channel } => {
+                // NaN → 0.
+                let s = lookup(t)[*channel].max(0.0).min(1.0) * (palette.len() - 1) as f32;
+                let k = (s as usize).min(palette.len() - 2);
+                let a = s - k as f32;
+                Mixture::new(&[(part(palette.start + k), 1.0 - a), (part(palette.start + k + 1), a)], tint)
+            }
+        }
     }
 
     /// The BSDF of `material` and whether it is double-sided, where the BSDF is the same at
@@ -392,9 +562,20 @@ impl SceneMaterials {
         }
     }
 
-    /// Slots of the decoded latent codes in use.
+    /// Slots of the decoded latent codes that materials are bound to (not the parts of
+    /// varying materials).
     pub fn neural_slots(&self) -> Vec<usize> {
-        (0..self.shared.len()).filter(|&i| matches!(self.shared[i], SharedBsdf::Neural(_))).collect()
+        let mut slots: Vec<usize> = self
+            .kinds
+            .iter()
+            .filter_map(|k| match k {
+                Kind::Shared(i) if matches!(self.shared[*i], SharedBsdf::Neural(_)) => Some(*i),
+                _ => None,
+            })
+            .collect();
+        slots.sort_unstable();
+        slots.dedup();
+        slots
     }
 
     /// Replaces the BSDF at `slot` (e.g. by another latent code in an editing sweep); every
@@ -493,6 +674,75 @@ mod tests {
         assert!((bsdf.eval(wo, wi) - expected).abs().max_element() <= 1e-5 * expected.max_element().max(1.0), "{} vs {expected}", bsdf.eval(wo, wi));
         let mirror = Vec3::new(-wo.x, -wo.y, wo.z);
         assert!(bsdf.eval(wo, mirror).min_element() > neural.eval(wo, mirror).max_element(), "the coat's highlight");
+    }
+
+    /// A varying material: a mix weighted by a texture shades each texel as its codes'
+    /// mixture (a texel naming one code, as that code alone); a blend's t = 0 and t = 1 ends
+    /// are its two codes bit for bit, its middle the mixture of the palette's neighbours; a
+    /// tint multiplies. Only what is used is decoded: shared codes once, one palette.
+    #[test]
+    fn varying_materials_mix_blend_and_tint_codes() {
+        use crate::scene::texture::Filter;
+        use crate::scene::{Material, SurfaceModel, Varying, VaryingForm};
+        let latents = crate::testing::data::shipped_latents();
+        let names = latents.names();
+        let (a, b) = (names[0].clone(), names[1].clone());
+        // Texel 0: (1, 0, 0), alpha 1; texel 1: (0, 1, 0.5), alpha 0.25 (linear).
+        let texture = Texture { width: 2, height: 1, texels: vec![Rgb::new(1.0, 0.0, 0.0), Rgb::new(0.0, 1.0, 0.5)], alpha: vec![1.0, 0.25] };
+        let at = |u: f32| move |_: u32| glam::Vec2::new(u, 0.5);
+        let texel = TextureRef { filter: Filter::Nearest, ..TextureRef::new(0) };
+        let material = |name: &str, form: VaryingForm, tint: Option<TextureRef>| Material {
+            model: SurfaceModel::Varying(Varying { form, tint }),
+            ..Material::default_diffuse(name)
+        };
+        let mix = material("mix", VaryingForm::Mix { parts: vec![Binding::Neural(a.clone()), Binding::Neural(b.clone())], weights: texel }, None);
+        let blend = material("blend", VaryingForm::Blend { ends: [a.clone(), b.clone()], t: texel, channel: 1 }, None);
+        let tinted = material("tinted", VaryingForm::One(Binding::Neural(b.clone())), Some(texel));
+        let four = material("four", VaryingForm::Mix { parts: [&a, &b, &a, &b].map(|n| Binding::Neural(n.clone())).to_vec(), weights: texel }, None);
+        let materials = SceneMaterials::prepare(vec![mix, blend, tinted, four], vec![texture], &[true; 4], latents).unwrap();
+        let stats = materials.stats();
+        assert_eq!((stats.decoded_codes, stats.palettes, stats.opened), (2 + PALETTE_SIZE, 1, 2 + PALETTE_SIZE), "{stats:?}");
+        assert!(stats.palette_bytes > 0 && stats.bytes > stats.palette_bytes, "{stats:?}");
+        let (code_a, code_b) = (latents.decode(&a).unwrap(), latents.decode(&b).unwrap());
+        let (wo, wi) = (unit(0.4, 0.0), unit(0.6, 2.5));
+        let (fa, fb) = (code_a.eval(wo, wi), code_b.eval(wo, wi));
+        let f = |m: u32, u: f32| materials.bsdf(m, true, at(u), Vec3::Z).unwrap().eval(wo, wi);
+        assert_eq!(f(0, 0.25), fa, "mix, texel (1, 0): A alone");
+        assert_eq!(f(0, 0.75), fb, "mix, texel (0, 1): B alone");
+        assert_eq!(f(1, 0.25), fa, "blend t = 0: A");
+        assert_eq!(f(1, 0.75), fb, "blend t = 1: B");
+        assert_eq!(f(2, 0.25), Rgb::new(1.0, 0.0, 0.0) * fb, "tint (1, 0, 0)");
+        // Four codes: texel 1 weighs (0, 1, 0.5, 0.25) → B with 1.25, A with 0.5 of 1.75.
+        let expected = (0.5 * fa + 1.25 * fb) / 1.75;
+        assert!((f(3, 0.75) - expected).abs().max_element() <= 1e-5 * expected.max_element(), "{} vs {expected}", f(3, 0.75));
+        // A blend between palette entries mixes its two neighbours.
+        let texture = Texture { width: 1, height: 1, texels: vec![Rgb::splat(0.5)], alpha: Vec::new() };
+        let half = material("half", VaryingForm::Blend { ends: [a.clone(), b.clone()], t: TextureRef::new(0), channel: 0 }, None);
+        let materials = SceneMaterials::prepare(vec![half], vec![texture], &[true], latents).unwrap();
+        let Some(Bsdf::Mixture(m)) = materials.bsdf(0, true, at(0.5), Vec3::Z) else { panic!("a mixture") };
+        let parts: Vec<f32> = m.parts().map(|(_, w)| w).collect();
+        assert_eq!(parts, [0.5, 0.5], "t = 0.5 lies between entries 15 and 16 of 32");
+        assert_eq!(materials.neural_slots(), Vec::<usize>::new(), "palette entries are not bound codes");
+    }
+
+    /// Unused varying materials decode nothing; bad codes are errors naming the material.
+    #[test]
+    fn varying_materials_decode_only_what_is_used_and_name_bad_codes() {
+        use crate::scene::{Material, SurfaceModel, Varying, VaryingForm};
+        let latents = crate::testing::data::shipped_latents();
+        let a = latents.names()[0].clone();
+        let blend = |ends: [String; 2]| Material {
+            model: SurfaceModel::Varying(Varying { form: VaryingForm::Blend { ends, t: TextureRef::new(0), channel: 0 }, tint: None }),
+            ..Material::default_diffuse("ramp")
+        };
+        let texture = || vec![Texture { width: 1, height: 1, texels: vec![Rgb::ONE], alpha: Vec::new() }];
+        let unused = SceneMaterials::prepare(vec![blend([a.clone(), a.clone()])], texture(), &[false], latents).unwrap();
+        assert_eq!(unused.stats().decoded_codes, 0);
+        let msg = SceneMaterials::prepare(vec![blend([a.clone(), "no-such-code".into()])], texture(), &[true], latents).err().unwrap().to_string();
+        assert!(msg.contains("material 'ramp'") && msg.contains("no-such-code") && msg.contains(&a) && !msg.contains('\n'), "{msg}");
+        // Without a latent file the material falls back to its own parameters (rule 4).
+        let fallback = SceneMaterials::prepare(vec![blend([a.clone(), a.clone()])], texture(), &[true], &LatentLibrary::default()).unwrap();
+        assert_eq!(fallback.unbound_neural(), &[("ramp".to_string(), a.clone())]);
     }
 
     #[test]

@@ -64,6 +64,11 @@ pub struct Mlp {
 }
 
 impl Mlp {
+    /// Bytes of its weights and biases.
+    pub fn heap_bytes(&self) -> usize {
+        self.layers.iter().map(|l| l.weight.len() + l.bias.len()).sum::<usize>() * std::mem::size_of::<f32>()
+    }
+
     /// The output for one input (`x.len()` = first layer's d_in).
     pub fn forward(&self, x: &[f32]) -> Vec<f32> {
         let mut h = x.to_vec();

@@ -106,6 +106,12 @@ impl Activations {
 }
 
 impl TargetNet {
+    /// Bytes of its weights and biases as packed (padding included).
+    pub fn heap_bytes(&self) -> usize {
+        let floats: usize = self.hidden.iter().map(|l| l.weight.len() + l.bias.len()).sum::<usize>() + self.out_weight.len();
+        floats * std::mem::size_of::<f32>()
+    }
+
     /// Packs a decoded MLP (see [`crate::formats::latent_file::LatentFile::decode`]) for the fastest
     /// kernel of this CPU. Errors unless it maps [`INPUTS`] to [`OUTPUTS`] values through at
     /// least one hidden layer no wider than [`MAX_WIDTH`], with finite weights.

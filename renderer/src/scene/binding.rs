@@ -17,6 +17,7 @@
 //! A relative path is resolved once, when the binding is parsed, against the directory the
 //! text came from (the glTF file's for `extras`, the current directory for the command line).
 
+use super::TextureRef;
 use crate::{Error, Result};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -83,6 +84,56 @@ impl fmt::Display for Binding {
             Binding::Merl(path) => write!(f, "merl:{}", path.display()),
             Binding::Nbrdf(path) => write!(f, "nbrdf:{}", path.display()),
             Binding::Neural(name) => write!(f, "neural:{name}"),
+        }
+    }
+}
+
+/// The most BSDFs a [`VaryingForm::Mix`] mixes: one per channel of an RGBA texture.
+pub const MAX_MIX_PARTS: usize = 4;
+
+/// A BSDF made from data that varies across a surface, driven by textures (glTF material
+/// `extras`' object forms of `neural`, see [`super::gltf`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Varying {
+    pub form: VaryingForm,
+    /// A colour texture (sRGB-decoded, clamped to [0, 1]) multiplying f_r: a measured lobe
+    /// with a painted colour.
+    pub tint: Option<TextureRef>,
+}
+
+/// What a [`Varying`] material varies.
+#[derive(Clone, Debug, PartialEq)]
+pub enum VaryingForm {
+    /// One binding everywhere (varied by the tint alone).
+    One(Binding),
+    /// The exact mixture f = Σ w_k f_k (pdf = Σ w_k pdf_k) of 2 to [`MAX_MIX_PARTS`]
+    /// bindings; w_k is channel k (R, G, B, A; linear) of `weights`, normalised per texel
+    /// (all zero: the first binding alone).
+    Mix { parts: Vec<Binding>, weights: TextureRef },
+    /// The latent interpolation z(t) from code `ends[0]` (t = 0) to `ends[1]` (t = 1) as
+    /// `render --sweep` decodes it, t being channel `channel` (0–3: R, G, B, A; linear,
+    /// clamped to [0, 1]) of `t`. Only latent codes have a latent space to interpolate in:
+    /// the blend of two tables or networks is their [`VaryingForm::Mix`].
+    Blend { ends: [String; 2], t: TextureRef, channel: usize },
+}
+
+impl Varying {
+    /// The textures it reads.
+    pub fn texture_refs(&self) -> Vec<&TextureRef> {
+        let form = match &self.form {
+            VaryingForm::One(_) => None,
+            VaryingForm::Mix { weights, .. } => Some(weights),
+            VaryingForm::Blend { t, .. } => Some(t),
+        };
+        form.into_iter().chain(self.tint.as_ref()).collect()
+    }
+
+    /// Every binding it names (the ends of a blend as latent codes).
+    pub fn bindings(&self) -> Vec<Binding> {
+        match &self.form {
+            VaryingForm::One(b) => vec![b.clone()],
+            VaryingForm::Mix { parts, .. } => parts.clone(),
+            VaryingForm::Blend { ends, .. } => ends.iter().map(|n| Binding::Neural(n.clone())).collect(),
         }
     }
 }

@@ -10,7 +10,7 @@ pub mod gltf;
 pub mod obj;
 pub mod texture;
 
-pub use binding::{Binding, BINDING_FORMS};
+pub use binding::{Binding, Varying, VaryingForm, BINDING_FORMS, MAX_MIX_PARTS};
 pub use texture::{Texture, TextureRef};
 
 /// All triangles of a scene: those placed once, in world space, followed by the
@@ -173,6 +173,9 @@ pub enum SurfaceModel {
     /// A BSDF made from data (MERL table, NBRDF network, latent code), opened when the scene
     /// is prepared for rendering ([`crate::material`]).
     Bound(Binding),
+    /// BSDFs made from data varied across the surface by textures: a mixture, a latent
+    /// blend, a tint ([`Varying`]).
+    Varying(Varying),
 }
 
 /// A surface material.
@@ -362,6 +365,10 @@ impl Material {
         ]
         .into_iter()
         .flatten()
+        .chain(match &self.model {
+            SurfaceModel::Varying(v) => v.texture_refs(),
+            _ => Vec::new(),
+        })
     }
 }
 

@@ -12,55 +12,100 @@ pub(super) fn extras_object(extras: &::gltf::json::Extras) -> Option<serde_json:
     }
 }
 
-/// The surface model a material's extras ask for (see the module documentation).
-pub(super) fn surface_model(
-    extras: &::gltf::json::Extras,
-    material: &str,
-    base: &Path,
-) -> Result<SurfaceModel, String> {
-    let Some(map) = extras_object(extras) else {
-        return Ok(SurfaceModel::MetallicRoughness);
-    };
-    let keys: Vec<&str> = ["bsdf", "brdf", "neural"]
-        .into_iter()
-        .filter(|k| map.contains_key(*k))
-        .collect();
-    if keys.len() > 1 {
-        return Err(format!(
-            "material '{material}' extras give more than one of {}",
-            keys.join(", ")
-        ));
+impl Loader<'_> {
+    /// The surface model a material's extras ask for (see the module documentation); errors
+    /// name the material.
+    pub(super) fn surface_model(&mut self, document: &Document, extras: &::gltf::json::Extras, material: &str) -> Result<SurfaceModel> {
+        let Some(map) = extras_object(extras) else {
+            return Ok(SurfaceModel::MetallicRoughness);
+        };
+        let path = self.path;
+        let bad = |reason: String| Error::invalid_file(path, format!("material '{material}' extras: {reason}"));
+        let keys: Vec<&str> = ["bsdf", "brdf", "neural"].into_iter().filter(|k| map.contains_key(*k)).collect();
+        if keys.len() > 1 {
+            return Err(bad(format!("give only one of {}", keys.join(", "))));
+        }
+        let string = |key: &str| -> Result<&str> {
+            match map[key].as_str() {
+                Some("") => Err(bad(format!("'{key}' is empty"))),
+                Some(s) => Ok(s),
+                None => Err(bad(format!("'{key}' must be a string"))),
+            }
+        };
+        match keys.first().copied() {
+            Some("bsdf") => match string("bsdf")? {
+                "diffuse" => Ok(SurfaceModel::Lambert),
+                "metallic-roughness" => Ok(SurfaceModel::MetallicRoughness),
+                other => Err(bad(format!("unknown bsdf '{other}' (expected diffuse or metallic-roughness)"))),
+            },
+            Some("brdf") => Binding::parse(string("brdf")?, self.base).map(SurfaceModel::Bound).map_err(|e| bad(e.to_string())),
+            Some("neural") if map["neural"].is_object() => self.varying(document, &map["neural"], material).map(SurfaceModel::Varying),
+            Some("neural") => Ok(SurfaceModel::Bound(Binding::Neural(string("neural")?.to_string()))),
+            _ => Ok(SurfaceModel::MetallicRoughness),
+        }
     }
-    let string = |key: &str| -> Result<&str, String> {
-        map[key]
-            .as_str()
-            .ok_or_else(|| format!("material '{material}' extras: '{key}' must be a string"))
-    };
-    match keys.first().copied() {
-        Some("bsdf") => match string("bsdf")? {
-            "diffuse" => Ok(SurfaceModel::Lambert),
-            "metallic-roughness" => Ok(SurfaceModel::MetallicRoughness),
-            other => Err(format!(
-                "material '{material}' extras: unknown bsdf '{other}' (expected diffuse or metallic-roughness)"
-            )),
-        },
-        Some("brdf") => {
-            let text = string("brdf")?;
-            if text.is_empty() {
-                return Err(format!("material '{material}' extras: 'brdf' is empty"));
-            }
-            Binding::parse(text, base)
-                .map(SurfaceModel::Bound)
-                .map_err(|e| format!("material '{material}' extras: {e}"))
+
+    /// A `neural` object of a material's extras (the module documentation's forms).
+    fn varying(&mut self, document: &Document, object: &Value, material: &str) -> Result<Varying> {
+        const FORMS: &str = r#"{"code": NAME}, {"mix": [NAME, ...], "weights": TEXTURE} or {"blend": [A, B], "t": TEXTURE, "channel": 0-3}, each with an optional "tint": TEXTURE"#;
+        let (path, base) = (self.path, self.base);
+        let bad = |reason: String| Error::invalid_file(path, format!("material '{material}' extras: neural {reason}"));
+        let map = object.as_object().expect("an object");
+        let forms: Vec<&str> = ["code", "mix", "blend"].into_iter().filter(|k| map.contains_key(*k)).collect();
+        let allowed: &[&str] = match forms[..] {
+            ["code"] => &["code", "tint"],
+            ["mix"] => &["mix", "weights", "tint"],
+            ["blend"] => &["blend", "t", "channel", "tint"],
+            _ => return Err(bad(format!("must be one of {FORMS}"))),
+        };
+        if let Some(key) = map.keys().find(|k| !allowed.contains(&k.as_str())) {
+            return Err(bad(format!("has an unknown key '{key}' (the {} form takes {})", forms[0], allowed.join(", "))));
         }
-        Some("neural") => {
-            let name = string("neural")?;
-            if name.is_empty() {
-                return Err(format!("material '{material}' extras: 'neural' is empty"));
+        let binding = |value: &Value| -> Result<Binding> {
+            match value.as_str() {
+                Some("") | None => Err(bad(format!("names {value}, not a latent code or binding"))),
+                Some(text) if text.contains(':') => Binding::parse(text, base).map_err(|e| bad(e.to_string())),
+                Some(name) => Ok(Binding::Neural(name.to_string())),
             }
-            Ok(SurfaceModel::Bound(Binding::Neural(name.to_string())))
-        }
-        _ => Ok(SurfaceModel::MetallicRoughness),
+        };
+        let names = |key: &str, range: std::ops::RangeInclusive<usize>| -> Result<Vec<Binding>> {
+            let list = map[key].as_array().ok_or_else(|| bad(format!("'{key}' must be a list of codes")))?;
+            if !range.contains(&list.len()) {
+                return Err(bad(format!("'{key}' lists {} codes ({} to {} allowed)", list.len(), range.start(), range.end())));
+            }
+            list.iter().map(binding).collect()
+        };
+        let mut texture = |key: &str, encoding: Encoding| -> Result<TextureRef> {
+            self.json_texture(document, object, key, encoding, material, &format!("neural {key}"))?
+                .ok_or_else(|| Error::invalid_file(path, format!("material '{material}' extras: neural {key} is missing (a textureInfo object {{\"index\": i}})")))
+        };
+        let form = match forms[0] {
+            "code" => VaryingForm::One(binding(&map["code"])?),
+            "mix" => {
+                let parts = names("mix", 2..=MAX_MIX_PARTS)?;
+                VaryingForm::Mix { parts, weights: texture("weights", Encoding::Linear)? }
+            }
+            _ => {
+                let ends = names("blend", 2..=2)?;
+                let ends: Vec<String> = ends
+                    .iter()
+                    .map(|b| match b {
+                        Binding::Neural(name) => Ok(name.clone()),
+                        other => Err(bad(format!("blend interpolates latent codes, not {other} (mix tables or networks with \"mix\")"))),
+                    })
+                    .collect::<Result<_>>()?;
+                let channel = match map.get("channel") {
+                    None => 0,
+                    Some(v) => v.as_u64().filter(|c| *c < 4).ok_or_else(|| bad(format!("channel {v} is out of range (0-3: R, G, B, A)")))? as usize,
+                };
+                VaryingForm::Blend { ends: [ends[0].clone(), ends[1].clone()], t: texture("t", Encoding::Linear)?, channel }
+            }
+        };
+        let tint = match map.contains_key("tint") {
+            true => Some(texture("tint", Encoding::Srgb)?),
+            false => None,
+        };
+        Ok(Varying { form, tint })
     }
 }
 

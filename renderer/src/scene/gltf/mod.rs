@@ -76,7 +76,7 @@
 use super::texture::{texture_transform, Encoding, Filter, Wrap};
 use super::{
     smooth_vertex_normals, AlphaMode, Binding, Camera, EnvironmentSource, EnvironmentSpec, Geometry, Instance,
-    Material, Mesh, NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef, Volume,
+    Material, Mesh, NormalMap, PunctualLight, SceneDescription, SurfaceModel, Texture, TextureRef, Varying, VaryingForm, Volume, MAX_MIX_PARTS,
 };
 use super::{Clearcoat, SheenLayer};
 use crate::{Error, Result, Rgb};
@@ -97,7 +97,7 @@ mod primitives;
 mod tests;
 
 use buffers::{load_buffers, parse_and_validate, read_uri};
-use extras::{environment_from_extras, surface_model};
+use extras::environment_from_extras;
 
 /// Loads a `.gltf` or `.glb` file (see the module documentation for what is read).
 pub fn load(path: &Path) -> Result<SceneDescription> {
@@ -482,8 +482,7 @@ impl Loader<'_> {
         };
         let clearcoat = self.clearcoat(document, material, &name)?;
         let sheen = self.sheen(document, material, &name)?;
-        let model = surface_model(material.extras(), &name, self.base)
-            .map_err(|reason| self.invalid(reason))?;
+        let model = self.surface_model(document, material.extras(), &name)?;
         let result = Material {
             model,
             base_color: Rgb::new(r, g, b),

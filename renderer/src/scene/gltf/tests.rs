@@ -564,12 +564,71 @@ fn material_extras_choose_the_surface_model() {
         material_doc(json!([{"name": "x", "extras": {"bsdf": "diffuse", "neural": "n"}}]));
     expect_error(
         &both,
-        "material 'x' extras give more than one of bsdf, neural",
+        "material 'x' extras: give only one of bsdf, neural",
     );
     let unknown = material_doc(json!([{"name": "y", "extras": {"bsdf": "glass"}}]));
     expect_error(&unknown, "unknown bsdf 'glass'");
     let bad = material_doc(json!([{"name": "z", "extras": {"brdf": "phong:x"}}]));
     expect_error(&bad, "material 'z' extras: BRDF binding kind 'phong:x' not found");
+}
+
+/// The object forms of `extras.neural`: a mixture weighted by a texture, a latent blend
+/// along one channel, a tinted code (any with a tint), tables and networks as parts; every
+/// bad form is a one-line error naming the file and the material.
+#[test]
+fn neural_extras_objects_vary_codes_with_textures() {
+    use crate::scene::{Varying, VaryingForm};
+    let forms = json!([
+        {"name": "worn", "extras": {"neural": {"mix": ["gold-paint", "merl:t/rust.binary", "neural:chrome"], "weights": {"index": 0, "texCoord": 1}}}},
+        {"name": "ramp", "extras": {"neural": {"blend": ["gold-paint", "neural:chrome"], "t": {"index": 0}, "channel": 3, "tint": {"index": 0}}}},
+        {"name": "painted", "extras": {"neural": {"code": "gold-paint", "tint": {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [4.0, 4.0]}}}}}},
+        {"name": "plain", "extras": {"neural": {"code": "nbrdf:/abs/net"}}}
+    ]);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let with_texture = |materials: Value| {
+        let mut doc = material_doc(materials);
+        doc["textures"] = json!([{"source": 0}]);
+        doc["images"] = json!([{"uri": format!("data:image/png;base64,{}", base64(&two_texel_png()))}]);
+        doc
+    };
+    let mut doc = with_texture(forms);
+    let prims: Vec<Value> = (0..4).map(|m| json!({"attributes": {"POSITION": 0}, "material": m})).collect();
+    doc["meshes"][0]["primitives"] = json!(prims);
+    let scene = load(&write(dir.path(), "scene.gltf", &doc)).expect("load");
+    let varying = |i: usize| match &scene.materials[i].model {
+        SurfaceModel::Varying(v) => v.clone(),
+        other => panic!("material {i}: {other:?}"),
+    };
+    let Varying { form: VaryingForm::Mix { parts, weights }, tint: None } = varying(0) else { panic!("{:?}", varying(0)) };
+    assert_eq!(parts, vec![Binding::Neural("gold-paint".into()), Binding::Merl(dir.path().join("t/rust.binary")), Binding::Neural("chrome".into())]);
+    assert_eq!(weights.tex_coord, 1);
+    let Varying { form: VaryingForm::Blend { ends, channel, .. }, tint: Some(_) } = varying(1) else { panic!("{:?}", varying(1)) };
+    assert_eq!((ends, channel), (["gold-paint".to_string(), "chrome".to_string()], 3));
+    let Varying { form: VaryingForm::One(Binding::Neural(name)), tint: Some(tint) } = varying(2) else { panic!("{:?}", varying(2)) };
+    assert_eq!(name, "gold-paint");
+    assert!(tint.transform.is_some(), "KHR_texture_transform is honoured");
+    assert!(matches!(varying(3), Varying { form: VaryingForm::One(Binding::Nbrdf(_)), tint: None }));
+    assert_eq!(scene.textures.len(), 2, "one image, decoded linear (weights, t) and sRGB (tint)");
+
+    for (neural, problem) in [
+        (json!({"mix": ["a", "b", "c", "d", "e"], "weights": {"index": 0}}), "'mix' lists 5 codes (2 to 4 allowed)"),
+        (json!({"mix": ["a"], "weights": {"index": 0}}), "'mix' lists 1 codes"),
+        (json!({"mix": ["a", "b"]}), "neural weights is missing"),
+        (json!({"mix": ["a", "b"], "weights": {"index": 3}}), "names texture 3"),
+        (json!({"mix": "a", "weights": {"index": 0}}), "'mix' must be a list of codes"),
+        (json!({"mix": ["a", 7], "weights": {"index": 0}}), "names 7"),
+        (json!({"blend": ["a", "b"], "t": {"index": 0}, "channel": 4}), "channel 4 is out of range"),
+        (json!({"blend": ["a", "merl:x.binary"], "t": {"index": 0}}), "blend interpolates latent codes"),
+        (json!({"blend": ["a", "b", "c"], "t": {"index": 0}}), "'blend' lists 3 codes"),
+        (json!({"code": "a", "weights": {"index": 0}}), "unknown key 'weights'"),
+        (json!({"code": "a", "mix": ["a", "b"]}), "must be one of"),
+        (json!({}), "must be one of"),
+        (json!({"code": "phong:x"}), "phong:x"),
+    ] {
+        let doc = with_texture(json!([{"name": "bad", "extras": {"neural": neural}}]));
+        let message = expect_error(&doc, problem);
+        assert!(message.contains("material 'bad'"), "{message}");
+    }
 }
 
 /// A 2 × 1 PNG with texels (255, 128, 0) and (10, 20, 30).
