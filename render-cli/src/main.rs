@@ -173,6 +173,9 @@ struct StatsFile<'a> {
     instances: usize,
     /// Neural BSDF evaluations whose value the inverse mapping sent below 0, clamped to 0.
     clamped_bsdf_values: u64,
+    /// The BSDFs made from data opened for the scene: tables, networks and decoded latent
+    /// codes (palettes of latent blends included), their memory and the time taken.
+    materials: renderer::material::MaterialStats,
     #[serde(flatten)]
     render: &'a RenderStats,
 }
@@ -390,6 +393,7 @@ fn run(args: Args) -> Result<()> {
             triangle_instances: geometry_counts.1,
             instances: geometry_counts.2,
             clamped_bsdf_values: scene.materials.clamped_bsdf_values(),
+            materials: scene.materials.stats(),
             render: &stats,
         })?;
         renderer::formats::image_io::write_text(path, &(json + "\n"))?;
