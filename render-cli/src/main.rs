@@ -1,8 +1,11 @@
 //! `render`: renders a glTF or OBJ scene with the path tracer.
 //!
 //! Errors are reported once, here, as one line on stderr with exit code 2; no output file
-//! is written when the render cannot start, and files are replaced atomically.
+//! is written when the render cannot start, and files are replaced atomically. A render
+//! stopped by Ctrl-C or SIGTERM after writing its `--checkpoint` exits with
+//! [`checkpoint::INTERRUPTED_EXIT`].
 
+mod checkpoint;
 mod contact_sheet;
 mod energy;
 mod parts;
@@ -17,7 +20,7 @@ use renderer::formats::image_io::{write_image, ImageFormat, ToneMap};
 use renderer::integrator::PathTracer;
 use renderer::metrics::{display_values, ImageError};
 use renderer::film::Region;
-use renderer::render::{Budget, Monitor, RenderStats, Renderer};
+use renderer::render::{Budget, Monitor, RenderState, RenderStats, Renderer};
 use renderer::neural::latent_library::LatentLibrary;
 use renderer::render_scene::RenderScene;
 use renderer::scene::SceneDescription;
@@ -106,6 +109,17 @@ struct Args {
     /// Exposure in stops applied before tone mapping (PNG output only).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_finite)]
     exposure: f32,
+    /// Checkpoint file: the render's state is written there (atomically) at pass boundaries
+    /// every --checkpoint-every seconds and when Ctrl-C or SIGTERM stops it (exit code 75);
+    /// the same command started again with the file present resumes and gives the image of
+    /// the uninterrupted render bit for bit. The file is removed once the output is written;
+    /// one of other settings, truncated or corrupted is refused.
+    #[arg(long, conflicts_with_all = ["time", "reference", "error_log"])]
+    checkpoint: Option<PathBuf>,
+    /// Seconds between checkpoints (written at the first pass boundary after this long; 0 =
+    /// after every pass).
+    #[arg(long, requires = "checkpoint", default_value_t = 300.0, allow_negative_numbers = true, value_parser = parse_interval)]
+    checkpoint_every: f64,
     /// Copy every instanced mesh into world space (as if the file had no instancing): for
     /// comparing memory and speed with and without two-level acceleration.
     #[arg(long)]
@@ -131,6 +145,13 @@ fn parse_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(t) if t.is_finite() && t > 0.0 => Ok(t),
         _ => Err(format!("'{s}' is not a positive number of seconds")),
+    }
+}
+
+fn parse_interval(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(t) if t.is_finite() && t >= 0.0 => Ok(t),
+        _ => Err(format!("'{s}' is not a number of seconds >= 0")),
     }
 }
 
@@ -193,12 +214,17 @@ struct Job<'a> {
     reference: Option<Vec<renderer::Rgb>>,
     cancel: Arc<AtomicBool>,
     pool: rayon::ThreadPool,
+    /// `--checkpoint`.
+    checkpoint: Option<checkpoint::Checkpointing>,
 }
 
 impl Job<'_> {
     /// Renders the scene once with a progress bar; returns the film, the statistics and the
-    /// error-log CSV (empty without a reference).
-    fn render(&self, scene: &RenderScene) -> (renderer::film::Film, RenderStats, String) {
+    /// error-log CSV (empty without a reference). With `--checkpoint`, the render continues
+    /// the checkpoint found at start-up if it is of this render (`frame` names a sweep's),
+    /// writes checkpoints as it goes, and an interrupted render is an [`checkpoint::Interrupted`]
+    /// error once its checkpoint is written.
+    fn render(&self, scene: &RenderScene, frame: Option<&str>) -> Result<(renderer::film::Film, RenderStats, String)> {
         let (width, height, region) = (self.width, self.height, self.region);
         let pixels = region.pixel_count() as u64;
         let renderer = Renderer {
@@ -222,6 +248,11 @@ impl Job<'_> {
                     .progress_chars("=> "),
             ),
         };
+        let start = match &self.checkpoint {
+            Some(c) => c.start(frame, width, height, region),
+            None => RenderState::new(width, height, region),
+        };
+        bar.set_position(pixels * start.samples_done as u64);
         let progress = |n: u64| {
             if matches!(self.budget, Budget::Spp(_)) {
                 bar.inc(n)
@@ -248,14 +279,32 @@ impl Job<'_> {
                 bar.set_message(format!("{:.1} spp", film.total_samples() as f64 / pixels as f64));
             }
         };
-        let (film, stats) = self
-            .pool
-            .install(|| {
-                let monitor = Monitor { cancel: &self.cancel, progress: &progress, after_pass: &mut after_pass };
-                renderer.render_region(width, height, region, self.budget, monitor)
-            });
+        let mut at_boundary = |state: &RenderState, interrupted: bool| {
+            if let Some(c) = &self.checkpoint {
+                if !c.at_boundary(frame, state, interrupted) {
+                    // Stop: the failure is reported below.
+                    self.cancel.store(true, Ordering::Relaxed);
+                }
+            }
+        };
+        let (film, stats) = self.pool.install(|| {
+            let monitor = Monitor { cancel: &self.cancel, progress: &progress, after_pass: &mut after_pass };
+            renderer.continue_region(start, self.budget, monitor, &mut at_boundary)
+        });
         bar.finish_and_clear();
-        (film, stats, error_rows)
+        if let Some(c) = &self.checkpoint {
+            if let Some(e) = c.take_failure() {
+                return Err(e.into());
+            }
+            if stats.interrupted {
+                return Err(checkpoint::Interrupted(format!(
+                    "interrupted: checkpoint written to {}; run the same command again to resume",
+                    c.path.display()
+                ))
+                .into());
+            }
+        }
+        Ok((film, stats, error_rows))
     }
 }
 
@@ -337,18 +386,16 @@ fn run(args: Args) -> Result<()> {
         None => None,
     };
     let parse_seconds = load_start.elapsed().as_secs_f64();
-    let mut scene = RenderScene::with_latents(description, &latents)?;
-    for (material, latent) in scene.materials.unbound_neural() {
-        eprintln!("note: material '{material}' binds latent '{latent}' but no --material file was given: rendering its glTF parameters");
-    }
-    let load_seconds = load_start.elapsed().as_secs_f64();
 
     let cancel = Arc::new(AtomicBool::new(false));
     {
         let cancel = cancel.clone();
         ctrlc::set_handler(move || cancel.store(true, Ordering::Relaxed)).context("cannot install the Ctrl-C handler")?;
     }
-    let job = Job {
+    if args.checkpoint.is_some() {
+        checkpoint::cancel_on_sigterm(&cancel)?;
+    }
+    let mut job = Job {
         args: &args,
         camera,
         width,
@@ -366,12 +413,29 @@ fn run(args: Args) -> Result<()> {
             .num_threads(args.threads)
             .build()
             .context("cannot start the worker threads")?,
+        checkpoint: None,
     };
+    if let Some(path) = &args.checkpoint {
+        let settings = checkpoint::settings(&args, &job)?;
+        let every = Duration::from_secs_f64(args.checkpoint_every);
+        job.checkpoint = Some(checkpoint::Checkpointing::open(path, every, settings, width, height, region, job.budget)?);
+    }
+    // After the checks above, so that a refused checkpoint costs no preparation.
+    let prepare_start = Instant::now();
+    let mut scene = RenderScene::with_latents(description, &latents)?;
+    for (material, latent) in scene.materials.unbound_neural() {
+        eprintln!("note: material '{material}' binds latent '{latent}' but no --material file was given: rendering its glTF parameters");
+    }
+    let load_seconds = parse_seconds + prepare_start.elapsed().as_secs_f64();
     if let Some(sweep) = &args.sweep {
-        return sweep::run(&job, &mut scene, &latents, sweep);
+        sweep::run(&job, &mut scene, &latents, sweep)?;
+        if let Some(c) = &job.checkpoint {
+            c.finish()?;
+        }
+        return Ok(());
     }
 
-    let (film, stats, error_rows) = job.render(&scene);
+    let (film, stats, error_rows) = job.render(&scene, None)?;
     if let Some(path) = &args.error_log {
         renderer::formats::image_io::write_text(path, &error_rows)?;
     }
@@ -382,6 +446,9 @@ fn run(args: Args) -> Result<()> {
         bail!("interrupted: {} not written (a part must have all its samples)", args.output.display());
     } else {
         parts::write_part(&args, &job, &film)?;
+    }
+    if let Some(c) = &job.checkpoint {
+        c.finish()?;
     }
     if let Some(path) = &args.stats {
         let json = serde_json::to_string_pretty(&StatsFile {
@@ -504,6 +571,10 @@ fn main() -> ExitCode {
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<checkpoint::Interrupted>() => {
+            eprintln!("{e}");
+            ExitCode::from(checkpoint::INTERRUPTED_EXIT)
+        }
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::from(2)

@@ -23,7 +23,7 @@ fn file_identity(path: &Path) -> Result<String> {
 
 /// The settings that decide a render's pixels, recorded in each part so that `merge` can
 /// refuse parts of different renders.
-fn settings(args: &Args, job: &Job) -> Result<BTreeMap<String, String>> {
+pub(crate) fn settings(args: &Args, job: &Job) -> Result<BTreeMap<String, String>> {
     let materials: Vec<String> = args.material.iter().map(|p| file_identity(p)).collect::<Result<_>>()?;
     let binds: Vec<String> = args.bind.iter().map(|(m, b)| format!("{m}={b}")).collect();
     Ok(BTreeMap::from([

@@ -8,6 +8,10 @@
 //! `--frames A-B` renders a chunk of the frames only (a farm task); the contact sheet and
 //! `sweep.csv` are assembled from the frame files in `DIR` by whichever run finds all of
 //! them there, so chunks may finish in any order.
+//!
+//! With `--checkpoint FILE` one file serves the chunk: it holds the frame under way, and a
+//! resumed run skips the frames of the chunk before it (written by the interrupted run),
+//! continues that frame from the checkpoint and renders the rest.
 
 use super::{summary, Job};
 use anyhow::{bail, Context, Result};
@@ -52,30 +56,48 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the sweep directory", dir.display()))?;
     let (w, h) = (job.width, job.height);
     let display = |pixels: &[Rgb]| to_srgb8(pixels, job.tone_map, job.args.exposure);
-    for k in frames.first..=frames.last {
+    // A checkpoint of frame K (its neural render, or its table render once the neural
+    // frame was written): frames before K are done.
+    let resume = job.checkpoint.as_ref().and_then(|c| c.resume_frame());
+    if let Some((k, _)) = resume {
+        if !(frames.first..=frames.last).contains(&k) {
+            bail!("{}: checkpoint of frame {k}, outside frames {frames}", job.checkpoint.as_ref().expect("resume").path.display());
+        }
+        if k > frames.first {
+            eprintln!("frames {} to {} were written before the checkpoint", frames.first, k - 1);
+        }
+    }
+    for k in resume.map_or(frames.first, |(k, _)| k)..=frames.last {
         let t = times[k];
         let code = a.lerp(&b, t)?;
         let label = format!("{}>{}@{t:.2}", spec.from, spec.to);
         for &slot in &slots {
             scene.materials.set_shared(slot, SharedBsdf::Neural(latents.decode_code(&code, &label)?));
         }
-        let (film, stats, _) = job.render(scene);
-        if stats.interrupted {
-            // An error, so that a farm task (a chunk of frames) does not look done.
-            let written = if k == frames.first { "no frame".to_string() } else { format!("frames {} to {}", frames.first, k - 1) };
-            bail!("interrupted: {written} written to {}", dir.display());
-        }
-        let pixels = film.mean();
-        write_image(&dir.join(format!("frame-{k:03}.exr")), w, h, &pixels, job.tone_map, job.args.exposure)?;
-        write_png_rgb8(&dir.join(format!("frame-{k:03}.png")), w, h, &display(&pixels))?;
-        let mut line = format!("frame {}/{} t={t:.3}: {}", k + 1, times.len(), summary(&stats));
+        let neural_written = resume == Some((k, true)) && dir.join(format!("frame-{k:03}.exr")).is_file();
+        let (pixels, mut line) = if neural_written {
+            // Resuming the table render of frame k: its neural frame is on disk.
+            let (_, _, pixels) = read_image(&dir.join(format!("frame-{k:03}.exr")))?;
+            (pixels, format!("frame {}/{} t={t:.3}: written before the checkpoint", k + 1, times.len()))
+        } else {
+            let (film, stats, _) = job.render(scene, Some(&format!("{k} neural")))?;
+            if stats.interrupted {
+                // An error, so that a farm task (a chunk of frames) does not look done.
+                let written = if k == frames.first { "no frame".to_string() } else { format!("frames {} to {}", frames.first, k - 1) };
+                bail!("interrupted: {written} written to {}", dir.display());
+            }
+            let pixels = film.mean();
+            write_image(&dir.join(format!("frame-{k:03}.exr")), w, h, &pixels, job.tone_map, job.args.exposure)?;
+            write_png_rgb8(&dir.join(format!("frame-{k:03}.png")), w, h, &display(&pixels))?;
+            (pixels, format!("frame {}/{} t={t:.3}: {}", k + 1, times.len(), summary(&stats)))
+        };
         if let Some((ta, tb)) = &tables {
             let blend = ta.blend(tb, t as f64);
             let bsdf = MerlBsdf::new(&blend, Interpolation::default(), &TabulatedSamplerConfig::default());
             for &slot in &slots {
                 scene.materials.set_shared(slot, SharedBsdf::Merl(bsdf.clone()));
             }
-            let (film, stats, _) = job.render(scene);
+            let (film, stats, _) = job.render(scene, Some(&format!("{k} table")))?;
             if stats.interrupted {
                 bail!("interrupted: neural frames {} to {k} written to {}", frames.first, dir.display());
             }

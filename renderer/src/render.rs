@@ -419,7 +419,7 @@ impl<'a> Renderer<'a> {
             let count = match budget {
                 Budget::Spp(spp) => spp_pass_size(spp, done),
                 // One sample per pass at first, then passes growing by a quarter of the
-                // samples done, up to MAX_PASS_SAMPLES as above, as long as one fits in the
+                // samples done, up to MAX_PASS_SAMPLES as `spp_pass_size` explains, as long as one fits in the
                 // time left: an error log gets at least four rows per doubling of the samples
                 // (even on a log-scale time axis), and long renders run the larger batches
                 // that `Budget::Spp` runs.
@@ -685,6 +685,59 @@ mod tests {
             assert!((1..=threads as u64).contains(&(stats.samples / tile_samples)), "{threads} threads: {} samples", stats.samples);
             assert_eq!(film.total_samples(), stats.samples);
         }
+    }
+
+    /// A render continued from any of its pass boundaries (as a checkpoint holds them) ends
+    /// with the uninterrupted render's film bit for bit, for the whole image and a region;
+    /// cancelled, it reports the state of the passes done before the pass cut short.
+    #[test]
+    fn continuing_from_a_pass_boundary_gives_the_same_film() {
+        let (scene, camera) = shipped_scene("cornell-box");
+        let (w, h) = (37, 21);
+        let renderer = Renderer {
+            scene: &scene,
+            camera: PinholeCamera::new(&camera, w, h),
+            integrator: PathTracer::default(),
+            seed: 9,
+        };
+        let never = AtomicBool::new(false);
+        for (region, spp) in [(Region::whole(w, h), 20), ("5,3,30,19".parse().unwrap(), 9)] {
+            let mut boundaries = Vec::new();
+            let monitor = Monitor { cancel: &never, progress: &|_| {}, after_pass: &mut |_, _| {} };
+            let (whole, stats) = renderer.continue_region(RenderState::new(w, h, region), Budget::Spp(spp), monitor, &mut |state, interrupted| {
+                assert!(!interrupted);
+                boundaries.push(state.clone());
+            });
+            assert_eq!(boundaries.len() as u32, spp.div_ceil(spp.div_ceil(8)) - 1, "a boundary after every pass but the last");
+            for state in boundaries {
+                let done = state.samples_done;
+                let monitor = Monitor { cancel: &never, progress: &|_| {}, after_pass: &mut |_, _| {} };
+                let (film, resumed) = renderer.continue_region(state, Budget::Spp(spp), monitor, &mut |_, _| {});
+                assert_eq!(film.accumulators(), whole.accumulators(), "continued from {done} spp of {spp}, region {region}");
+                assert_eq!((resumed.samples, resumed.rays, resumed.resumed_spp), (stats.samples, stats.rays, done));
+            }
+        }
+        // Cancelled during the second pass: the boundary reported is the first pass's.
+        let cancel = AtomicBool::new(false);
+        let tiles = AtomicU32::new(0);
+        let tile_count = Tiles::new(w, Region::whole(w, h)).count();
+        let progress = |_| {
+            if tiles.fetch_add(1, Ordering::Relaxed) + 1 == tile_count + 1 {
+                cancel.store(true, Ordering::Relaxed);
+            }
+        };
+        let mut reported = Vec::new();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
+        let (film, stats) = pool.install(|| {
+            let monitor = Monitor { cancel: &cancel, progress: &progress, after_pass: &mut |_, _| {} };
+            renderer.continue_region(RenderState::new(w, h, Region::whole(w, h)), Budget::Spp(16), monitor, &mut |state, interrupted| {
+                reported.push((state.samples_done, state.film.total_samples(), interrupted))
+            })
+        });
+        assert!(stats.interrupted);
+        let pixels = (w * h) as u64;
+        assert_eq!(reported, vec![(2, 2 * pixels, false), (2, 2 * pixels, true)]);
+        assert!(film.total_samples() > 2 * pixels && film.total_samples() < 4 * pixels, "the returned film has the tile of the cut pass");
     }
 
     /// A region rendered alone holds exactly the whole render's pixels: regions cut across
