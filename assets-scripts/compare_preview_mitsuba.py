@@ -44,6 +44,20 @@ What the sphere is:
       --mitsuba-bsdf '{"type": "neural_brdf", "filename": "scenes/materials/latent.bin", "material": "chrome"}' \
       --render-arg=--material --render-arg=scenes/materials/latent.bin --bind preview=neural:chrome
 
+- --preset neural-mix / neural-blend: spatially varying neural materials (docs/plugins.md),
+  the latent file --latent (default: the shipped scenes/materials/latent.bin) on both sides,
+  textures written as PNG into --out-dir (linear, bilinear, repeating; they vary along u only,
+  i.e. around the sphere):
+  neural-mix: {"neural": {"mix": [A, B], "weights": TEXTURE}} with --codes A,B (default
+  dark-red-paint,aluminium) and an 8 x 1 texture of alternating red / green texels, so half the
+  sphere's longitudes are A, half B, with bilinear blends of the two in between; Mitsuba gets the
+  plugin's {"type": "neural_brdf", "mix": "A, B", "weights": <bitmap, raw>}.
+  neural-blend: {"neural": {"blend": [A, B], "t": TEXTURE, "channel": 0}} with --codes A,B
+  (default gold-metallic-paint,silver-metallic-paint) and t rising from 0 to 1 over a 16 x 1
+  ramp (red channel; --blend-t T: a constant t instead); Mitsuba gets {"type": "neural_brdf",
+  "blend": "A, B", "t": <bitmap, raw>} (the renderer's 32-entry palette, neighbours mixed).
+  Both import neural_brdf.mitsuba and pass --material LATENT to our renderer.
+
 What the stage is: --stage studio (default) is the scene as it is; --stage constant keeps the
 sphere and the camera only, under a constant environment of radiance --constant (both sides:
 our glTF copy's extras.environment.color, Mitsuba's `constant` emitter), e.g. a glossy metal
@@ -57,6 +71,8 @@ sphere in a constant environment. The render times printed compare the two rende
     python3 assets-scripts/compare_preview_mitsuba.py --preset glass                   # dielectric
     python3 assets-scripts/compare_preview_mitsuba.py --preset glass --roughness 0.3   # roughdielectric
     python3 assets-scripts/compare_preview_mitsuba.py --preset thin-glass              # thindielectric
+    python3 assets-scripts/compare_preview_mitsuba.py --preset neural-mix --spp 64     # textured mix
+    python3 assets-scripts/compare_preview_mitsuba.py --preset neural-blend --spp 64   # t ramp
 """
 
 import argparse
@@ -159,6 +175,56 @@ def staged_gltf(scene, out_dir, material=None, constant=None, name="scene"):
     with open(path, "w") as f:
         json.dump(gltf, f, indent=1)
     return path
+
+
+NEURAL_DEFAULT_CODES = {"neural-mix": "dark-red-paint,aluminium",
+                        "neural-blend": "gold-metallic-paint,silver-metallic-paint"}
+
+
+def neural_texels(preset, blend_t=None):
+    """The preset's texture (uint8 RGB, 1 row): alternating full-red / full-green texels (mix
+    weights of A and B), or t = i / 15 over 16 texels in the red channel (or a constant t)."""
+    if preset == "neural-mix":
+        rgb = np.zeros((1, 8, 3), np.uint8)
+        rgb[0, 0::2, 0] = 255
+        rgb[0, 1::2, 1] = 255
+        return rgb
+    t = np.full(16, blend_t, np.float64) if blend_t is not None else np.arange(16) / 15.0
+    rgb = np.zeros((1, len(t), 3), np.uint8)
+    rgb[0, :, 0] = np.round(255 * t).astype(np.uint8)
+    return rgb
+
+
+def neural_textured(preset, args, out_dir, constant):
+    """(our staged glTF, Mitsuba's sphere BSDF, label) for the neural-mix / neural-blend presets."""
+    from PIL import Image
+
+    codes = [c.strip() for c in (args.codes or NEURAL_DEFAULT_CODES[preset]).split(",")]
+    latent = os.path.abspath(args.latent)
+    label = f"{preset}-{'-'.join(codes)}" + (f"-t{args.blend_t:g}" if preset == "neural-blend" and args.blend_t is not None else "")
+    png = os.path.join(out_dir, f"{label}.png")
+    Image.fromarray(neural_texels(preset, args.blend_t), "RGB").save(png)
+    texture = {"index": 0, "texCoord": 0}
+    if preset == "neural-mix":
+        neural = {"mix": codes, "weights": texture}
+    else:
+        neural = {"blend": codes, "t": texture, "channel": 0}
+    path = staged_gltf(args.scene, out_dir, {"extras": {"neural": neural}}, constant, f"scene-{label}")
+    with open(path) as f:
+        gltf = json.load(f)
+    linear, repeat = 9729, 10497
+    gltf["images"] = [{"uri": os.path.basename(png)}]
+    gltf["samplers"] = [{"magFilter": linear, "minFilter": linear, "wrapS": repeat, "wrapT": repeat}]
+    gltf["textures"] = [{"source": 0, "sampler": 0}]
+    with open(path, "w") as f:
+        json.dump(gltf, f, indent=1)
+    bitmap = {"type": "bitmap", "filename": png, "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
+    bsdf = {"type": "neural_brdf", "filename": latent}
+    if preset == "neural-mix":
+        bsdf.update({"mix": ", ".join(codes), "weights": bitmap})
+    else:
+        bsdf.update({"blend": ", ".join(codes), "t": bitmap, "channel": 0})
+    return path, bsdf, label
 
 
 def import_plugin(spec):
@@ -264,7 +330,8 @@ def main():
     ap.add_argument("--max-depth", type=int, default=8)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=0, help="Mitsuba threads (default: all cores)")
-    ap.add_argument("--preset", choices=["diffuse", "metallic-roughness", "glass", "thin-glass", "coat"], default=None,
+    ap.add_argument("--preset", choices=["diffuse", "metallic-roughness", "glass", "thin-glass", "coat", "neural-mix",
+                                         "neural-blend"], default=None,
                     help="our sphere: diffuse = a Lambert copy of the scene, metallic-roughness = scene.gltf "
                          "as is, glass / thin-glass = a copy with clear glass of --roughness and --ior (solid, "
                          "or thin-walled); and Mitsuba's sphere unless --mitsuba-bsdf is given (default: "
@@ -273,6 +340,12 @@ def main():
                     help="glass presets: perceptual roughness (0 = smooth: Mitsuba's dielectric; > 0: "
                          "roughdielectric with GGX alpha = roughness^2)")
     ap.add_argument("--ior", type=float, default=1.5, help="glass presets: index of refraction (default 1.5)")
+    ap.add_argument("--latent", default=os.path.join(ROOT, "scenes", "materials", "latent.bin"),
+                    help="neural presets: the latent file (default: the shipped one)")
+    ap.add_argument("--codes", default=None, metavar="A,B",
+                    help="neural presets: the two codes (default: see the presets above)")
+    ap.add_argument("--blend-t", type=float, default=None,
+                    help="neural-blend: a constant t instead of the 0-to-1 ramp")
     ap.add_argument("--stage", choices=["studio", "constant"], default="studio",
                     help="studio = the scene as it is (ground, key light, studio environment); constant = "
                          "the sphere alone in a constant environment of radiance --constant")
@@ -319,6 +392,11 @@ def main():
                        "int_ior": 1.5, "ext_ior": 1.0, "diffuse_reflectance": {"type": "rgb", "value": [0.0] * 3}}
         our_scene = staged_gltf(args.scene, out_dir, coat_material(args.roughness), constant,
                                 f"scene-coat-r{args.roughness:g}")
+    elif preset in ("neural-mix", "neural-blend"):
+        our_scene, sphere_bsdf, neural_label = neural_textured(preset, args, out_dir, constant)
+        if "neural_brdf.mitsuba" not in args.imports:
+            args.imports.append("neural_brdf.mitsuba")
+        args.render_arg += ["--material", os.path.abspath(args.latent)]
     else:
         our_scene = args.scene if constant is None else staged_gltf(args.scene, out_dir, None, constant)
         sphere_bsdf = {"type": "principled",
@@ -326,6 +404,8 @@ def main():
                        "metallic": 1.0, "roughness": preview.PREVIEW_ROUGHNESS}
     label = {"glass": f"{preset}-r{args.roughness:g}-ior{args.ior:g}", "thin-glass": f"{preset}-r{args.roughness:g}-ior{args.ior:g}",
              "coat": f"coat-r{args.roughness:g}"}.get(preset, preset)
+    if preset in ("neural-mix", "neural-blend"):
+        label = neural_label
     if args.mitsuba_bsdf is not None:
         sphere_bsdf, label = args.mitsuba_bsdf, f"{preset}-custom"
     if constant is not None:

@@ -111,6 +111,44 @@ int main(int argc, char **argv) {
     if (!expect(nb_material_eval(m, 1, nan_dir, wi, f), NB_STATUS_INVALID_ARGUMENT, "NaN direction")) return 1;
     if (!expect(nb_material_eval(m, 1, wo, wi, NULL), NB_STATUS_INVALID_ARGUMENT, "NULL output")) return 1;
 
+    /* Spatially varying materials at one point: the blend of two codes at t (the latent
+       interpolation decoded, as render --sweep does) and a mixture with weights. */
+    NbMaterial *blend = NULL, *mix = NULL;
+    if (nb_material_open_blend(argv[1], "alum-bronze", "chrome", 0.25f, &blend) != NB_STATUS_OK) return fail("open blend");
+    const NbMaterial *parts[2] = {m, blend};
+    float weights[2] = {1.0f, 3.0f};
+    if (nb_material_open_mix(parts, weights, 2, &mix) != NB_STATUS_OK) return fail("open mix");
+    float fm[3], fb[3], fx[3];
+    if (nb_material_eval(m, 1, wo, wi, fm) != NB_STATUS_OK || nb_material_eval(blend, 1, wo, wi, fb) != NB_STATUS_OK) return fail("eval parts");
+    /* The mixture shares its parts' data: the part handles may go first. */
+    nb_material_free(blend);
+    if (nb_material_eval(mix, 1, wo, wi, fx) != NB_STATUS_OK) return fail("eval mix");
+    printf("f(mirror): blend at t = 0.25 %.4g %.4g %.4g, mix 1:3 %.4g %.4g %.4g 1/sr\n", fb[0], fb[1], fb[2], fx[0], fx[1], fx[2]);
+    for (int c = 0; c < 3; ++c) {
+        float expected = 0.25f * fm[c] + 0.75f * fb[c];
+        if (!(fabsf(fx[c] - expected) <= 1e-5f * expected)) {
+            fprintf(stderr, "error: mixture %g, expected %g\n", fx[c], expected);
+            return 1;
+        }
+    }
+    if (!expect(nb_material_open_blend(argv[1], "alum-bronze", "chrome", NAN, &bad), NB_STATUS_INVALID_ARGUMENT, "blend at t NaN")) return 1;
+    if (!expect(nb_material_open_blend(argv[1], "alum-bronze", "chrome", 1.5f, &bad), NB_STATUS_INVALID_ARGUMENT, "blend at t 1.5")) return 1;
+    if (!expect(nb_material_open_blend(argv[1], "alum-bronze", "no-such-material", 0.5f, &bad), NB_STATUS_UNKNOWN_NAME, "blend of an unknown code")) return 1;
+    const NbMaterial *five[5] = {m, m, m, m, m};
+    float five_weights[5] = {1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
+    float negative[2] = {1.0f, -1.0f}, not_a_number[2] = {NAN, 1.0f};
+    const NbMaterial *with_null[2] = {m, NULL};
+    if (!expect(nb_material_open_mix(five, five_weights, 5, &bad), NB_STATUS_INVALID_ARGUMENT, "mix of 5")) return 1;
+    if (!expect(nb_material_open_mix(five, negative, 2, &bad), NB_STATUS_INVALID_ARGUMENT, "negative weight")) return 1;
+    if (!expect(nb_material_open_mix(five, not_a_number, 2, &bad), NB_STATUS_INVALID_ARGUMENT, "NaN weight")) return 1;
+    if (!expect(nb_material_open_mix(with_null, weights, 2, &bad), NB_STATUS_INVALID_ARGUMENT, "NULL part")) return 1;
+    if (!expect(nb_material_open_mix(NULL, weights, 2, &bad), NB_STATUS_INVALID_ARGUMENT, "NULL parts")) return 1;
+    if (bad != NULL) {
+        fprintf(stderr, "error: a failed blend or mix returned a handle\n");
+        return 1;
+    }
+    nb_material_free(mix);
+
     nb_material_free(m);
     printf("ok\n");
     return 0;

@@ -23,7 +23,8 @@ typedef enum NbStatus {
   // The latent file has no code of that name.
   NB_STATUS_UNKNOWN_NAME = 3,
   // An argument is invalid: a NULL pointer, a non-finite direction, a number outside
-  // [0, 1], a latent vector of the wrong size.
+  // [0, 1] (a uniform number, a blend's t), a latent vector of the wrong size, a mixture
+  // of no or more than 4 parts or with a weight negative or not finite (or all 0).
   NB_STATUS_INVALID_ARGUMENT = 4,
   // An internal error (a caught panic); please report it.
   NB_STATUS_PANIC = 5,
@@ -65,6 +66,39 @@ enum NbStatus nb_material_open_latent_vector(const char *path,
                                              const float *z,
                                              size_t len,
                                              struct NbMaterial **out);
+
+// Opens a latent file and decodes the blend of its codes `a` and `b` at `t` into `*out`:
+// the latent interpolation (1 − t) A + t B of z, output offsets and residuals, decoded
+// exactly as `render --sweep` decodes its frames (t = 0 gives A, t = 1 gives B). `t` must be
+// in [0, 1]: NaN or a value outside is NB_STATUS_INVALID_ARGUMENT (not clamped); an unknown
+// code is NB_STATUS_UNKNOWN_NAME. `*out` is set only on success; free it with
+// nb_material_free.
+//
+// # Safety
+// `path`, `a` and `b` are NUL-terminated strings; `out` points to writable storage for a
+// handle.
+enum NbStatus nb_material_open_blend(const char *path,
+                                     const char *a,
+                                     const char *b,
+                                     float t,
+                                     struct NbMaterial **out);
+
+// Makes the mixture f = Σ w_k f_k, pdf = Σ w_k pdf_k of `count` (1 to 4) materials
+// `parts[k]` with weights `weights[k]` into `*out`, as the renderer's `mix` material at a
+// texel of these weights: the weights are normalised to sum 1, parts of weight 0 dropped,
+// sampling chooses a part by weight. A weight that is negative or not finite, weights that
+// are all 0, a NULL part and more than 4 parts (a mixture part counts its own parts) are
+// NB_STATUS_INVALID_ARGUMENT. The mixture shares the parts' data: the part handles stay the
+// caller's, to free whenever it likes (before or after the mixture). `*out` is set only
+// on success; free it with nb_material_free.
+//
+// # Safety
+// `parts` points to `count` handles (each from nb_material_open* and not freed), `weights`
+// to `count` floats; `out` points to writable storage for a handle.
+enum NbStatus nb_material_open_mix(const struct NbMaterial *const *parts,
+                                   const float *weights,
+                                   size_t count,
+                                   struct NbMaterial **out);
 
 // Frees a material (NULL is ignored).
 //

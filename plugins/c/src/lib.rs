@@ -2,7 +2,8 @@
 //! `include/neural_brdf.h`, generated from this file by cbindgen).
 //!
 //! - A material is an opaque handle, [`NbMaterial`], opened from a latent file and a code
-//!   name (or a latent vector), a MERL table or an NBRDF network, and freed with
+//!   name (or a latent vector, or the blend of two codes at a t), a MERL table or an NBRDF
+//!   network, or made as the mixture of up to four materials with weights, and freed with
 //!   [`nb_material_free`]. A handle may be used from many threads at once.
 //! - Every call returns an [`NbStatus`]; on an error, [`nb_last_error`] gives the one-line
 //!   message (the same as the `render` command's) of the last failed call on this thread.
@@ -34,7 +35,8 @@ pub enum NbStatus {
     /// The latent file has no code of that name.
     UnknownName = 3,
     /// An argument is invalid: a NULL pointer, a non-finite direction, a number outside
-    /// [0, 1], a latent vector of the wrong size.
+    /// [0, 1] (a uniform number, a blend's t), a latent vector of the wrong size, a mixture
+    /// of no or more than 4 parts or with a weight negative or not finite (or all 0).
     InvalidArgument = 4,
     /// An internal error (a caught panic); please report it.
     Panic = 5,
@@ -197,6 +199,64 @@ pub unsafe extern "C" fn nb_material_open_latent_vector(path: *const c_char, z: 
     })
 }
 
+/// Opens a latent file and decodes the blend of its codes `a` and `b` at `t` into `*out`:
+/// the latent interpolation (1 − t) A + t B of z, output offsets and residuals, decoded
+/// exactly as `render --sweep` decodes its frames (t = 0 gives A, t = 1 gives B). `t` must be
+/// in [0, 1]: NaN or a value outside is NB_STATUS_INVALID_ARGUMENT (not clamped); an unknown
+/// code is NB_STATUS_UNKNOWN_NAME. `*out` is set only on success; free it with
+/// nb_material_free.
+///
+/// # Safety
+/// `path`, `a` and `b` are NUL-terminated strings; `out` points to writable storage for a
+/// handle.
+#[no_mangle]
+pub unsafe extern "C" fn nb_material_open_blend(path: *const c_char, a: *const c_char, b: *const c_char, t: f32, out: *mut *mut NbMaterial) -> NbStatus {
+    guard(|| {
+        renderer::support::cpu::check_build_features()?;
+        let path = unsafe { string_arg(path, "path") }?;
+        let (a, b) = unsafe { (string_arg(a, "a")?, string_arg(b, "b")?) };
+        if out.is_null() {
+            return Err(invalid("out", "NULL"));
+        }
+        store(out, MaterialBsdf::open_blend(Path::new(path), a, b, t)?)
+    })
+}
+
+/// Makes the mixture f = Σ w_k f_k, pdf = Σ w_k pdf_k of `count` (1 to 4) materials
+/// `parts[k]` with weights `weights[k]` into `*out`, as the renderer's `mix` material at a
+/// texel of these weights: the weights are normalised to sum 1, parts of weight 0 dropped,
+/// sampling chooses a part by weight. A weight that is negative or not finite, weights that
+/// are all 0, a NULL part and more than 4 parts (a mixture part counts its own parts) are
+/// NB_STATUS_INVALID_ARGUMENT. The mixture shares the parts' data: the part handles stay the
+/// caller's, to free whenever it likes (before or after the mixture). `*out` is set only
+/// on success; free it with nb_material_free.
+///
+/// # Safety
+/// `parts` points to `count` handles (each from nb_material_open* and not freed), `weights`
+/// to `count` floats; `out` points to writable storage for a handle.
+#[no_mangle]
+pub unsafe extern "C" fn nb_material_open_mix(parts: *const *const NbMaterial, weights: *const f32, count: usize, out: *mut *mut NbMaterial) -> NbStatus {
+    guard(|| {
+        if parts.is_null() || weights.is_null() {
+            return Err(invalid(if parts.is_null() { "parts" } else { "weights" }, "NULL"));
+        }
+        if out.is_null() {
+            return Err(invalid("out", "NULL"));
+        }
+        if count == 0 || count > 4 {
+            return Err(invalid("count", &format!("a mixture has 1 to 4 parts, not {count}")));
+        }
+        // SAFETY: the caller passes `count` handles and `count` floats.
+        let (handles, weights) = unsafe { (std::slice::from_raw_parts(parts, count), std::slice::from_raw_parts(weights, count)) };
+        let mut mixed = Vec::with_capacity(count);
+        for (k, (&h, &w)) in handles.iter().zip(weights).enumerate() {
+            let m = unsafe { material(h) }.map_err(|_| invalid(&format!("parts[{k}]"), "NULL"))?;
+            mixed.push((m, w));
+        }
+        store(out, MaterialBsdf::mix(&mixed)?)
+    })
+}
+
 /// Frees a material (NULL is ignored).
 ///
 /// # Safety
@@ -291,6 +351,66 @@ mod tests {
         assert_eq!(status, NbStatus::Panic);
         let message = unsafe { CStr::from_ptr(nb_last_error()) }.to_str().unwrap().to_string();
         assert!(message.contains("boom"), "{message}");
+    }
+
+    fn last_error() -> String {
+        unsafe { CStr::from_ptr(nb_last_error()) }.to_str().unwrap().to_string()
+    }
+
+    #[test]
+    fn blends_and_mixtures_open_and_reject_bad_input() {
+        let latent = CString::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/materials/latent.bin")).unwrap();
+        let (a, b, bad) = (CString::new("alum-bronze").unwrap(), CString::new("chrome").unwrap(), CString::new("no-such").unwrap());
+        let mut blend: *mut NbMaterial = std::ptr::null_mut();
+        assert_eq!(unsafe { nb_material_open_blend(latent.as_ptr(), a.as_ptr(), b.as_ptr(), 0.5, &mut blend) }, NbStatus::Ok);
+        let mut code: *mut NbMaterial = std::ptr::null_mut();
+        assert_eq!(unsafe { nb_material_open(latent.as_ptr(), a.as_ptr(), &mut code) }, NbStatus::Ok);
+        let mut out: *mut NbMaterial = std::ptr::null_mut();
+        for t in [f32::NAN, -0.5, 1.01] {
+            assert_eq!(unsafe { nb_material_open_blend(latent.as_ptr(), a.as_ptr(), b.as_ptr(), t, &mut out) }, NbStatus::InvalidArgument);
+            assert!(last_error().contains("invalid value for t"), "{}", last_error());
+        }
+        assert_eq!(unsafe { nb_material_open_blend(latent.as_ptr(), a.as_ptr(), bad.as_ptr(), 0.5, &mut out) }, NbStatus::UnknownName);
+        assert_eq!(unsafe { nb_material_open_blend(latent.as_ptr(), std::ptr::null(), b.as_ptr(), 0.5, &mut out) }, NbStatus::InvalidArgument);
+        assert!(out.is_null());
+
+        let parts = [code.cast_const(), blend.cast_const()];
+        let mut mix: *mut NbMaterial = std::ptr::null_mut();
+        assert_eq!(unsafe { nb_material_open_mix(parts.as_ptr(), [1.0f32, 3.0].as_ptr(), 2, &mut mix) }, NbStatus::Ok);
+        // The mixture outlives its parts and is 1/4 A + 3/4 the blend.
+        let (wo, wi) = ([0.0f32, 0.6, 0.8], [0.3f32, -0.5, 0.812]);
+        let f_of = |m: *const NbMaterial| {
+            let mut f = [0f32; 3];
+            assert_eq!(unsafe { nb_material_eval(m, 1, wo.as_ptr(), wi.as_ptr(), f.as_mut_ptr()) }, NbStatus::Ok);
+            f
+        };
+        let (fa, fb) = (f_of(code), f_of(blend));
+        unsafe { nb_material_free(code) };
+        unsafe { nb_material_free(blend) };
+        let f = f_of(mix);
+        for c in 0..3 {
+            let expected = 0.25 * fa[c] + 0.75 * fb[c];
+            assert!((f[c] - expected).abs() <= 1e-5 * expected, "{f:?} vs {fa:?} {fb:?}");
+        }
+        let five = [mix.cast_const(); 5];
+        let cases: [(&[*const NbMaterial], &[f32], &str); 6] = [
+            (&five, &[1.0; 5], "1 to 4 parts, not 5"),
+            (&five[..2], &[1.0, -1.0], "weight 1 is -1"),
+            (&five[..2], &[f32::NAN, 1.0], "weight 0 is NaN"),
+            (&five[..2], &[0.0, 0.0], "sum to 0"),
+            (&[mix.cast_const(), std::ptr::null()], &[1.0, 1.0], "parts[1]: NULL"),
+            (&five[..0], &[], "not 0"),
+        ];
+        for (parts, weights, message) in cases {
+            let status = unsafe { nb_material_open_mix(parts.as_ptr(), weights.as_ptr(), parts.len(), &mut out) };
+            assert_eq!(status, NbStatus::InvalidArgument, "{message}");
+            assert!(last_error().contains(message), "{} lacks {message}", last_error());
+            assert!(out.is_null());
+        }
+        assert_eq!(unsafe { nb_material_open_mix(std::ptr::null(), [1.0f32].as_ptr(), 1, &mut out) }, NbStatus::InvalidArgument);
+        assert_eq!(unsafe { nb_material_open_mix(five.as_ptr(), std::ptr::null(), 1, &mut out) }, NbStatus::InvalidArgument);
+        assert_eq!(unsafe { nb_material_open_mix(five.as_ptr(), [1.0f32].as_ptr(), 1, std::ptr::null_mut()) }, NbStatus::InvalidArgument);
+        unsafe { nb_material_free(mix) };
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! The C route end to end: the committed header matches the code (cbindgen), and the C
 //! example, compiled with the system C compiler against the built `libneural_brdf`, loads the
-//! shipped latent file, evaluates and samples a code, and gets clear errors for bad input.
+//! shipped latent file, evaluates and samples a code, opens a blend and a mixture, and gets
+//! clear errors for bad input.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -70,7 +71,17 @@ fn c_example_runs_against_the_shipped_latent_file() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     println!("{stdout}");
-    for line in ["missing file -> /nonexistent/latent.bin", "unknown name -> latent code 'no-such-material' not found", "wrong version ->", "NaN direction -> invalid value for wo", "NULL output -> invalid value for f: NULL", "ok"] {
+    for line in ["missing file -> /nonexistent/latent.bin", "unknown name -> latent code 'no-such-material' not found", "wrong version ->", "NaN direction -> invalid value for wo", "NULL output -> invalid value for f: NULL",
+        "f(mirror): blend at t = 0.25",
+        "blend at t NaN -> invalid value for t: NaN is not in [0, 1]",
+        "blend at t 1.5 -> invalid value for t: 1.5 is not in [0, 1]",
+        "blend of an unknown code -> latent code 'no-such-material' not found",
+        "mix of 5 -> invalid value for count: a mixture has 1 to 4 parts, not 5",
+        "negative weight -> invalid value for weights: weight 1 is -1",
+        "NaN weight -> invalid value for weights: weight 0 is NaN",
+        "NULL part -> invalid value for parts[1]: NULL",
+        "NULL parts -> invalid value for parts: NULL",
+        "ok"] {
         assert!(stdout.contains(line), "missing '{line}' in\n{stdout}");
     }
 

@@ -109,19 +109,72 @@ impl Material {
         Ok(Material { bsdf: Box::new(bsdf), label })
     }
 
+    /// Opens a latent file and decodes the blend of its codes `a` and `b` at `t`: the latent
+    /// interpolation (1 − t) A + t B (z, offsets and residuals), decoded exactly as
+    /// `render --sweep` decodes its frames (t = 0 is A, t = 1 is B). `t` must be in [0, 1]
+    /// (`ValueError` otherwise, NaN included: not clamped); an unknown code raises
+    /// `UnknownNameError`.
+    #[staticmethod]
+    fn blend(py: Python<'_>, path: PathBuf, a: String, b: String, t: f32) -> PyResult<Self> {
+        let bsdf = py.detach(|| MaterialBsdf::open_blend(&path, &a, &b, t)).map_err(to_py)?;
+        Ok(Material { bsdf: Box::new(bsdf), label: format!("{a}>{b}@{t}") })
+    }
+
+    /// The renderer's palette for the blend of `a` and `b` (its glTF `blend` form):
+    /// `PALETTE_SIZE` materials, entry k the blend at t = k / (PALETTE_SIZE − 1) (computed in
+    /// float32 as the renderer does), decoded from one read of the file. The renderer's blend
+    /// at t mixes entries k = min(floor(t (PALETTE_SIZE − 1)), PALETTE_SIZE − 2) and k + 1
+    /// with weights (1 − a, a), a = t (PALETTE_SIZE − 1) − k.
+    #[staticmethod]
+    fn blend_palette(py: Python<'_>, path: PathBuf, a: String, b: String) -> PyResult<Vec<Self>> {
+        let palette = py.detach(|| MaterialBsdf::open_blend_palette(&path, &a, &b)).map_err(to_py)?;
+        let last = (palette.len() - 1) as f32;
+        Ok(palette
+            .into_iter()
+            .enumerate()
+            .map(|(k, bsdf)| Material { bsdf: Box::new(bsdf), label: format!("{a}>{b}@{}", k as f32 / last) })
+            .collect())
+    }
+
+    /// The mixture f = Σ w_k f_k, pdf = Σ w_k pdf_k of 1 to 4 `materials` with `weights`
+    /// (normalised to sum 1, parts of weight 0 dropped, sampling choosing a part by weight):
+    /// the renderer's `mix` material at a texel of these weights, bit for bit. `ValueError`
+    /// on no or more than 4 materials (a mixture counts its parts), different lengths, a
+    /// weight negative or not finite, or weights all 0. The mixture shares the materials'
+    /// data (they stay usable, and it outlives them).
+    #[staticmethod]
+    fn mix(py: Python<'_>, materials: Vec<Bound<'_, Material>>, weights: PyArrayLike1<'_, f32, AllowTypeChange>) -> PyResult<Self> {
+        let weights = weights.as_array().to_vec();
+        if weights.len() != materials.len() {
+            return Err(PyValueError::new_err(format!("{} materials but {} weights", materials.len(), weights.len())));
+        }
+        let parts: Vec<(&MaterialBsdf, f32)> = materials.iter().map(|m| &*m.get().bsdf).zip(weights.iter().copied()).collect();
+        let bsdf = py.detach(|| MaterialBsdf::mix(&parts)).map_err(to_py)?;
+        let names: Vec<String> = materials.iter().zip(&weights).map(|(m, w)| format!("{} {w}", m.get().label)).collect();
+        Ok(Material { bsdf: Box::new(bsdf), label: format!("mix({})", names.join(", ")) })
+    }
+
+    /// A mixture's weights as given (normalised when used); `None` for a single material.
+    #[getter]
+    fn weights(&self) -> Option<Vec<f32>> {
+        self.bsdf.parts().map(|parts| parts.map(|(_, w)| w).collect())
+    }
+
     /// The code's name (or label), or the file's stem for a table or network.
     #[getter]
     fn name(&self) -> &str {
         &self.label
     }
 
-    /// `"neural"` (a latent code), `"merl"` (a MERL table) or `"nbrdf"` (an NBRDF network).
+    /// `"neural"` (a latent code or a blend), `"merl"` (a MERL table), `"nbrdf"` (an NBRDF
+    /// network) or `"mixture"`.
     #[getter]
     fn kind(&self) -> &'static str {
         match self.bsdf.shared() {
-            SharedBsdf::Neural(_) => "neural",
-            SharedBsdf::Merl(_) => "merl",
-            SharedBsdf::Nbrdf(_) => "nbrdf",
+            Some(SharedBsdf::Neural(_)) => "neural",
+            Some(SharedBsdf::Merl(_)) => "merl",
+            Some(SharedBsdf::Nbrdf(_)) => "nbrdf",
+            None => "mixture",
         }
     }
 
@@ -231,7 +284,7 @@ impl Material {
     #[getter]
     fn table<'py>(&self, py: Python<'py>) -> Option<Bound<'py, numpy::PyArray4<f32>>> {
         match self.bsdf.shared() {
-            SharedBsdf::Merl(m) => Some(bins_array(py, m.values())),
+            Some(SharedBsdf::Merl(m)) => Some(bins_array(py, m.values())),
             _ => None,
         }
     }
@@ -255,8 +308,9 @@ impl Material {
     /// a dict with `theta_o` (nodes, radians), `row_v` (1 − cos θh at the row boundaries),
     /// `columns` (cells over |φh − φo| / π), `cosine_fraction` and `values` (shape
     /// (nodes, rows + 1, columns + 1), the bilinear density's vertex values, max 1).
+    /// `ValueError` for a mixture (each part has its own).
     fn sampler_tables<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let t = self.bsdf.sampler_tables();
+        let t = self.bsdf.sampler_tables().ok_or_else(|| PyValueError::new_err(format!("{}: a mixture has no sampler tables of its own (each part has its own)", self.label)))?;
         let (nodes, lines) = (t.values.len(), t.row_v.len());
         let values = Array3::from_shape_vec((nodes, lines, t.columns + 1), t.values.concat())
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
@@ -307,5 +361,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("InvalidFileError", m.py().get_type::<InvalidFileError>())?;
     m.add("UnknownNameError", m.py().get_type::<UnknownNameError>())?;
     m.add("MAX_LOG_VALUE", renderer::neural::mapping::MAX_LOG_VALUE)?;
+    m.add("PALETTE_SIZE", renderer::material::PALETTE_SIZE)?;
+    m.add("MAX_MIX_PARTS", renderer::scene::MAX_MIX_PARTS)?;
     Ok(())
 }

@@ -103,3 +103,69 @@ def test_errors_carry_the_cli_messages(latent_path, tmp_path, bronze):
         neural_brdf.Material.from_latent_vector(latent_path, np.zeros(3))
     # Errors leave the material usable.
     assert bronze.eval(np.array([[0.0, 0.6, 0.8]]), np.array([[0.0, -0.6, 0.8]])).max() > 0
+
+
+def test_blends_decode_the_interpolated_vector_and_end_at_their_codes(latent_path, bronze):
+    chrome = neural_brdf.Material.open(latent_path, "chrome")
+    wo, wi = direction_pairs(np.random.default_rng(4), 300)
+    ends = [neural_brdf.Material.blend(latent_path, "alum-bronze", "chrome", t) for t in (0.0, 1.0)]
+    np.testing.assert_array_equal(ends[0].eval(wo, wi), bronze.eval(wo, wi))
+    np.testing.assert_array_equal(ends[1].eval(wo, wi), chrome.eval(wo, wi))
+    # The blend at t is the decode of the interpolated latent vector (z, offsets, residual).
+    codes = neural_brdf.latent_codes(latent_path)
+    t = np.float32(0.3)
+    vector = (np.float32(1) - t) * codes["alum-bronze"] + t * codes["chrome"]
+    blend = neural_brdf.Material.blend(latent_path, "alum-bronze", "chrome", float(t))
+    assert blend.kind == "neural" and blend.layers is not None and blend.weights is None
+    f = blend.eval(wo, wi)
+    assert not np.array_equal(f, bronze.eval(wo, wi))
+    np.testing.assert_allclose(f, neural_brdf.Material.from_latent_vector(latent_path, vector).eval(wo, wi), rtol=1e-4, atol=1e-6)
+
+
+def test_mixtures_weigh_their_parts_and_sample_by_weight(latent_path, table_path, bronze):
+    table = neural_brdf.Material.open(table_path)
+    mix = neural_brdf.Material.mix([bronze, table], np.array([1.0, 3.0]))
+    assert mix.kind == "mixture" and mix.weights == [1.0, 3.0] and mix.layers is None and mix.table is None
+    rng = np.random.default_rng(5)
+    wo, wi = direction_pairs(rng, 400)
+    f, pdf = mix.eval_pdf(wo, wi)
+    np.testing.assert_allclose(f, 0.25 * bronze.eval(wo, wi) + 0.75 * table.eval(wo, wi), rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(pdf, 0.25 * bronze.pdf(wo, wi) + 0.75 * table.pdf(wo, wi), rtol=1e-5, atol=1e-7)
+    for i in range(0, 400, 101):
+        np.testing.assert_array_equal(mix.eval(wo[i : i + 1], wi[i : i + 1])[0], f[i])
+    for numbers in (2, 3):
+        wo = hemisphere(rng, 2000)
+        wi, f, pdf = mix.sample(wo, rng.random((2000, numbers)))
+        drawn = pdf > 0
+        assert drawn.mean() > 0.95
+        np.testing.assert_allclose(mix.pdf(wo[drawn], wi[drawn]), pdf[drawn], rtol=1e-4)
+        np.testing.assert_allclose(mix.eval(wo[drawn], wi[drawn]), f[drawn], rtol=1e-5, atol=1e-7)
+    with pytest.raises(ValueError, match="no sampler tables"):
+        mix.sampler_tables()
+    # A zero weight drops its part: the other alone, bit for bit.
+    only = neural_brdf.Material.mix([bronze, table], [0.0, 2.0])
+    np.testing.assert_array_equal(only.eval(wo[:50], wo[:50] * [-1, -1, 1]), table.eval(wo[:50], wo[:50] * [-1, -1, 1]))
+
+
+def test_bad_blends_and_mixtures_raise(latent_path, bronze):
+    for t in (float("nan"), -0.01, 1.5):
+        with pytest.raises(ValueError, match="invalid value for t"):
+            neural_brdf.Material.blend(latent_path, "alum-bronze", "chrome", t)
+    with pytest.raises(neural_brdf.UnknownNameError, match="no-such"):
+        neural_brdf.Material.blend(latent_path, "alum-bronze", "no-such", 0.5)
+    with pytest.raises(OSError, match="/nonexistent/latent.bin"):
+        neural_brdf.Material.blend("/nonexistent/latent.bin", "alum-bronze", "chrome", 0.5)
+    with pytest.raises(ValueError, match="1 to 4 parts, not 5"):
+        neural_brdf.Material.mix([bronze] * 5, [1.0] * 5)
+    with pytest.raises(ValueError, match="1 to 4 parts, not 0"):
+        neural_brdf.Material.mix([], [])
+    with pytest.raises(ValueError, match="weight 1 is -1"):
+        neural_brdf.Material.mix([bronze, bronze], [1.0, -1.0])
+    with pytest.raises(ValueError, match="weight 0 is NaN"):
+        neural_brdf.Material.mix([bronze, bronze], [np.nan, 1.0])
+    with pytest.raises(ValueError, match="sum to 0"):
+        neural_brdf.Material.mix([bronze, bronze], [0.0, 0.0])
+    with pytest.raises(ValueError, match="2 materials but 3 weights"):
+        neural_brdf.Material.mix([bronze, bronze], [1.0, 1.0, 1.0])
+    with pytest.raises(TypeError):
+        neural_brdf.Material.mix([bronze, "chrome"], [1.0, 1.0])

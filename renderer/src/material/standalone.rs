@@ -11,6 +11,16 @@
 //! latent code, the latent file is read once and only that code is decoded (with its fitted
 //! importance sampler).
 //!
+//! Besides one material, two of the scene forms of spatially varying materials at one point:
+//! - a latent **blend** at a given t ([`MaterialBsdf::open_blend`]): the exact decode of
+//!   [`LatentCode::lerp`](crate::neural::latent_library::LatentCode::lerp)(A, B, t), as
+//!   `render --sweep` decodes its frames (the renderer's `blend` form interpolates between a
+//!   palette of such decodes; see [`super::PALETTE_SIZE`]);
+//! - a **mixture** of 1 to [`MAX_MIX_PARTS`] materials with given weights
+//!   ([`MaterialBsdf::mix`]), evaluated and sampled through [`Mixture`] exactly as the
+//!   renderer's `mix` form does at a texel with those weights (weights normalised, zero
+//!   weights dropped), so values and densities equal the renderer's bit for bit.
+//!
 //! ```no_run
 //! use renderer::material::MaterialBsdf;
 //! let bronze = MaterialBsdf::open("scenes/materials/latent.bin".as_ref(), Some("alum-bronze"))?;
@@ -19,14 +29,17 @@
 //! ```
 
 use super::{Binding, SharedBsdf};
+use crate::bsdf::mixture::Part;
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::tabulated_sampling::{SamplerTables, TabulatedBrdf, TabulatedSampler};
-use crate::bsdf::{BatchEval, BsdfSample, Bxdf};
+use crate::bsdf::{BatchEval, Bsdf, BsdfSample, Bxdf, Mixture};
 use crate::neural::latent_library::LatentLibrary;
+use crate::scene::MAX_MIX_PARTS;
 use crate::{Error, Result, Rgb};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Directions per parallel work item of the batched calls.
 const BATCH_CHUNK: usize = 1024;
@@ -35,7 +48,16 @@ const BATCH_CHUNK: usize = 1024;
 /// threads by reference.
 #[derive(Debug)]
 pub struct MaterialBsdf {
-    bsdf: SharedBsdf,
+    inner: Inner,
+}
+
+/// One BSDF, or a mixture of BSDFs with their weights as given (validated: finite, ≥ 0,
+/// some > 0); [`Mixture::new`] normalises them at each call, as the renderer does with a
+/// texel's weights. Parts are shared, so a mixture outlives the materials it was made of.
+#[derive(Debug)]
+enum Inner {
+    One(Arc<SharedBsdf>),
+    Mix(Vec<(Arc<SharedBsdf>, f32)>),
 }
 
 /// One drawn direction: wi (unit, z > 0), f_r(wo, wi) in 1/sr and the solid-angle density.
@@ -70,6 +92,81 @@ impl MaterialBsdf {
         Self::from_binding(&binding, &latents)
     }
 
+    /// Opens a latent file and decodes the blend of its codes `a` and `b` at `t`: the latent
+    /// interpolation [`LatentCode::lerp`](crate::neural::latent_library::LatentCode::lerp)(A,
+    /// B, t) of z, offsets and residuals, decoded exactly as `render --sweep` decodes its
+    /// frames (t = 0 is A, t = 1 is B, bit for bit). `t` must be finite and in [0, 1]: an
+    /// error otherwise (not clamped). Errors name the file, an unknown code (listing the
+    /// available ones) or `t`.
+    pub fn open_blend(path: &Path, a: &str, b: &str, t: f32) -> Result<Self> {
+        if !(0.0..=1.0).contains(&t) {
+            return Err(Error::InvalidArgument {
+                flag: "t".to_string(),
+                reason: format!("{t} is not in [0, 1] (blend {a} → {b} of {})", path.display()),
+            });
+        }
+        let latents = LatentLibrary::load(&[path])?;
+        let code = latents.latent(a)?.lerp(&latents.latent(b)?, t)?;
+        let label = format!("{a}>{b}@{t:.3}");
+        Ok(MaterialBsdf {
+            inner: Inner::One(Arc::new(SharedBsdf::Neural(latents.decode_code(&code, &label)?))),
+        })
+    }
+
+    /// The renderer's palette of the blend of `a` and `b` (its glTF `blend` form): the
+    /// [`PALETTE_SIZE`](super::PALETTE_SIZE) decodes at t = k / (PALETTE_SIZE − 1), t computed
+    /// in f32 as the renderer does, from one read of the file. A blend at t mixes entries k
+    /// and k + 1 around it, weighted (1 − a, a) by where t falls between them. Errors as
+    /// [`MaterialBsdf::open_blend`].
+    pub fn open_blend_palette(path: &Path, a: &str, b: &str) -> Result<Vec<Self>> {
+        let latents = LatentLibrary::load(&[path])?;
+        let (ca, cb) = (latents.latent(a)?, latents.latent(b)?);
+        (0..super::PALETTE_SIZE)
+            .map(|k| {
+                let t = k as f32 / (super::PALETTE_SIZE - 1) as f32;
+                let bsdf = latents.decode_code(&ca.lerp(&cb, t)?, &format!("{a}>{b}@{t:.3}"))?;
+                Ok(MaterialBsdf { inner: Inner::One(Arc::new(SharedBsdf::Neural(bsdf))) })
+            })
+            .collect()
+    }
+
+    /// The mixture f = Σ w_k f_k, pdf = Σ w_k pdf_k of `parts` (material, weight), 1 to
+    /// [`MAX_MIX_PARTS`] of them, with the weights normalised to sum 1 and parts of weight 0
+    /// dropped, sampled by choosing a part by weight ([`Mixture`]): what the renderer's `mix`
+    /// form gives at a texel of these weights, bit for bit. A part may itself be a mixture
+    /// (its parts then join this one's, weighted by its weight, when there are at most
+    /// [`MAX_MIX_PARTS`] in all). The parts' data are shared, not copied: the materials
+    /// may be dropped afterwards. Errors (naming the argument) on no or too many parts and
+    /// on a weight that is negative or not finite, or weights that are all 0.
+    pub fn mix(parts: &[(&MaterialBsdf, f32)]) -> Result<Self> {
+        let invalid = |flag: &str, reason: String| Error::InvalidArgument { flag: flag.to_string(), reason };
+        if parts.is_empty() || parts.len() > MAX_MIX_PARTS {
+            return Err(invalid("parts", format!("a mixture has 1 to {MAX_MIX_PARTS} parts, not {}", parts.len())));
+        }
+        if let Some(k) = parts.iter().position(|&(_, w)| !(w.is_finite() && w >= 0.0)) {
+            return Err(invalid("weights", format!("weight {k} is {}, not a finite number ≥ 0", parts[k].1)));
+        }
+        let total: f32 = parts.iter().map(|&(_, w)| w).sum();
+        if !(total > 0.0 && total.is_finite()) {
+            return Err(invalid("weights", format!("the weights sum to {total}, not a finite number > 0")));
+        }
+        let mut flat = Vec::with_capacity(MAX_MIX_PARTS);
+        for &(m, w) in parts {
+            match &m.inner {
+                Inner::One(b) => flat.push((Arc::clone(b), w)),
+                Inner::Mix(inner) => {
+                    let sum: f32 = inner.iter().map(|&(_, v)| v).sum();
+                    flat.extend(inner.iter().filter(|&&(_, v)| v > 0.0).map(|(b, v)| (Arc::clone(b), w * (v / sum))));
+                }
+            }
+        }
+        if flat.len() > MAX_MIX_PARTS {
+            return Err(invalid("parts", format!("the parts' mixtures hold {} materials in all, more than {MAX_MIX_PARTS}", flat.len())));
+        }
+        Ok(MaterialBsdf { inner: Inner::Mix(flat) })
+    }
+
+
     /// Opens a latent file and decodes the latent vector `v` (any code, e.g. an edited one)
     /// with its decoder; `label` names it. `v` is z, optionally followed by the code's 3
     /// output offsets and then by its residual
@@ -79,92 +176,142 @@ impl MaterialBsdf {
         let latents = LatentLibrary::load(&[path])?;
         let code = latents.code_from_vector(0, v)?;
         Ok(MaterialBsdf {
-            bsdf: SharedBsdf::Neural(latents.decode_code(&code, label)?),
+            inner: Inner::One(Arc::new(SharedBsdf::Neural(latents.decode_code(&code, label)?))),
         })
     }
 
     /// Opens the BSDF a [`Binding`] names (latent codes from `latents`).
     pub fn from_binding(binding: &Binding, latents: &LatentLibrary) -> Result<Self> {
         Ok(MaterialBsdf {
-            bsdf: SharedBsdf::open(binding, latents)?,
+            inner: Inner::One(Arc::new(SharedBsdf::open(binding, latents)?)),
         })
     }
 
-    /// The BSDF as the renderer holds it.
-    pub fn shared(&self) -> &SharedBsdf {
-        &self.bsdf
+    /// The BSDF as the renderer holds it; `None` for a mixture ([`MaterialBsdf::parts`]).
+    pub fn shared(&self) -> Option<&SharedBsdf> {
+        match &self.inner {
+            Inner::One(b) => Some(&**b),
+            Inner::Mix(_) => None,
+        }
     }
 
-    /// For a latent code: its decoded target net, f_ref and mapping (what another renderer
-    /// needs to evaluate it itself); `None` for a table or a network.
+    /// A mixture's parts with their weights as given (normalised when used); `None` for a
+    /// single material.
+    pub fn parts(&self) -> Option<impl Iterator<Item = (&SharedBsdf, f32)> + '_> {
+        match &self.inner {
+            Inner::One(_) => None,
+            Inner::Mix(parts) => Some(parts.iter().map(|(b, w)| (&**b, *w))),
+        }
+    }
+
+    /// For a latent code (a blend included): its decoded target net, f_ref and mapping (what
+    /// another renderer needs to evaluate it itself); `None` for a table, a network or a
+    /// mixture.
     pub fn neural(&self) -> Option<&NeuralBsdf> {
-        match &self.bsdf {
+        match self.shared()? {
             SharedBsdf::Neural(b) => Some(b),
             _ => None,
         }
     }
 
-    /// The importance sampler's fitted tables (every material of this kind has one).
-    pub fn sampler_tables(&self) -> SamplerTables {
-        self.sampler().tables()
+    /// The importance sampler's fitted tables (every single material has one); `None` for a
+    /// mixture (each part has its own).
+    pub fn sampler_tables(&self) -> Option<SamplerTables> {
+        self.shared().map(|b| sampler_of(b).tables())
+    }
+
+    /// The BSDF to shade with: the single one, or the [`Mixture`] of the parts (made here,
+    /// as the renderer makes it per shading point).
+    #[inline]
+    fn bsdf(&self) -> Bsdf<'_> {
+        match &self.inner {
+            Inner::One(b) => b.as_bsdf(),
+            Inner::Mix(parts) => Bsdf::Mixture(self.mixture(parts)),
+        }
+    }
+
+    #[inline]
+    fn mixture<'a>(&self, parts: &'a [(Arc<SharedBsdf>, f32)]) -> Mixture<'a> {
+        let all: [(Part<'a>, f32); MAX_MIX_PARTS] = std::array::from_fn(|k| {
+            let (b, w) = &parts[k.min(parts.len() - 1)];
+            (b.as_part(), *w)
+        });
+        Mixture::new(&all[..parts.len()], Rgb::ONE)
     }
 
     /// f_r(wo, wi) in 1/sr per RGB channel.
     #[inline]
     pub fn eval(&self, wo: [f32; 3], wi: [f32; 3]) -> [f32; 3] {
-        self.bsdf.as_bsdf().eval(Vec3::from(wo), Vec3::from(wi)).to_array()
+        self.bsdf().eval(Vec3::from(wo), Vec3::from(wi)).to_array()
     }
 
     /// The density (1/sr) with which [`MaterialBsdf::sample`] draws `wi` given `wo`.
     #[inline]
     pub fn pdf(&self, wo: [f32; 3], wi: [f32; 3]) -> f32 {
-        self.bsdf.as_bsdf().pdf(Vec3::from(wo), Vec3::from(wi))
+        self.bsdf().pdf(Vec3::from(wo), Vec3::from(wi))
     }
 
     /// Value and density together.
     #[inline]
     pub fn eval_pdf(&self, wo: [f32; 3], wi: [f32; 3]) -> ([f32; 3], f32) {
-        let (f, pdf) = self.bsdf.as_bsdf().eval_pdf(Vec3::from(wo), Vec3::from(wi));
+        let (f, pdf) = self.bsdf().eval_pdf(Vec3::from(wo), Vec3::from(wi));
         (f.to_array(), pdf)
     }
 
     /// Draws wi given `wo` from three uniform numbers in [0, 1) (`u[0..2]` for the direction,
-    /// `u[2]` to choose a lobe); `None` when nothing can be drawn (e.g. `wo` below the
-    /// horizon). The density of the result is exactly [`MaterialBsdf::pdf`].
+    /// `u[2]` to choose a lobe, and for a mixture first its part); `None` when nothing can be
+    /// drawn (e.g. `wo` below the horizon). The density of the result is exactly
+    /// [`MaterialBsdf::pdf`].
     #[inline]
     pub fn sample(&self, wo: [f32; 3], u: [f32; 3]) -> Option<Sample> {
-        self.bsdf.as_bsdf().sample(Vec3::from(wo), Vec2::new(u[0], u[1]), u[2]).map(Sample::from)
+        self.bsdf().sample(Vec3::from(wo), Vec2::new(u[0], u[1]), u[2]).map(Sample::from)
     }
 
-    /// As [`MaterialBsdf::sample`] from two uniform numbers: `u[0]` also chooses the lobe (what
-    /// is left of it after the choice is reused for the direction). Same density.
+    /// As [`MaterialBsdf::sample`] from two uniform numbers: `u[0]` also chooses the lobe
+    /// (and for a mixture first the part, as [`Mixture`] chooses it; what is left of it after
+    /// each choice is reused). Same density.
     pub fn sample_2d(&self, wo: [f32; 3], u: [f32; 2]) -> Option<Sample> {
         let wo = Vec3::from(wo);
-        let wi = self.sampler().sample_2d(wo, Vec2::from(u))?;
-        let (f, pdf) = self.bsdf.as_bsdf().eval_pdf(wo, wi);
+        let wi = match &self.inner {
+            Inner::One(b) => sampler_of(b).sample_2d(wo, Vec2::from(u))?,
+            Inner::Mix(parts) => {
+                let (sampler, u0) = choose(&self.mixture(parts), u[0]);
+                sampler.sample_2d(wo, Vec2::new(u0, u[1]))?
+            }
+        };
+        let (f, pdf) = self.bsdf().eval_pdf(wo, wi);
         (pdf > 0.0 && pdf.is_finite()).then(|| Sample { wi: wi.to_array(), f: f.to_array(), pdf })
     }
 
-    fn sampler(&self) -> &TabulatedSampler {
-        match &self.bsdf {
-            SharedBsdf::Merl(b) => b.sampler(),
-            SharedBsdf::Nbrdf(b) => b.sampler(),
-            SharedBsdf::Neural(b) => b.sampler(),
+    /// f_r(wo, wi) of many pairs into `out`: a decoded net's values in one batched forward
+    /// pass, a table's look-ups prefetched together ([`BatchEval`]), an NBRDF network's and a
+    /// mixture's one by one. The same values as [`MaterialBsdf::eval`], bit for bit.
+    fn values(&self, pairs: &[(Vec3, Vec3)], out: &mut [Rgb]) {
+        match &self.inner {
+            Inner::One(b) => match &**b {
+                SharedBsdf::Neural(b) => values_together(b, pairs, out),
+                SharedBsdf::Merl(b) => values_together(b, pairs, out),
+                SharedBsdf::Nbrdf(b) => {
+                    for (o, &(wo, wi)) in out.iter_mut().zip(pairs) {
+                        *o = b.eval(wo, wi);
+                    }
+                }
+            },
+            Inner::Mix(parts) => {
+                let mixture = self.mixture(parts);
+                for (o, &(wo, wi)) in out.iter_mut().zip(pairs) {
+                    *o = mixture.eval(wo, wi);
+                }
+            }
         }
     }
 
-    /// f_r(wo, wi) of many pairs into `out`: a decoded net's values in one batched forward
-    /// pass, a table's look-ups prefetched together ([`BatchEval`]), an NBRDF network's one
-    /// by one. The same values as [`MaterialBsdf::eval`], bit for bit.
-    fn values(&self, pairs: &[(Vec3, Vec3)], out: &mut [Rgb]) {
-        match &self.bsdf {
-            SharedBsdf::Neural(b) => values_together(b, pairs, out),
-            SharedBsdf::Merl(b) => values_together(b, pairs, out),
-            SharedBsdf::Nbrdf(b) => {
-                for (o, &(wo, wi)) in out.iter_mut().zip(pairs) {
-                    *o = b.eval(wo, wi);
-                }
-            }
+    /// The density of one pair, as [`MaterialBsdf::pdf`].
+    #[inline]
+    fn density(&self, wo: Vec3, wi: Vec3) -> f32 {
+        match &self.inner {
+            Inner::One(b) => sampler_of(b).pdf(wo, wi),
+            Inner::Mix(_) => self.bsdf().pdf(wo, wi),
         }
     }
 
@@ -212,7 +359,7 @@ impl MaterialBsdf {
             }
             if let Some(pc) = pc {
                 for (o, &(wo, wi)) in pc.iter_mut().zip(&pairs) {
-                    *o = self.sampler().pdf(wo, wi);
+                    *o = self.density(wo, wi);
                 }
             }
         });
@@ -231,10 +378,18 @@ impl MaterialBsdf {
         if let Some(i) = u.iter().position(|v| !v.numbers().iter().all(|x| (0.0..=1.0).contains(x))) {
             return Err(batch_error("u", format!("entry {i} is {:?}, not in [0, 1]", u[i].numbers())));
         }
+        let sampler = match &self.inner {
+            Inner::One(b) => sampler_of(b),
+            Inner::Mix(_) => {
+                // One by one: each draw chooses its part first.
+                batch(out, |i| u[i].draw(self, wo[i]));
+                return Ok(());
+            }
+        };
         out.par_chunks_mut(BATCH_CHUNK).enumerate().for_each(|(c, chunk)| {
             let first = c * BATCH_CHUNK;
             let drawn: Vec<Option<(Vec3, f32)>> =
-                (first..first + chunk.len()).map(|i| u[i].direction(self.sampler(), Vec3::from(wo[i]))).collect();
+                (first..first + chunk.len()).map(|i| u[i].direction(sampler, Vec3::from(wo[i]))).collect();
             let pairs: Vec<(Vec3, Vec3)> = (first..first + chunk.len())
                 .zip(&drawn)
                 .filter_map(|(i, d)| d.map(|(wi, _)| (Vec3::from(wo[i]), wi)))
@@ -252,6 +407,37 @@ impl MaterialBsdf {
         });
         Ok(())
     }
+}
+
+/// The importance sampler of a single BSDF.
+fn sampler_of(b: &SharedBsdf) -> &TabulatedSampler {
+    match b {
+        SharedBsdf::Merl(b) => b.sampler(),
+        SharedBsdf::Nbrdf(b) => b.sampler(),
+        SharedBsdf::Neural(b) => b.sampler(),
+    }
+}
+
+/// The part of `mixture` a uniform number `u` chooses, as [`Mixture`]'s sampling chooses it
+/// (by the cumulative weights), and `u` rescaled within the part's share.
+fn choose<'a>(mixture: &Mixture<'a>, u: f32) -> (&'a TabulatedSampler, f32) {
+    let parts: Vec<(Part<'a>, f32)> = mixture.parts().collect();
+    let mut chosen = parts.len() - 1;
+    let mut below = 0.0;
+    for (k, &(_, w)) in parts.iter().enumerate().take(parts.len() - 1) {
+        if u < below + w {
+            chosen = k;
+            break;
+        }
+        below += w;
+    }
+    let rest = ((u - below) / parts[chosen].1).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+    let sampler = match parts[chosen].0 {
+        Part::Merl(b) => b.sampler(),
+        Part::Nbrdf(b) => b.sampler(),
+        Part::Neural(b) => b.sampler(),
+    };
+    (sampler, rest)
 }
 
 /// [`BatchEval`]: every pair prepared, the prepared ones evaluated in one call; pairs it
@@ -282,6 +468,9 @@ pub trait UniformNumbers: Copy + Sync {
     /// material's) given `wo`, before its value: `None` where the draw fails or its density
     /// is not positive and finite.
     fn direction(self, sampler: &TabulatedSampler, wo: Vec3) -> Option<(Vec3, f32)>;
+    /// The whole draw from `m` given `wo` with these numbers: [`MaterialBsdf::sample`] or
+    /// [`MaterialBsdf::sample_2d`].
+    fn draw(self, m: &MaterialBsdf, wo: [f32; 3]) -> Option<Sample>;
 }
 
 impl UniformNumbers for [f32; 3] {
@@ -290,6 +479,9 @@ impl UniformNumbers for [f32; 3] {
     }
     fn direction(self, sampler: &TabulatedSampler, wo: Vec3) -> Option<(Vec3, f32)> {
         sampler.sample_with_pdf(wo, Vec2::new(self[0], self[1]), self[2])
+    }
+    fn draw(self, m: &MaterialBsdf, wo: [f32; 3]) -> Option<Sample> {
+        m.sample(wo, self)
     }
 }
 
@@ -301,6 +493,9 @@ impl UniformNumbers for [f32; 2] {
         let wi = sampler.sample_2d(wo, Vec2::from(self))?;
         let pdf = sampler.pdf(wo, wi);
         (pdf > 0.0 && pdf.is_finite()).then_some((wi, pdf))
+    }
+    fn draw(self, m: &MaterialBsdf, wo: [f32; 3]) -> Option<Sample> {
+        m.sample_2d(wo, self)
     }
 }
 
@@ -355,7 +550,7 @@ mod tests {
         assert_eq!(neural.eval(wo, wi), reference.eval(Vec3::from(wo), Vec3::from(wi)).to_array());
         assert_eq!(neural.pdf(wo, wi), reference.pdf(Vec3::from(wo), Vec3::from(wi)));
         let network = MaterialBsdf::open(&data_dir().join("merl/chrome"), None).unwrap();
-        assert!(matches!(network.shared(), SharedBsdf::Nbrdf(_)));
+        assert!(matches!(network.shared(), Some(SharedBsdf::Nbrdf(_))));
         let v = latents.latent_vector("alum-bronze").unwrap();
         let same = MaterialBsdf::open_latent_vector(&shipped(), &v, "copy").unwrap();
         assert_eq!(same.eval(wo, wi), neural.eval(wo, wi));
@@ -375,13 +570,13 @@ mod tests {
         for c in 0..3 {
             assert!((plain[c] - packed[c]).abs() <= 1e-4 * (1.0 + plain[c].abs()), "{plain:?} vs {packed:?}");
         }
-        let t = m.sampler_tables();
+        let t = m.sampler_tables().unwrap();
         assert_eq!(t.values.len(), t.theta_o.len());
         assert!(t.values.iter().all(|v| v.len() == t.row_v.len() * (t.columns + 1)));
         assert!(t.values.iter().all(|v| v.iter().all(|x| x.is_finite() && *x >= 0.0) && v.contains(&1.0)));
         let table = MaterialBsdf::open(&data_dir().join("merl/chrome"), None).unwrap();
         assert!(table.neural().is_none());
-        assert_eq!(table.sampler_tables().row_v, t.row_v);
+        assert_eq!(table.sampler_tables().unwrap().row_v, t.row_v);
     }
 
     /// The batched calls give every pair exactly what the single calls give — their values
@@ -398,15 +593,18 @@ mod tests {
             MaterialBsdf::open(&table, None).unwrap(),
             MaterialBsdf::open(&data_dir().join("merl/alum-bronze"), None).unwrap(),
         ];
-        assert!(matches!(materials[1].shared(), SharedBsdf::Merl(_)));
-        assert!(matches!(materials[2].shared(), SharedBsdf::Nbrdf(_)));
+        assert!(matches!(materials[1].shared(), Some(SharedBsdf::Merl(_))));
+        assert!(matches!(materials[2].shared(), Some(SharedBsdf::Nbrdf(_))));
+        let [code, table, network] = materials;
+        let mixture = MaterialBsdf::mix(&[(&code, 0.5), (&table, 0.3), (&network, 0.2)]).unwrap();
+        let materials = [code, table, network, mixture];
         // More than one chunk, the last one partial; some directions below the horizon.
         let n = BATCH_CHUNK * 2 + 333;
         let wo: Vec<[f32; 3]> = (0..n).map(|i| unit(1.4 * (i as f32 / n as f32), i as f32 * 0.37)).collect();
         let wi: Vec<[f32; 3]> = (0..n).map(|i| unit(1.7 * ((i * 7 % n) as f32 / n as f32), i as f32 * 1.1)).collect();
         let u: Vec<[f32; 3]> = (0..n).map(|i| [(i as f32 * 0.618).fract(), (i as f32 * 0.414).fract(), (i as f32 * 0.732).fract()]).collect();
         let u2: Vec<[f32; 2]> = u.iter().map(|v| [v[0], v[1]]).collect();
-        for (m, kind) in materials.iter().zip(["code", "table", "network"]) {
+        for (m, kind) in materials.iter().zip(["code", "table", "network", "mixture"]) {
             let mut f = vec![[0.0; 3]; n];
             let mut pdf = vec![0.0; n];
             let (mut f_joint, mut pdf_joint) = (vec![[0.0; 3]; n], vec![0.0; n]);
@@ -428,7 +626,13 @@ mod tests {
             assert!(drawn.len() > n / 2);
             for &(i, s) in drawn.iter().step_by(53) {
                 assert!((m.pdf(wo[i], s.wi) - s.pdf).abs() <= 1e-4 * s.pdf, "{s:?}");
-                assert_eq!(m.eval(wo[i], s.wi), s.f);
+                let f = m.eval(wo[i], s.wi);
+                if kind == "mixture" {
+                    // The drawn part's value first, then the others: the same sum in another order.
+                    assert!((0..3).all(|c| (f[c] - s.f[c]).abs() <= 1e-5 * f[c]), "{f:?} vs {s:?}");
+                } else {
+                    assert_eq!(f, s.f);
+                }
             }
         }
     }
@@ -453,11 +657,98 @@ mod tests {
         }
         let chrome = MaterialBsdf::open(&shipped(), Some("chrome")).unwrap();
         let paint = MaterialBsdf::open(&data_dir().join("merl/gold-metallic-paint3"), None).unwrap();
-        for (name, m) in [("chrome", &chrome), ("gold-metallic-paint3", &paint)] {
+        let mixture = MaterialBsdf::mix(&[(&chrome, 0.4), (&paint, 0.6)]).unwrap();
+        for (name, m) in [("chrome", &chrome), ("gold-metallic-paint3", &paint), ("mixture", &mixture)] {
             for theta in [0.3f32, 1.2] {
                 crate::testing::bsdfs::check_chi2(&TwoNumbers(m), name, theta);
             }
         }
+    }
+
+    /// A blend at t is the exact decode of the latent interpolation at t (as `render --sweep`
+    /// decodes it): its ends are the two codes bit for bit.
+    #[test]
+    fn blends_decode_the_interpolated_code() {
+        let latents = LatentLibrary::load(&[shipped()]).unwrap();
+        let (a, b) = ("alum-bronze", "chrome");
+        let (wo, wi) = (unit(0.5, 0.2), unit(0.6, 2.9));
+        let at = |t: f32| MaterialBsdf::open_blend(&shipped(), a, b, t).unwrap();
+        assert_eq!(at(0.0).eval(wo, wi), MaterialBsdf::open(&shipped(), Some(a)).unwrap().eval(wo, wi));
+        assert_eq!(at(1.0).eval(wo, wi), MaterialBsdf::open(&shipped(), Some(b)).unwrap().eval(wo, wi));
+        let t = 0.37;
+        let exact = latents.decode_code(&latents.latent(a).unwrap().lerp(&latents.latent(b).unwrap(), t).unwrap(), "sweep").unwrap();
+        let blend = at(t);
+        assert!(blend.neural().is_some() && blend.sampler_tables().is_some());
+        assert_eq!(blend.eval(wo, wi), exact.eval(Vec3::from(wo), Vec3::from(wi)).to_array());
+        assert_eq!(blend.pdf(wo, wi), exact.pdf(Vec3::from(wo), Vec3::from(wi)));
+        assert_ne!(blend.eval(wo, wi), at(0.0).eval(wo, wi));
+        let palette = MaterialBsdf::open_blend_palette(&shipped(), a, b).unwrap();
+        assert_eq!(palette.len(), super::super::PALETTE_SIZE);
+        let k = 9;
+        let t = k as f32 / (super::super::PALETTE_SIZE - 1) as f32;
+        assert_eq!(palette[k].eval(wo, wi), at(t).eval(wo, wi), "entry {k} is the blend at {t}");
+    }
+
+    /// A mixture evaluates, weighs and samples exactly as the renderer's [`Mixture`] of the
+    /// same parts and (unnormalised) weights, as at a texel of those weights; zero weights
+    /// drop parts; a mixture part joins its parts.
+    #[test]
+    fn mixtures_are_the_renderers_mixture_bit_for_bit() {
+        let a = MaterialBsdf::open(&shipped(), Some("alum-bronze")).unwrap();
+        let b = MaterialBsdf::open(&shipped(), Some("chrome")).unwrap();
+        let c = MaterialBsdf::open(&data_dir().join("merl/gold-metallic-paint3"), None).unwrap();
+        let weights = [0.7f32, 0.2, 0.4];
+        let m = MaterialBsdf::mix(&[(&a, weights[0]), (&b, weights[1]), (&c, weights[2])]).unwrap();
+        assert!(m.shared().is_none() && m.neural().is_none() && m.sampler_tables().is_none());
+        assert_eq!(m.parts().unwrap().map(|(_, w)| w).collect::<Vec<_>>(), weights);
+        let parts = [a.shared().unwrap().as_part(), b.shared().unwrap().as_part(), c.shared().unwrap().as_part()];
+        let reference = Mixture::new(&[(parts[0], weights[0]), (parts[1], weights[1]), (parts[2], weights[2])], Rgb::ONE);
+        for k in 0..20 {
+            let (wo, wi) = (unit(0.07 * k as f32, 0.3 * k as f32), unit(1.5 - 0.07 * k as f32, 2.0 + 0.5 * k as f32));
+            let (vo, vi) = (Vec3::from(wo), Vec3::from(wi));
+            assert_eq!(m.eval(wo, wi), reference.eval(vo, vi).to_array());
+            assert_eq!(m.pdf(wo, wi), reference.pdf(vo, vi));
+            assert_eq!(m.eval_pdf(wo, wi), (reference.eval_pdf(vo, vi).0.to_array(), reference.eval_pdf(vo, vi).1));
+            let u = [(k as f32 * 0.618).fract(), (k as f32 * 0.414).fract(), (k as f32 * 0.05).fract()];
+            assert_eq!(m.sample(wo, u), reference.sample(vo, Vec2::new(u[0], u[1]), u[2]).map(Sample::from));
+        }
+        let (wo, wi) = (unit(0.4, 0.0), unit(0.7, 2.0));
+        let only_b = MaterialBsdf::mix(&[(&a, 0.0), (&b, 2.0)]).unwrap();
+        assert_eq!(only_b.eval(wo, wi), b.eval(wo, wi), "a zero weight drops its part");
+        assert_eq!(only_b.pdf(wo, wi), b.pdf(wo, wi));
+        // Nested: (a, b) 1:1, then with c 1:1 → a 0.25, b 0.25, c 0.5.
+        let ab = MaterialBsdf::mix(&[(&a, 1.0), (&b, 1.0)]).unwrap();
+        let nested = MaterialBsdf::mix(&[(&ab, 2.0), (&c, 2.0)]).unwrap();
+        assert_eq!(nested.parts().unwrap().map(|(_, w)| w).collect::<Vec<_>>(), [1.0, 1.0, 2.0]);
+        let flat = MaterialBsdf::mix(&[(&a, 0.25), (&b, 0.25), (&c, 0.5)]).unwrap();
+        assert_eq!(nested.eval(wo, wi), flat.eval(wo, wi));
+        // The mixture keeps its parts alive.
+        drop((a, b, c, ab));
+        assert_eq!(nested.eval(wo, wi), flat.eval(wo, wi));
+    }
+
+    #[test]
+    fn bad_blends_and_mixtures_are_clear_errors() {
+        for t in [f32::NAN, -0.1, 1.5, f32::INFINITY] {
+            let e = MaterialBsdf::open_blend(&shipped(), "alum-bronze", "chrome", t).unwrap_err();
+            let msg = e.to_string();
+            assert!(matches!(e, Error::InvalidArgument { .. }) && msg.contains("t:") && msg.contains("latent.bin"), "{msg}");
+        }
+        let e = MaterialBsdf::open_blend(&shipped(), "alum-bronze", "no-such", 0.5).unwrap_err();
+        let msg = e.to_string();
+        assert!(matches!(e, Error::UnknownName { .. }) && msg.contains("no-such") && msg.contains("chrome"), "{msg}");
+        let e = MaterialBsdf::open_blend(Path::new("/nonexistent/latent.bin"), "a", "b", 0.5).unwrap_err().to_string();
+        assert!(e.contains("/nonexistent/latent.bin"), "{e}");
+        let a = MaterialBsdf::open(&shipped(), Some("chrome")).unwrap();
+        let msg = |parts: &[(&MaterialBsdf, f32)]| MaterialBsdf::mix(parts).unwrap_err().to_string();
+        assert!(msg(&[]).contains("1 to 4 parts, not 0"), "{}", msg(&[]));
+        assert!(msg(&[(&a, 1.0); 5]).contains("1 to 4 parts, not 5"));
+        assert!(msg(&[(&a, 1.0), (&a, -1.0)]).contains("weight 1 is -1"));
+        assert!(msg(&[(&a, f32::NAN), (&a, 1.0)]).contains("weight 0 is NaN"));
+        assert!(msg(&[(&a, 1.0), (&a, f32::INFINITY)]).contains("weight 1 is inf"));
+        assert!(msg(&[(&a, 0.0), (&a, 0.0)]).contains("sum to 0"));
+        let three = MaterialBsdf::mix(&[(&a, 1.0); 3]).unwrap();
+        assert!(msg(&[(&three, 1.0), (&three, 1.0)]).contains("6 materials in all"));
     }
 
     #[test]

@@ -8,6 +8,8 @@
 >>> codes = neural_brdf.latent_codes("scenes/materials/latent.bin")
 >>> z = 0.5 * (codes["alum-bronze"] + codes["chrome"])
 >>> halfway = neural_brdf.Material.from_latent_vector("scenes/materials/latent.bin", z, "halfway")
+>>> blend = neural_brdf.Material.blend("scenes/materials/latent.bin", "alum-bronze", "chrome", 0.5)
+>>> worn = neural_brdf.Material.mix([bronze, blend], [0.7, 0.3])   # f = 0.7 f_bronze + 0.3 f_blend
 
 Directions are ``(N, 3)`` arrays in the local shading frame (z = shading normal, ``wo``
 toward the viewer, ``wi`` toward the light, both pointing away from the surface). Values
@@ -15,6 +17,15 @@ and densities are zero below either horizon. ``neural_brdf.mitsuba.register()`` 
 materials to Mitsuba 3 as the BSDF plugin ``"neural_brdf"``.
 """
 
-from ._native import MAX_LOG_VALUE, InvalidFileError, Material, UnknownNameError, latent_codes
+from ._native import (
+    MAX_LOG_VALUE,
+    MAX_MIX_PARTS,
+    PALETTE_SIZE,
+    InvalidFileError,
+    Material,
+    UnknownNameError,
+    latent_codes,
+)
 
-__all__ = ["Material", "latent_codes", "InvalidFileError", "UnknownNameError", "MAX_LOG_VALUE"]
+__all__ = ["Material", "latent_codes", "InvalidFileError", "UnknownNameError", "MAX_LOG_VALUE", "PALETTE_SIZE",
+           "MAX_MIX_PARTS"]

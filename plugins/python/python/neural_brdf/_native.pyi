@@ -1,12 +1,15 @@
 """Type stubs of the native module (see the docstrings of neural_brdf.Material)."""
 
 import os
-from typing import Dict, List, Optional, Tuple, TypedDict
+from typing import Dict, List, Optional, Sequence, Tuple, TypedDict
 
 import numpy as np
 import numpy.typing as npt
 
 MAX_LOG_VALUE: float
+PALETTE_SIZE: int
+"""Entries of the renderer's blend palette (t = k / (PALETTE_SIZE - 1))."""
+MAX_MIX_PARTS: int
 
 class InvalidFileError(ValueError):
     """A file was read but is not a valid material file."""
@@ -38,11 +41,28 @@ class Material:
     def from_latent_vector(path: "str | os.PathLike[str]", z: npt.ArrayLike, label: str = "latent vector") -> "Material":
         """Decodes the latent vector ``z`` (z, optionally followed by the 3 output offsets, then
         optionally by the residual) with the decoder of the latent file ``path``."""
+    @staticmethod
+    def blend(path: "str | os.PathLike[str]", a: str, b: str, t: float) -> "Material":
+        """The blend of the codes ``a`` and ``b`` of the latent file ``path`` at ``t`` in
+        [0, 1]: the latent interpolation decoded exactly as ``render --sweep`` does
+        (``ValueError`` for t outside [0, 1] or NaN, ``UnknownNameError`` for a code)."""
+    @staticmethod
+    def blend_palette(path: "str | os.PathLike[str]", a: str, b: str) -> List["Material"]:
+        """The renderer's palette of the blend of ``a`` and ``b``: ``PALETTE_SIZE`` blends at
+        t = k / (PALETTE_SIZE - 1)."""
+    @staticmethod
+    def mix(materials: Sequence["Material"], weights: npt.ArrayLike) -> "Material":
+        """The mixture of 1 to 4 materials with ``weights`` (normalised; zero weights drop
+        parts), as the renderer's ``mix`` material at a texel of these weights
+        (``ValueError`` for bad counts or weights)."""
+    @property
+    def weights(self) -> Optional[List[float]]:
+        """A mixture's weights as given; ``None`` for a single material."""
     @property
     def name(self) -> str: ...
     @property
     def kind(self) -> str:
-        """``"neural"``, ``"merl"`` or ``"nbrdf"``."""
+        """``"neural"``, ``"merl"``, ``"nbrdf"`` or ``"mixture"``."""
     def eval(self, wo: _Directions, wi: _Directions) -> _Rgb:
         """f_r(wo, wi) in 1/sr, shape (N, 3), without the cosine."""
     def pdf(self, wo: _Directions, wi: _Directions) -> _Pdf:
@@ -64,4 +84,5 @@ class Material:
     @property
     def mapping(self) -> Optional[Tuple[str, float]]:
         """``(form, epsilon)``, form ``"code"`` or ``"talk"``."""
-    def sampler_tables(self) -> SamplerTables: ...
+    def sampler_tables(self) -> SamplerTables:
+        """``ValueError`` for a mixture."""

@@ -16,6 +16,26 @@ Parameters:
   decode) or a MERL table (``.binary``). Relative paths go through Mitsuba's file resolver.
 - ``material`` (string): the latent code's name (latent files only).
 
+Spatially varying forms (the renderer's glTF ``{"neural": {"mix": ...}}`` and
+``{"neural": {"blend": ...}}``, docs/plugins.md), with Mitsuba textures evaluated at each
+shading point (``si.uv``); ``filename`` is then a latent file and ``material`` is not given:
+
+- ``mix`` (string): 1 to 4 codes of the latent file, comma-separated, e.g.
+  ``"dark-red-paint, aluminium"``; ``weights`` (texture, e.g. a ``bitmap`` with ``raw: true``):
+  its R, G, B values are the weights of the first three codes; ``weights_alpha`` (texture or
+  float, default 1 = the renderer's alpha of a texture without one) the fourth code's. Per
+  point, exactly the renderer's mixture: weights that are not positive and finite count as 0,
+  the rest are normalised to sum 1, all 0 gives the first code alone; f = Σ w_k f_k,
+  pdf = Σ w_k pdf_k, sampling chooses a code by weight (as renderer::bsdf::Mixture).
+  Every code is evaluated for every point and weighted.
+- ``blend`` (string): two codes ``"A, B"``; ``t`` (texture or float in [0, 1]; NaN counts as
+  0, values outside are clamped as in the renderer) and ``channel`` (0, 1 or 2, default 0: the
+  texture channel holding t). As the renderer: a palette of 32 decodes of the latent
+  interpolation z(t_k), t_k = k / 31 (``Material.blend_palette``), and at t the mixture of
+  entries k = min(floor(31 t), 30) and k + 1 with weights (1 − a, a), a = 31 t − k. The two
+  neighbours are evaluated per point by Dr.Jit calls (``drjit.switch`` on the entry index),
+  so each point runs two of the 32 networks.
+
 The BSDF is a one-sided glossy reflection (``GlossyReflection | FrontSide``), exactly the
 renderer's: the same decoded target net, the same f_ref (trilinear over measured bins) and
 mapping for a latent code, the same trilinear look-up for a table, and the same tabulated
@@ -39,7 +59,7 @@ import math
 
 import numpy as np
 
-from ._native import MAX_LOG_VALUE, Material
+from ._native import MAX_LOG_VALUE, MAX_MIX_PARTS, Material
 
 __all__ = ["register", "PLUGIN_NAME"]
 
@@ -77,14 +97,97 @@ def _bsdf_class():
             resolver = mi.file_resolver() if hasattr(mi, "file_resolver") else mi.Thread.thread().file_resolver()
             filename = str(resolver.resolve(filename))
             name = str(props.get("material", "")) or None
-            self.material = Material.open(filename, name)
-            if self.material.kind not in ("neural", "merl"):
-                raise ValueError(f"{filename}: neural_brdf takes a latent file or a MERL table (.binary), not a {self.material.kind} network")
+            mix, blend = str(props.get("mix", "")), str(props.get("blend", ""))
+            self.jit = dr.is_jit_v(mi.Float)
+            self.form = "mix" if mix else "blend" if blend else "one"
+            if mix and blend or (mix or blend) and name:
+                raise ValueError(f"neural_brdf: give one of 'material', 'mix' and 'blend' ({filename})")
+            if self.form == "one":
+                self.material = Material.open(filename, name)
+                if self.material.kind not in ("neural", "merl"):
+                    raise ValueError(f"{filename}: neural_brdf takes a latent file or a MERL table (.binary), not a {self.material.kind} network")
+                self.parts = [self.material]
+            elif self.form == "mix":
+                codes = _codes(mix, "mix", 1, MAX_MIX_PARTS)
+                if "weights" not in props:
+                    raise ValueError(f"neural_brdf: 'mix' needs a 'weights' texture ({filename})")
+                self.parts = [Material.open(filename, code) for code in codes]
+                self.weights = props.get("weights")
+                self.weights_alpha = props.get("weights_alpha", 1.0)
+                self.material = Material.mix(self.parts, [1.0] * len(self.parts))
+            else:
+                a, b = _codes(blend, "blend", 2, 2)
+                if "t" not in props:
+                    raise ValueError(f"neural_brdf: 'blend' needs 't' (a texture or a float) ({filename})")
+                self.t = props.get("t")
+                self.channel = int(props.get("channel", 0))
+                if self.channel not in (0, 1, 2):
+                    raise ValueError(f"neural_brdf: 'channel' is {self.channel}, not 0, 1 or 2 ({filename})")
+                self.parts = Material.blend_palette(filename, a, b)
+                self.material = self.parts[0]
             self.m_flags = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide
             self.m_components = [self.m_flags]
-            self.jit = dr.is_jit_v(mi.Float)
             if self.jit:
-                self.kernel = _JitMaterial(self.material)
+                bins = {}
+                self.kernels = [_JitMaterial(m, bins) for m in self.parts]
+                self.kernel = self.kernels[0]
+
+        # ---- the mixture at a point ----------------------------------------------------
+
+        def _mixture(self, si, active, normalise=True):
+            """(entries, weights) of the point's mixture: entries the kernels' indices (ints,
+            or UInt32 per point for a blend), weights normalised as renderer::bsdf::Mixture
+            (or as they come, with `normalise` false)."""
+            if self.form == "mix":
+                rgb = self.weights.eval(si, active)
+                raw = [rgb[0], rgb[1], rgb[2]][: len(self.parts)]
+                if len(self.parts) == 4:
+                    alpha = self.weights_alpha
+                    raw.append(alpha.eval_1(si, active) if hasattr(alpha, "eval_1") else mi.Float(float(alpha)))
+                return list(range(len(self.parts))), (_normalised(raw) if normalise else raw)
+            if hasattr(self.t, "eval"):
+                t = self.t.eval(si, active)[self.channel]
+            else:
+                t = mi.Float(float(self.t))
+            last = len(self.parts) - 1
+            t = dr.select(dr.isnan(t), 0.0, t)
+            s = dr.clip(t, 0.0, 1.0) * float(last)
+            k = dr.minimum(mi.UInt32(s), last - 1)
+            a = s - mi.Float(k)
+            return [k, k + 1], (_normalised([1.0 - a, a]) if normalise else [1.0 - a, a])
+
+        def _call(self, entry, method, *args):
+            """kernels[entry].method(*args): a direct call, or per point by Dr.Jit's switch."""
+            if isinstance(entry, int):
+                return getattr(self.kernels[entry], method)(*args)
+            return dr.switch(entry, [getattr(k, method) for k in self.kernels], *args)
+
+        def _value_pdf(self, si, wo_r, wi_r, active, value=True, pdf=True):
+            """The mixture's f_r (no cosine) and pdf at the point, in the renderer's directions."""
+            if self.form == "one":
+                return (self.kernel.value(wo_r, wi_r) if value else None), (self.kernel.pdf(wo_r, wi_r) if pdf else None)
+            entries, weights = self._mixture(si, active)
+            f, p = mi.Color3f(0.0), mi.Float(0.0)
+            for e, w in zip(entries, weights):
+                if value:
+                    f += w * self._call(e, "value", wo_r, wi_r)
+                if pdf:
+                    p += w * self._call(e, "pdf", wo_r, wi_r)
+            return (f if value else None), (p if pdf else None)
+
+        def _scalar_material(self, si):
+            """The scalar variants' native material at the point (a mixture made per call)."""
+            if self.form == "one":
+                return self.material
+            entries, weights = self._mixture(si, True, normalise=False)
+            # As renderer::bsdf::Mixture::new: unusable weights count as 0, all 0 is the first.
+            weights = [float(w) if float(w) > 0.0 and math.isfinite(float(w)) else 0.0 for w in weights]
+            keep = [(self.parts[int(e)], w) for e, w in zip(entries, weights) if w > 0.0]
+            if not keep or not math.isfinite(sum(weights)):
+                return self.parts[int(entries[0])]
+            if len(keep) == 1:
+                return keep[0][0]
+            return Material.mix([m for m, _ in keep], [w for _, w in keep])
 
         # Mitsuba's si.wi is the renderer's wo; Mitsuba's wo is the renderer's wi.
 
@@ -92,26 +195,26 @@ def _bsdf_class():
             if not ctx.is_enabled(mi.BSDFFlags.GlossyReflection):
                 return mi.Color3f(0.0)
             if self.jit:
-                f = self.kernel.value(si.wi, wo)
+                f, _ = self._value_pdf(si, si.wi, wo, active, pdf=False)
                 return dr.select(active, f * dr.maximum(wo.z, 0.0), 0.0)
-            f = self.material.eval(_row(si.wi), _row(wo))[0]
+            f = self._scalar_material(si).eval(_row(si.wi), _row(wo))[0]
             return mi.Color3f(*(float(c) * max(wo.z, 0.0) for c in f)) if active else mi.Color3f(0.0)
 
         def pdf(self, ctx, si, wo, active=True):
             if not ctx.is_enabled(mi.BSDFFlags.GlossyReflection):
                 return mi.Float(0.0)
             if self.jit:
-                return dr.select(active, self.kernel.pdf(si.wi, wo), 0.0)
-            return mi.Float(float(self.material.pdf(_row(si.wi), _row(wo))[0])) if active else mi.Float(0.0)
+                _, pdf = self._value_pdf(si, si.wi, wo, active, value=False)
+                return dr.select(active, pdf, 0.0)
+            return mi.Float(float(self._scalar_material(si).pdf(_row(si.wi), _row(wo))[0])) if active else mi.Float(0.0)
 
         def eval_pdf(self, ctx, si, wo, active=True):
             if not ctx.is_enabled(mi.BSDFFlags.GlossyReflection):
                 return mi.Color3f(0.0), mi.Float(0.0)
             if self.jit:
-                f = self.kernel.value(si.wi, wo)
-                pdf = self.kernel.pdf(si.wi, wo)
+                f, pdf = self._value_pdf(si, si.wi, wo, active)
                 return dr.select(active, f * dr.maximum(wo.z, 0.0), 0.0), dr.select(active, pdf, 0.0)
-            f, pdf = self.material.eval_pdf(_row(si.wi), _row(wo))
+            f, pdf = self._scalar_material(si).eval_pdf(_row(si.wi), _row(wo))
             if not active:
                 return mi.Color3f(0.0), mi.Float(0.0)
             return mi.Color3f(*(float(c) * max(wo.z, 0.0) for c in f[0])), mi.Float(float(pdf[0]))
@@ -121,14 +224,18 @@ def _bsdf_class():
             if not ctx.is_enabled(mi.BSDFFlags.GlossyReflection):
                 return bs, mi.Color3f(0.0)
             if self.jit:
-                wi, valid = self.kernel.sample(si.wi, sample1, sample2)
-                f = self.kernel.value(si.wi, wi)
-                pdf = self.kernel.pdf(si.wi, wi)
+                if self.form == "one":
+                    wi, valid = self.kernel.sample(si.wi, sample1, sample2)
+                else:
+                    entries, weights = self._mixture(si, active)
+                    entry, uc = _choose(entries, weights, sample1)
+                    wi, valid = self._call(entry, "sample", si.wi, uc, sample2)
+                f, pdf = self._value_pdf(si, si.wi, wi, active)
                 valid &= active & (pdf > 0.0) & dr.isfinite(pdf)
                 weight = dr.select(valid, f * wi.z / pdf, 0.0)
             else:
                 u = np.array([[sample2[0], sample2[1], sample1]], dtype=np.float32)
-                wi_n, f_n, pdf_n = self.material.sample(_row(si.wi), u)
+                wi_n, f_n, pdf_n = self._scalar_material(si).sample(_row(si.wi), u)
                 pdf = mi.Float(float(pdf_n[0]))
                 wi = mi.Vector3f(*(float(c) for c in wi_n[0]))
                 valid = bool(active) and pdf > 0.0
@@ -147,9 +254,72 @@ def _bsdf_class():
             pass
 
         def to_string(self):
+            if self.form == "blend":
+                return f"NeuralBrdf[blend '{self.parts[0].name}' .. '{self.parts[-1].name}', {len(self.parts)} entries]"
             return f"NeuralBrdf[{self.material.kind} '{self.material.name}']"
 
     return NeuralBrdf
+
+
+def _codes(text, form, fewest, most):
+    """The comma-separated code names of a `mix` or `blend` parameter."""
+    codes = [c.strip() for c in text.split(",") if c.strip()]
+    if not fewest <= len(codes) <= most:
+        wanted = f"{fewest}" if fewest == most else f"{fewest} to {most}"
+        raise ValueError(f"neural_brdf: '{form}' names {len(codes)} codes ({text!r}), not {wanted}")
+    return codes
+
+
+def _normalised(raw):
+    """Weights per point as renderer::bsdf::Mixture::new makes them: not positive and finite
+    counts as 0, the rest divided by their sum; when none is left (or the sum overflows), the
+    first part alone."""
+    import drjit as dr
+
+    usable = [dr.select((w > 0.0) & dr.isfinite(w), w, 0.0) for w in raw]
+    total = usable[0]
+    for w in usable[1:]:
+        total = total + w
+    ok = (total > 0.0) & dr.isfinite(total)
+    safe = dr.select(ok, total, 1.0)
+    return [dr.select(ok, w / safe, 1.0 if k == 0 else 0.0) for k, w in enumerate(usable)]
+
+
+def _choose(entries, weights, uc):
+    """The entry a mixture's sampling picks with the 1D sample `uc` and `uc` rescaled within
+    its share, as renderer::bsdf::Mixture::sample (parts of weight 0 skipped; the last part
+    of weight > 0 when uc falls past the others)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    n = len(weights)
+    below, prefix = mi.Float(0.0), []
+    for w in weights:
+        prefix.append(below)
+        below = below + w
+    # The last part of weight > 0, and the sum below it.
+    last_k, last_below, last_w = mi.UInt32(0), prefix[0], weights[0]
+    for k in range(1, n):
+        positive = weights[k] > 0.0
+        last_k = dr.select(positive, k, last_k)
+        last_below = dr.select(positive, prefix[k], last_below)
+        last_w = dr.select(positive, weights[k], last_w)
+    chosen, chosen_below, chosen_w = last_k, last_below, last_w
+    found = mi.Bool(False)
+    for k in range(n - 1):
+        hit = ~found & (weights[k] > 0.0) & (uc < prefix[k] + weights[k]) & (mi.UInt32(k) < last_k)
+        chosen = dr.select(hit, k, chosen)
+        chosen_below = dr.select(hit, prefix[k], chosen_below)
+        chosen_w = dr.select(hit, weights[k], chosen_w)
+        found |= hit
+    rest = dr.clip((uc - chosen_below) / chosen_w, 0.0, ONE_MINUS_EPSILON)
+    entry = chosen if all(isinstance(e, int) and e == k for k, e in enumerate(entries)) else None
+    if entry is None:
+        # A blend: the entries are UInt32 per point.
+        entry = entries[0]
+        for k in range(1, n):
+            entry = dr.select(chosen == k, entries[k], entry)
+    return entry, rest
 
 
 def _row(v):
@@ -162,13 +332,15 @@ class _JitMaterial:
     renderer::bsdf::merl) and the tabulated sampler (renderer::bsdf::tabulated_sampling),
     with the renderer's conventions (wo toward the viewer, wi toward the light)."""
 
-    def __init__(self, material):
+    def __init__(self, material, shared=None):
+        """`shared`: a dict in which the codes of one latent file share their f_ref buffer
+        (the palette of a blend holds 32 codes)."""
         import mitsuba as mi
 
         self.neural = material.kind == "neural"
         if self.neural:
-            values = material.f_ref.reshape(-1, 3)
-            measured = np.all(values >= 0.0, axis=1)
+            values = None if shared is not None and "bins" in shared else material.f_ref.reshape(-1, 3)
+            measured = None if values is None else np.all(values >= 0.0, axis=1)
             # Matrices (d_out × d_in) and biases packed into one buffer for drjit.nn.matvec.
             import drjit.nn as nn
 
@@ -181,12 +353,17 @@ class _JitMaterial:
         else:
             values = material.table.reshape(-1, 3)
             measured = np.ones(len(values), dtype=bool)
-        # (value·m, m) per bin, m = 1 where measured: the trilinear sum of the fourth channel is
-        # the weight of the measured corners, by which the renderer renormalises.
-        rgbm = np.zeros((len(values), 4), dtype=np.float32)
-        rgbm[:, :3] = np.where(measured[:, None], values, 0.0)
-        rgbm[:, 3] = measured
-        self.bins = mi.Float(rgbm.ravel())
+        if values is None:
+            self.bins = shared["bins"]
+        else:
+            # (value·m, m) per bin, m = 1 where measured: the trilinear sum of the fourth channel
+            # is the weight of the measured corners, by which the renderer renormalises.
+            rgbm = np.zeros((len(values), 4), dtype=np.float32)
+            rgbm[:, :3] = np.where(measured[:, None], values, 0.0)
+            rgbm[:, 3] = measured
+            self.bins = mi.Float(rgbm.ravel())
+            if self.neural and shared is not None:
+                shared["bins"] = self.bins
 
         t = material.sampler_tables()
         vals = t["values"].astype(np.float64)  # (nodes, lines, columns + 1)
