@@ -8,7 +8,11 @@
 
 use neural_brdf_tests::{image_mean_z, mean_rgb, pinned, render, Rendered};
 use renderer::formats::image_io::ToneMap;
-use renderer::integrator::{PathTracer, Strategy};
+use renderer::camera::PinholeCamera;
+use renderer::film::PixelAccumulator;
+use renderer::integrator::{PathCounters, PathTracer, Strategy};
+use renderer::render::{Budget, Renderer};
+use renderer::sampler::Sampler;
 use renderer::material::SharedBsdf;
 use renderer::metrics::{display_values, ImageError};
 use renderer::neural::latent_library::LatentLibrary;
@@ -143,6 +147,42 @@ fn palette_error_at_midpoints() {
         worst = worst.min(e.psnr);
     }
     assert!(worst >= 45.0, "worst midpoint PSNR {worst:.1} dB");
+}
+
+/// Mixtures join the batches of their parts' kind: the batched render equals paths traced
+/// one by one (each BSDF evaluated on its own), bit for bit, for a two-code mix with a tint,
+/// a blend between palette entries, and each estimator.
+#[test]
+fn batched_mixtures_equal_paths_traced_one_by_one() {
+    let tinted_mix = || {
+        let form = VaryingForm::Mix { parts: vec![Binding::Neural(A.into()), Binding::Neural(B.into())], weights: texture() };
+        // The weights texture is the tint too: (0.3, 0.7, 0) and (0.9, 0.2, 0.1) per half.
+        preview(SurfaceModel::Varying(Varying { form, tint: Some(texture()) }), Some(vec![Rgb::new(0.3, 0.7, 0.0), Rgb::new(0.9, 0.2, 0.1)]))
+    };
+    for (label, (scene, camera)) in [("mix", tinted_mix()), ("blend", blend(0.37))] {
+        for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
+            let (w, h, spp) = (20, 18, 3);
+            let renderer = Renderer { scene: &scene, camera: PinholeCamera::new(&camera, w, h), integrator: PathTracer { max_depth: 6, strategy, ..PathTracer::default() }, seed: 11 };
+            let never = std::sync::atomic::AtomicBool::new(false);
+            let (film, _) = renderer.render(w, h, Budget::Spp(spp), &never, &|_| {}, &mut |_, _| {});
+            let mut counters = PathCounters::default();
+            let mut expected = Vec::new();
+            for y in 0..h {
+                for x in 0..w {
+                    let mut acc = PixelAccumulator::default();
+                    for s in 0..spp {
+                        let mut sampler = Sampler::new(11, (x + y * w) as u64, s as u64);
+                        let ray = renderer.camera.generate_ray(glam::Vec2::new(x as f32, y as f32) + sampler.next_2d());
+                        acc.add(renderer.integrator.radiance(&scene, ray, &mut sampler, &mut counters));
+                    }
+                    let k = 1.0 / acc.count as f64;
+                    expected.push(Rgb::new((acc.sum[0] * k) as f32, (acc.sum[1] * k) as f32, (acc.sum[2] * k) as f32));
+                }
+            }
+            assert_eq!(film.mean(), expected, "{label}, {strategy:?}");
+            assert!(expected.iter().any(|l| l.max_element() > 0.0), "{label}: the image is not black");
+        }
+    }
 }
 
 fn shipped_scene() -> (RenderScene, renderer::scene::Camera) {

@@ -82,8 +82,9 @@ impl<'a> Mixture<'a> {
     pub fn new(parts: &[(Part<'a>, f32)], tint: Rgb) -> Self {
         assert!(!parts.is_empty() && parts.len() <= MAX_MIX_PARTS, "a mixture has 1 to {MAX_MIX_PARTS} parts, not {}", parts.len());
         let mut mixture = Mixture { parts: [parts[0].0; MAX_MIX_PARTS], weights: [0.0; MAX_MIX_PARTS], count: 0, tint: Rgb::ZERO };
-        // max/min send NaN to 0 (`clamp` would keep it).
-        mixture.tint = Rgb::new(tint.x.max(0.0).min(1.0), tint.y.max(0.0).min(1.0), tint.z.max(0.0).min(1.0));
+        // NaN to 0 (`clamp` would keep it).
+        let unit = |x: f32| if x > 0.0 { x.min(1.0) } else { 0.0 };
+        mixture.tint = Rgb::new(unit(tint.x), unit(tint.y), unit(tint.z));
         let total: f32 = parts.iter().map(|&(_, w)| usable(w)).sum();
         for &(part, w) in parts {
             if usable(w) > 0.0 {
@@ -149,7 +150,24 @@ impl Bxdf for Mixture<'_> {
     }
 
     fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
-        // The part whose share of [0, 1) holds uc, and uc rescaled within that share.
+        let (chosen, uc) = self.choose(uc);
+        let s = self.parts[chosen].sample(wo, u, uc)?;
+        // Summed in the parts' order, as `eval_pdf` sums (and the batched path).
+        let (mut f, mut pdf) = (Rgb::ZERO, 0.0);
+        for (k, (part, w)) in self.parts().enumerate() {
+            let (fk, pk) = if k == chosen { (s.f, s.pdf) } else { part.eval_pdf(wo, s.wi) };
+            f += w * fk;
+            pdf += w * pk;
+        }
+        Some(BsdfSample::new(s.wi, self.tint * f, pdf))
+    }
+}
+
+impl Mixture<'_> {
+    /// The part that sampling with the 1D sample `uc` draws from (the one whose share of
+    /// [0, 1) holds uc) and uc rescaled to [0, 1) within that share.
+    #[inline]
+    pub fn choose(&self, uc: f32) -> (usize, f32) {
         let mut chosen = self.count as usize - 1;
         let mut below = 0.0;
         for k in 0..self.count as usize - 1 {
@@ -159,17 +177,7 @@ impl Bxdf for Mixture<'_> {
             }
             below += self.weights[k];
         }
-        let uc = ((uc - below) / self.weights[chosen]).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
-        let s = self.parts[chosen].sample(wo, u, uc)?;
-        let (mut f, mut pdf) = (self.weights[chosen] * s.f, self.weights[chosen] * s.pdf);
-        for (k, (part, w)) in self.parts().enumerate() {
-            if k != chosen {
-                let (fk, pk) = part.eval_pdf(wo, s.wi);
-                f += w * fk;
-                pdf += w * pk;
-            }
-        }
-        Some(BsdfSample::new(s.wi, self.tint * f, pdf))
+        (chosen, ((uc - below) / self.weights[chosen]).clamp(0.0, 1.0 - f32::EPSILON / 2.0))
     }
 }
 

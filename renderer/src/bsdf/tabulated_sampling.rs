@@ -145,7 +145,7 @@ impl std::fmt::Debug for TabulatedSampler {
 /// What a [`TabulatedSampler`] needs of one `wo` (local frame): its two θo nodes and the
 /// azimuth the tables are relative to, found once ([`TabulatedSampler::view`]) for all the
 /// draws and densities of a shading point.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct SamplerView {
     wo: Vec3,
     /// The lower θo node and the weight of the upper one.

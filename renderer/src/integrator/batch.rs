@@ -146,6 +146,8 @@ impl PathTracer {
                     Bsdf::Neural(b) => neural.push(self, scene, i, &v, b, beta),
                     Bsdf::Nbrdf(b) => nbrdf.push(self, scene, i, &v, b, beta),
                     Bsdf::Merl(b) => merl.push(self, scene, i, &v, b, beta),
+                    // A mixture of one kind of parts joins their batch; of several, one by one.
+                    Bsdf::Mixture(m) if neural.push_mixture(self, scene, i, &v, &m, beta) || nbrdf.push_mixture(self, scene, i, &v, &m, beta) || merl.push_mixture(self, scene, i, &v, &m, beta) => {}
                     Bsdf::Transmission(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => {
                         let scattered = self.scatter(scene, &v, beta);
                         self.settle(paths, results, i, v.sp.p, scattered);

@@ -16,7 +16,9 @@ use super::{continuation, light_direction, PathTracer, Scattered, Vertex};
 use crate::bsdf::tabulated_sampling::{SamplerView, TabulatedBrdf, TabulatedSampler};
 use crate::lanes::{Vec2s, Vec3s, LANES};
 use crate::lights::environment::Environment;
+use crate::bsdf::mixture::{Mixture, Part};
 use crate::bsdf::{BatchEval, BsdfSample};
+use crate::scene::MAX_MIX_PARTS;
 use crate::lights::LightSample;
 use crate::render_scene::{RenderScene, SurfacePoint};
 use crate::Rgb;
@@ -37,9 +39,11 @@ struct Pending {
     sp: SurfacePoint,
     beta: Rgb,
     wo: Vec3,
-    /// Index of its material in [`DeferredScatter::materials`], and the sampler's view of wo.
-    material: u32,
-    view: SamplerView,
+    /// Its BSDF's parts (the first `count`; one of weight 1 for a BSDF that is not a
+    /// [`Mixture`]) and the tint multiplying their mixed value (`None`: none).
+    parts: [PendingPart; MAX_MIX_PARTS],
+    count: u8,
+    tint: Option<Rgb>,
     light: Option<PendingLight>,
     /// The u and selection probability of an environment sample still to draw (`light` is
     /// `None` until then).
@@ -47,26 +51,70 @@ struct Pending {
     sample: Option<PendingSample>,
 }
 
+/// A part of a vertex's BSDF: the index of its material in [`DeferredScatter::materials`],
+/// its weight and the sampler's view of wo.
+#[derive(Clone, Copy, Debug)]
+struct PendingPart {
+    material: u32,
+    weight: f32,
+    view: SamplerView,
+}
+
+/// Where the values of a direction are, one per part (`None`: zero, below the horizon).
+type Slots = Option<[Slot; MAX_MIX_PARTS]>;
+
 /// A vertex's light sample: its direction (local frame), whether MIS weighs it (and so needs
 /// the BSDF's density of that direction), and, filled in by [`DeferredScatter::scatter`], that
-/// density and where the BSDF's value is (`None`: zero, below the horizon).
+/// density and where the BSDF's values are.
 #[derive(Clone, Copy, Debug)]
 struct PendingLight {
     ls: LightSample,
     wi: Vec3,
     weighed: bool,
     pdf: f32,
-    slot: Option<Slot>,
+    slots: Slots,
 }
 
 /// A vertex's BSDF sample: its direction (local frame) and, filled in by
-/// [`DeferredScatter::scatter`], its density and where its value is (`None`: the sample is
+/// [`DeferredScatter::scatter`], its density and where its values are (`None`: the sample is
 /// dropped, its density not positive and finite or its value zero).
 #[derive(Clone, Copy, Debug)]
 struct PendingSample {
     wi: Vec3,
     pdf: f32,
-    slot: Option<Slot>,
+    slots: Slots,
+}
+
+/// The BSDFs of a kind among the parts of a [`Mixture`].
+pub(super) trait MixturePart<'s>: Sized {
+    fn of(part: Part<'s>) -> Option<&'s Self>;
+}
+
+impl<'s> MixturePart<'s> for crate::bsdf::neural::NeuralBsdf {
+    fn of(part: Part<'s>) -> Option<&'s Self> {
+        match part {
+            Part::Neural(b) => Some(b),
+            _ => None,
+        }
+    }
+}
+
+impl<'s> MixturePart<'s> for crate::bsdf::nbrdf::NbrdfBsdf {
+    fn of(part: Part<'s>) -> Option<&'s Self> {
+        match part {
+            Part::Nbrdf(b) => Some(b),
+            _ => None,
+        }
+    }
+}
+
+impl<'s> MixturePart<'s> for crate::bsdf::merl::MerlBsdf {
+    fn of(part: Part<'s>) -> Option<&'s Self> {
+        match part {
+            Part::Merl(b) => Some(b),
+            _ => None,
+        }
+    }
 }
 
 /// The points of one material in the batch and, once evaluated, their values.
@@ -101,10 +149,9 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         self.materials.clear();
     }
 
-    /// Draws vertex `v`'s light and BSDF samples (on `bsdf`, its BSDF) for path `path` of
-    /// throughput `beta`; [`Self::scatter`] finishes it.
-    pub fn push(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, bsdf: &'s B, beta: Rgb) {
-        let material = match self.materials.iter().position(|m| std::ptr::eq(m.bsdf, bsdf)) {
+    /// The index of `bsdf` in [`Self::materials`], added if it is not there.
+    fn material(&mut self, bsdf: &'s B) -> u32 {
+        let k = match self.materials.iter().position(|m| std::ptr::eq(m.bsdf, bsdf)) {
             Some(k) => k,
             None => {
                 self.materials.push(Material {
@@ -115,11 +162,51 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
                 self.materials.len() - 1
             }
         };
+        k as u32
+    }
+
+    /// Draws vertex `v`'s light and BSDF samples (on `bsdf`, its BSDF) for path `path` of
+    /// throughput `beta`; [`Self::scatter`] finishes it.
+    pub fn push(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, bsdf: &'s B, beta: Rgb) {
+        let material = self.material(bsdf);
+        // Both the sample and the densities read the sampler's view of wo, found once.
+        let view = bsdf.sampler().view(v.wo);
+        let sample = bsdf.sampler().sample_in(&view, v.u, v.uc);
+        let part = PendingPart { material, weight: 1.0, view };
+        self.push_parts(tracer, scene, path, v, beta, ([part; MAX_MIX_PARTS], 1, None), sample);
+    }
+
+    /// [`Self::push`] for a vertex whose BSDF is `mixture`; `false` (and nothing pushed)
+    /// where one of its parts is not a `B`.
+    pub fn push_mixture(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, mixture: &Mixture<'s>, beta: Rgb) -> bool
+    where
+        B: MixturePart<'s>,
+    {
+        let mut bsdfs = [None; MAX_MIX_PARTS];
+        for (k, (part, _)) in mixture.parts().enumerate() {
+            match B::of(part) {
+                Some(b) => bsdfs[k] = Some(b),
+                None => return false,
+            }
+        }
+        let mut parts = [PendingPart { material: 0, weight: 0.0, view: SamplerView::default() }; MAX_MIX_PARTS];
+        let mut count = 0;
+        for (k, (_, weight)) in mixture.parts().enumerate() {
+            let bsdf = bsdfs[k].expect("every part is a B");
+            parts[k] = PendingPart { material: self.material(bsdf), weight, view: bsdf.sampler().view(v.wo) };
+            count += 1;
+        }
+        // As `Mixture::sample`: the part chosen by uc draws the direction.
+        let (chosen, uc) = mixture.choose(v.uc);
+        let sample = bsdfs[chosen].expect("a part").sampler().sample_in(&parts[chosen].view, v.u, uc);
+        self.push_parts(tracer, scene, path, v, beta, (parts, count, Some(mixture.tint())), sample);
+        true
+    }
+
+    /// Pushes a vertex with its parts (parts, count, tint) and its BSDF sample's direction.
+    fn push_parts(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, beta: Rgb, (parts, count, tint): ([PendingPart; MAX_MIX_PARTS], u8, Option<Rgb>), sample: Option<Vec3>) {
         // As `PathTracer::light_term` and `Bxdf::sample` of a tabulated BSDF, with the
-        // densities (and the values) left to `scatter`. Both read the sampler's view of wo,
-        // found once.
-        let sampler = bsdf.sampler();
-        let view = sampler.view(v.wo);
+        // densities (and the values) left to `scatter`.
         let environment_draw = tracer.environment_draw(scene, v);
         let light = match environment_draw {
             Some((environment, ..)) => {
@@ -128,17 +215,17 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             }
             None => tracer.light_sample(scene, v).and_then(|ls| pending_light(tracer, &v.sp, ls)),
         };
-        let sample = sampler.sample_in(&view, v.u, v.uc).map(|wi| PendingSample { wi, pdf: 0.0, slot: None });
         self.vertices.push(Pending {
             path,
             sp: v.sp,
             beta,
             wo: v.wo,
-            material: material as u32,
-            view,
+            parts,
+            count,
+            tint,
             light,
             environment_draw: environment_draw.map(|(_, u, select_pdf)| (u, select_pdf)),
-            sample,
+            sample: sample.map(|wi| PendingSample { wi, pdf: 0.0, slots: None }),
         });
     }
 
@@ -178,17 +265,19 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
     fn densities(&mut self) {
         let Self { vertices, materials, .. } = self;
         // (vertex, whether it is the light sample's) per lane of the next group.
-        let mut group: [(usize, bool); LANES] = [(0, false); LANES];
+        let mut group: [(usize, bool, f32); LANES] = [(0, false, 0.0); LANES];
         let mut samplers: [Option<(&TabulatedSampler, SamplerView)>; LANES] = [None; LANES];
         let mut wi = Vec3s::default();
         let mut filled = 0;
-        let flush = |vertices: &mut Vec<Pending>, samplers: &mut [Option<(&TabulatedSampler, SamplerView)>; LANES], wi: &Vec3s, group: &[(usize, bool)]| {
+        // Each part's density weighed by the part's weight, summed in the parts' order (the
+        // lanes are flushed in the order they were filled), as `Mixture::eval_pdf` sums.
+        let flush = |vertices: &mut Vec<Pending>, samplers: &mut [Option<(&TabulatedSampler, SamplerView)>; LANES], wi: &Vec3s, group: &[(usize, bool, f32)]| {
             let pdfs = TabulatedSampler::pdf_in_lanes(samplers, *wi);
-            for (&(k, is_light), pdf) in group.iter().zip(pdfs) {
+            for (&(k, is_light, weight), pdf) in group.iter().zip(pdfs) {
                 let p = &mut vertices[k];
                 match (is_light, &mut p.light, &mut p.sample) {
-                    (true, Some(light), _) => light.pdf = pdf,
-                    (false, _, Some(sample)) => sample.pdf = pdf,
+                    (true, Some(light), _) => light.pdf += weight * pdf,
+                    (false, _, Some(sample)) => sample.pdf += weight * pdf,
                     _ => unreachable!("a density is asked only for a sample that exists"),
                 }
             }
@@ -196,16 +285,18 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         };
         for k in 0..vertices.len() {
             let p = &vertices[k];
-            let (sampler, view) = (materials[p.material as usize].bsdf.sampler(), p.view);
+            let (parts, count) = (p.parts, p.count as usize);
             let wanted = [p.light.filter(|l| l.weighed).map(|l| (true, l.wi)), p.sample.map(|s| (false, s.wi))];
             for (is_light, direction) in wanted.into_iter().flatten() {
-                group[filled] = (k, is_light);
-                samplers[filled] = Some((sampler, view));
-                wi.set(filled, direction);
-                filled += 1;
-                if filled == LANES {
-                    flush(vertices, &mut samplers, &wi, &group);
-                    filled = 0;
+                for part in &parts[..count] {
+                    group[filled] = (k, is_light, part.weight);
+                    samplers[filled] = Some((materials[part.material as usize].bsdf.sampler(), part.view));
+                    wi.set(filled, direction);
+                    filled += 1;
+                    if filled == LANES {
+                        flush(vertices, &mut samplers, &wi, &group);
+                        filled = 0;
+                    }
                 }
             }
         }
@@ -222,20 +313,23 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         self.densities();
         let Self { vertices, materials, .. } = self;
         for p in vertices.iter_mut() {
-            let m = &mut materials[p.material as usize];
-            let mut add = |wi: Vec3| {
-                let point = m.bsdf.prepare(p.wo, wi)?;
-                m.points.push(point);
-                Some(Slot {
-                    material: p.material,
-                    point: m.points.len() as u32 - 1,
-                })
+            let (wo, parts) = (p.wo, &p.parts[..p.count as usize]);
+            // Every part's value of `wi` prepared; none where one is zero without evaluation
+            // (below a horizon, the same for every part).
+            let mut add = |wi: Vec3| -> Slots {
+                let mut slots = [Slot { material: 0, point: 0 }; MAX_MIX_PARTS];
+                for (slot, part) in slots.iter_mut().zip(parts) {
+                    let m = &mut materials[part.material as usize];
+                    m.points.push(m.bsdf.prepare(wo, wi)?);
+                    *slot = Slot { material: part.material, point: m.points.len() as u32 - 1 };
+                }
+                Some(slots)
             };
             if let Some(light) = &mut p.light {
-                light.slot = add(light.wi);
+                light.slots = add(light.wi);
             }
             if let Some(sample) = &mut p.sample {
-                sample.slot = if sample.pdf > 0.0 && sample.pdf.is_finite() { add(sample.wi) } else { None };
+                sample.slots = if sample.pdf > 0.0 && sample.pdf.is_finite() { add(sample.wi) } else { None };
             }
         }
         for m in materials.iter_mut() {
@@ -243,13 +337,22 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             m.values.resize(m.points.len(), Rgb::ZERO);
             m.bsdf.eval_prepared(&m.points, &mut m.values);
         }
-        let value = |slot: Slot| materials[slot.material as usize].values[slot.point as usize];
+        // The BSDF's value: its parts' values weighed and summed in order, then tinted (as
+        // `Mixture::eval_pdf`); one part of weight 1 gives its value's bits.
+        let value = |p: &Pending, slots: Slots| -> Option<Rgb> {
+            let slots = slots?;
+            let mut f = Rgb::ZERO;
+            for (part, slot) in p.parts[..p.count as usize].iter().zip(slots) {
+                f += part.weight * materials[slot.material as usize].values[slot.point as usize];
+            }
+            Some(p.tint.map_or(f, |tint| tint * f))
+        };
         for p in vertices.iter() {
             let scattered = Scattered {
-                shadow: p.light.and_then(|l| tracer.light_contribution(&p.sp, p.beta, &l.ls, l.wi, value(l.slot?), l.pdf)),
+                shadow: p.light.and_then(|l| tracer.light_contribution(&p.sp, p.beta, &l.ls, l.wi, value(p, l.slots)?, l.pdf)),
                 next: p
                     .sample
-                    .and_then(|s| continuation(&p.sp, &BsdfSample::new(s.wi, value(s.slot?), s.pdf), p.beta)),
+                    .and_then(|s| continuation(&p.sp, &BsdfSample::new(s.wi, value(p, s.slots)?, s.pdf), p.beta)),
             };
             settle(p.path, p.sp.p, scattered);
         }
@@ -261,5 +364,5 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
 #[inline]
 fn pending_light(tracer: &PathTracer, sp: &SurfacePoint, ls: LightSample) -> Option<PendingLight> {
     let wi = light_direction(sp, &ls, false)?;
-    Some(PendingLight { ls, wi, weighed: tracer.weighs_light_sample(&ls), pdf: 0.0, slot: None })
+    Some(PendingLight { ls, wi, weighed: tracer.weighs_light_sample(&ls), pdf: 0.0, slots: None })
 }

@@ -467,7 +467,8 @@ impl SceneMaterials {
             }
             PreparedParts::Blend { palette, t, channel } => {
                 // NaN → 0.
-                let s = lookup(t)[*channel].max(0.0).min(1.0) * (palette.len() - 1) as f32;
+                let t = lookup(t)[*channel];
+                let s = if t > 0.0 { t.min(1.0) } else { 0.0 } * (palette.len() - 1) as f32;
                 let k = (s as usize).min(palette.len() - 2);
                 let a = s - k as f32;
                 Mixture::new(&[(part(palette.start + k), 1.0 - a), (part(palette.start + k + 1), a)], tint)

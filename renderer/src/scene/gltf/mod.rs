@@ -45,7 +45,16 @@
 //!     path resolved against the glTF file's directory; a binding that does not parse is an
 //!     error naming the file and the material;
 //!   - `{"neural": "NAME"}` → [`SurfaceModel::Bound`]`(`[`Binding::Neural`]`)`, a latent
-//!     code of the material file chosen at render time.
+//!     code of the material file chosen at render time;
+//!   - `{"neural": {...}}` → [`SurfaceModel::Varying`], codes varied by textures (TEXTURE
+//!     is a textureInfo object `{"index": i, "texCoord": 0|1}` with its sampler and
+//!     `KHR_texture_transform`; a code is a latent name or a written [`Binding`]):
+//!     `{"mix": [A, B, ...up to 4], "weights": TEXTURE}` (the exact mixture weighted by the
+//!     texture's R, G, B, A, linear, normalised per texel), `{"blend": [A, B], "t": TEXTURE,
+//!     "channel": 0-3}` (latent codes only: the latent interpolation at t, one channel,
+//!     linear; channel 0 when absent), `{"code": A}`; each takes an optional `"tint":
+//!     TEXTURE` (sRGB) multiplying f_r. Unknown keys, more than four codes, a blend of
+//!     tables, a missing texture or a channel out of range are errors naming the material.
 //! - Perspective cameras instanced by nodes (`yfov`, `aspectRatio`); `camera_to_world` is
 //!   the node's world transform without its scale. A camera is named after the camera
 //!   object, else its node, else `camera<index>`. Orthographic cameras are skipped; a file
