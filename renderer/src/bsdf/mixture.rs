@@ -70,6 +70,8 @@ pub struct Mixture<'a> {
     weights: [f32; MAX_MIX_PARTS],
     count: u8,
     tint: Rgb,
+    /// Whether the integrator draws one part per vertex ([`Mixture::draw`]).
+    drawn: bool,
 }
 
 impl<'a> Mixture<'a> {
@@ -81,7 +83,7 @@ impl<'a> Mixture<'a> {
     /// If `parts` is empty or holds more than [`MAX_MIX_PARTS`].
     pub fn new(parts: &[(Part<'a>, f32)], tint: Rgb) -> Self {
         assert!(!parts.is_empty() && parts.len() <= MAX_MIX_PARTS, "a mixture has 1 to {MAX_MIX_PARTS} parts, not {}", parts.len());
-        let mut mixture = Mixture { parts: [parts[0].0; MAX_MIX_PARTS], weights: [0.0; MAX_MIX_PARTS], count: 0, tint: Rgb::ZERO };
+        let mut mixture = Mixture { parts: [parts[0].0; MAX_MIX_PARTS], weights: [0.0; MAX_MIX_PARTS], count: 0, tint: Rgb::ZERO, drawn: false };
         // NaN to 0 (`clamp` would keep it).
         let unit = |x: f32| if x > 0.0 { x.min(1.0) } else { 0.0 };
         mixture.tint = Rgb::new(unit(tint.x), unit(tint.y), unit(tint.z));
@@ -100,6 +102,34 @@ impl<'a> Mixture<'a> {
             mixture.count = 1;
         }
         mixture
+    }
+
+    /// [`Mixture::new`] of parts close to each other (a latent blend's palette neighbours),
+    /// which the integrator estimates by drawing one part per vertex ([`Mixture::draw`])
+    /// rather than evaluating all: unbiased (the path's contribution is linear in the
+    /// vertex's BSDF), one evaluation per value, a little variance where the parts differ.
+    /// As a [`Bxdf`] it is the same exact mixture.
+    pub fn drawn_per_vertex_of(parts: &[(Part<'a>, f32)], tint: Rgb) -> Self {
+        Mixture { drawn: true, ..Mixture::new(parts, tint) }
+    }
+
+    /// Whether the integrator draws one part per vertex ([`Mixture::drawn_per_vertex_of`]).
+    #[inline]
+    pub fn drawn_per_vertex(&self) -> bool {
+        self.drawn
+    }
+
+    /// The part the 1D sample `uc` chooses (probability its weight, [`Mixture::choose`]), as
+    /// a mixture of that part alone with the tint, and uc rescaled for its own use.
+    #[inline]
+    pub fn draw(&self, uc: f32) -> (Self, f32) {
+        let (k, uc) = self.choose(uc);
+        let mut one = *self;
+        one.parts[0] = self.parts[k];
+        one.weights = [1.0, 0.0, 0.0, 0.0];
+        one.count = 1;
+        one.drawn = false;
+        (one, uc)
     }
 
     /// The parts with their normalised weights (those of weight > 0).

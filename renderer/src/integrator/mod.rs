@@ -287,6 +287,15 @@ impl PathTracer {
         if wo.z <= 0.0 {
             return None;
         }
+        // A latent blend's two palette neighbours: one drawn per vertex in proportion to its
+        // weight (uc, rescaled), an unbiased estimate of their mixture at one network's cost.
+        let (bsdf, uc) = match bsdf {
+            Bsdf::Mixture(m) if m.drawn_per_vertex() => {
+                let (one, uc) = m.draw(uc);
+                (Bsdf::Mixture(one), uc)
+            }
+            _ => (bsdf, uc),
+        };
         Some(Vertex {
             sp,
             bsdf,

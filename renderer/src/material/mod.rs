@@ -163,8 +163,9 @@ enum Kind {
 }
 
 /// Networks decoded along a latent interpolation z(t), t = k / (n − 1) for k = 0 … n − 1:
-/// a `blend` material's BSDF at t mixes the two entries around it, weighted by where t
-/// falls between them. 32 entries: at the midpoints between entries the mixture of the
+/// a `blend` material's BSDF at t is the mixture of the two entries around it, weighted by
+/// where t falls between them (which the integrator estimates by drawing one of the two per
+/// vertex, [`Mixture::drawn_per_vertex_of`]). 32 entries: at the midpoints between entries the mixture of the
 /// neighbours is within the error target of the exact decode (docs/neural-textures.md).
 pub const PALETTE_SIZE: usize = 32;
 
@@ -471,7 +472,7 @@ impl SceneMaterials {
                 let s = if t > 0.0 { t.min(1.0) } else { 0.0 } * (palette.len() - 1) as f32;
                 let k = (s as usize).min(palette.len() - 2);
                 let a = s - k as f32;
-                Mixture::new(&[(part(palette.start + k), 1.0 - a), (part(palette.start + k + 1), a)], tint)
+                Mixture::drawn_per_vertex_of(&[(part(palette.start + k), 1.0 - a), (part(palette.start + k + 1), a)], tint)
             }
         }
     }
