@@ -60,6 +60,14 @@ struct PendingPart {
     view: SamplerView,
 }
 
+/// A vertex's parts ([`Pending`]'s fields) and its BSDF sample's direction, as drawn.
+struct Drawn {
+    parts: [PendingPart; MAX_MIX_PARTS],
+    count: u8,
+    tint: Option<Rgb>,
+    sample: Option<Vec3>,
+}
+
 /// Where the values of a direction are, one per part (`None`: zero, below the horizon).
 type Slots = Option<[Slot; MAX_MIX_PARTS]>;
 
@@ -173,7 +181,7 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         let view = bsdf.sampler().view(v.wo);
         let sample = bsdf.sampler().sample_in(&view, v.u, v.uc);
         let part = PendingPart { material, weight: 1.0, view };
-        self.push_parts(tracer, scene, path, v, beta, ([part; MAX_MIX_PARTS], 1, None), sample);
+        self.push_parts(tracer, scene, path, v, beta, Drawn { parts: [part; MAX_MIX_PARTS], count: 1, tint: None, sample });
     }
 
     /// [`Self::push`] for a vertex whose BSDF is `mixture`; `false` (and nothing pushed)
@@ -199,12 +207,12 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         // As `Mixture::sample`: the part chosen by uc draws the direction.
         let (chosen, uc) = mixture.choose(v.uc);
         let sample = bsdfs[chosen].expect("a part").sampler().sample_in(&parts[chosen].view, v.u, uc);
-        self.push_parts(tracer, scene, path, v, beta, (parts, count, Some(mixture.tint())), sample);
+        self.push_parts(tracer, scene, path, v, beta, Drawn { parts, count, tint: Some(mixture.tint()), sample });
         true
     }
 
-    /// Pushes a vertex with its parts (parts, count, tint) and its BSDF sample's direction.
-    fn push_parts(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, beta: Rgb, (parts, count, tint): ([PendingPart; MAX_MIX_PARTS], u8, Option<Rgb>), sample: Option<Vec3>) {
+    /// Pushes a vertex with its parts and its BSDF sample's direction.
+    fn push_parts(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, beta: Rgb, Drawn { parts, count, tint, sample }: Drawn) {
         // As `PathTracer::light_term` and `Bxdf::sample` of a tabulated BSDF, with the
         // densities (and the values) left to `scatter`.
         let environment_draw = tracer.environment_draw(scene, v);
