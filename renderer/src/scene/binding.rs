@@ -127,15 +127,6 @@ impl Varying {
         };
         form.into_iter().chain(self.tint.as_ref()).collect()
     }
-
-    /// Every binding it names (the ends of a blend as latent codes).
-    pub fn bindings(&self) -> Vec<Binding> {
-        match &self.form {
-            VaryingForm::One(b) => vec![b.clone()],
-            VaryingForm::Mix { parts, .. } => parts.clone(),
-            VaryingForm::Blend { ends, .. } => ends.iter().map(|n| Binding::Neural(n.clone())).collect(),
-        }
-    }
 }
 
 #[cfg(test)]
