@@ -124,6 +124,11 @@ struct Args {
     /// comparing memory and speed with and without two-level acceleration.
     #[arg(long)]
     flatten_instances: bool,
+    /// Report progress as lines `progress F` on stderr (F: the fraction done, 0.000 to
+    /// 1.000, a line whenever another whole per cent is done) instead of the progress bar,
+    /// for programs that run `render` (the Blender add-on).
+    #[arg(long)]
+    progress_lines: bool,
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -201,6 +206,45 @@ struct StatsFile<'a> {
     render: &'a RenderStats,
 }
 
+/// `--progress-lines`: the fraction of a render done, one line per whole per cent.
+struct ProgressLines {
+    /// Samples in the render (or milliseconds of a time budget).
+    total: u64,
+    /// Samples done, and the last per cent printed (+1; 0 = none yet).
+    state: std::sync::Mutex<(u64, u64)>,
+}
+
+impl ProgressLines {
+    fn new(total: u64, done: u64) -> ProgressLines {
+        let lines = ProgressLines { total: total.max(1), state: std::sync::Mutex::new((0, 0)) };
+        lines.set(done);
+        lines
+    }
+
+    /// Counts `n` more samples done (from any thread).
+    fn add(&self, n: u64) {
+        self.update(|done| *done += n);
+    }
+
+    /// Sets the amount done.
+    fn set(&self, amount: u64) {
+        self.update(|done| *done = amount);
+    }
+
+    /// Changes the amount done and prints a line when another whole per cent is done (under
+    /// the lock, so that the lines come in order).
+    fn update(&self, change: impl FnOnce(&mut u64)) {
+        let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        change(&mut state.0);
+        let fraction = (state.0 as f64 / self.total as f64).clamp(0.0, 1.0);
+        let percent = (fraction * 100.0).floor() as u64;
+        if percent + 1 > state.1 {
+            state.1 = percent + 1;
+            eprintln!("progress {fraction:.3}");
+        }
+    }
+}
+
 /// What every render of this invocation shares.
 struct Job<'a> {
     args: &'a Args,
@@ -237,6 +281,7 @@ impl Job<'_> {
             seed: self.args.seed,
         };
         let bar = match self.budget {
+            _ if self.args.progress_lines => ProgressBar::hidden(),
             Budget::Spp(spp) => ProgressBar::new(pixels * spp as u64).with_style(
                 ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {percent}% {per_sec} samples, eta {eta}")
                     .expect("valid template")
@@ -253,9 +298,16 @@ impl Job<'_> {
             None => RenderState::new(width, height, region),
         };
         bar.set_position(pixels * start.samples_done as u64);
+        let lines = self.args.progress_lines.then(|| match self.budget {
+            Budget::Spp(spp) => ProgressLines::new(pixels * spp as u64, pixels * start.samples_done as u64),
+            Budget::Time(t) => ProgressLines::new(t.as_millis() as u64, 0),
+        });
         let progress = |n: u64| {
             if matches!(self.budget, Budget::Spp(_)) {
-                bar.inc(n)
+                bar.inc(n);
+                if let Some(lines) = &lines {
+                    lines.add(n);
+                }
             }
         };
         let mut error_rows = String::new();
@@ -275,6 +327,9 @@ impl Job<'_> {
                 measuring += start.elapsed();
             }
             if matches!(self.budget, Budget::Time(_)) {
+                if let Some(lines) = &lines {
+                    lines.set(elapsed.as_millis() as u64);
+                }
                 bar.set_position(elapsed.as_millis() as u64);
                 bar.set_message(format!("{:.1} spp", film.total_samples() as f64 / pixels as f64));
             }
@@ -541,6 +596,21 @@ fn run_report(args: ReportArgs) -> Result<()> {
     Ok(())
 }
 
+/// `render codes FILE...`: the latent codes of latent files, for pickers (the Blender add-on).
+#[derive(Parser, Debug)]
+#[command(name = "render codes", about = "List the latent codes of latent files: one name a line, in file order, each once")]
+struct CodesArgs {
+    /// Latent files (latent.bin).
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+}
+
+fn run_codes(args: CodesArgs) -> Result<()> {
+    let names = LatentLibrary::load(&args.files)?.names();
+    print!("{}", names.iter().map(|n| format!("{n}\n")).collect::<String>());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     renderer::support::exit_quietly_on_broken_pipe();
     if let Err(e) = renderer::support::cpu::check_build_features() {
@@ -556,6 +626,11 @@ fn main() -> ExitCode {
     } else if subcommand.as_ref().is_some_and(|a| a == "energy") {
         match energy::EnergyArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit) {
             Ok(args) => energy::run(args),
+            Err(code) => return code,
+        }
+    } else if subcommand.as_ref().is_some_and(|a| a == "codes") {
+        match CodesArgs::try_parse_from(std::env::args_os().skip(1)).map_err(clap_exit) {
+            Ok(args) => run_codes(args),
             Err(code) => return code,
         }
     } else if subcommand.as_ref().is_some_and(|a| a == "merge") {
