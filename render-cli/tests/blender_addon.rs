@@ -5,8 +5,9 @@
 //! The add-on test starts Blender twice (`blender` on PATH; `.ci/run` installs Debian's
 //! package): `plugins/blender/tests/addon_scene.py` builds a scene by script, renders it
 //! through the add-on and checks the errors of Esc, a missing binary, a missing latent file
-//! and an unknown code; then `blender -b scene.blend -E NEURAL_BRDF -f 1` renders the saved
-//! scene from the command line. Checked here: both images equal `render` run on the add-on's
+//! and an unknown code; then `blender -b scene.blend -E NEURAL_BRDF -f 1`, with the add-on
+//! installed from the zip that `plugins/blender/make_zip.py` packs, renders the saved scene
+//! from the command line. Checked here: both images equal `render` run on the add-on's
 //! exported glTF bit for bit, binding a code changes the bound sphere's pixels only, and a
 //! glTF exported by hand with a mix of codes renders.
 
@@ -78,16 +79,15 @@ fn progress_lines_count_up_to_one() {
     assert!(!stderr.contains('\r') && !stderr.contains('\u{1b}'), "a bar was drawn: {stderr:?}");
 }
 
-/// Runs Blender; panics with its output when it fails.
-fn blender(args: &[&str], dir: &Path) -> Output {
-    let out = Command::new("blender")
-        .args(args)
+/// Runs a Blender command in `dir`; panics with its output when it fails.
+fn blender(command: &mut Command, dir: &Path) -> Output {
+    let out = command
         .current_dir(dir)
         .output()
         .expect("run blender (Blender 3.4 or later on PATH: apt-get install blender python3-numpy; see .ci/run)");
     assert!(
         out.status.success(),
-        "blender {args:?} failed ({}):\n{}\n{}",
+        "{command:?} failed ({}):\n{}\n{}",
         out.status,
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
@@ -103,15 +103,29 @@ fn blender_addon_renders_like_render_on_its_export() {
     let plugins = repo_file("plugins/blender");
     let script = path(&plugins.join("tests/addon_scene.py"));
     blender(
-        &["-b", "--factory-startup", "--python-exit-code", "1", "--python", &script, "--", binary, &latents, &path(&out)],
+        Command::new("blender").args([
+            "-b", "--factory-startup", "--python-exit-code", "1", "--python", &script, "--", binary, &latents, &path(&out),
+        ]),
         dir.path(),
     );
-    let enable = format!(
-        "import sys, addon_utils; sys.path.insert(0, {:?}); addon_utils.enable('neural_brdf_blender', default_set=True)",
-        path(&plugins)
+    // The second run installs the add-on as a user would, from the zip of make_zip.py, into
+    // a user scripts directory of its own.
+    let zip = dir.path().join("neural_brdf_blender.zip");
+    let made = Command::new("python3").arg(plugins.join("make_zip.py")).arg(&zip).output().expect("run python3");
+    assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
+    let install = format!(
+        "import bpy, addon_utils; bpy.ops.preferences.addon_install(filepath={:?}); \
+         addon_utils.enable('neural_brdf_blender', default_set=True, handle_error=None)",
+        path(&zip)
     );
     let blend = path(&out.join("scene.blend"));
-    blender(&["-b", "--factory-startup", &blend, "--python-expr", &enable, "-E", "NEURAL_BRDF", "-f", "1"], dir.path());
+    let mut command = Command::new("blender");
+    command.env("BLENDER_USER_SCRIPTS", dir.path().join("user-scripts"));
+    blender(
+        command.args(["-b", "--factory-startup", &blend, "--python-expr", &install, "-E", "NEURAL_BRDF", "-f", "1"]),
+        dir.path(),
+    );
+    assert!(dir.path().join("user-scripts/addons/neural_brdf_blender/__init__.py").is_file(), "not installed from the zip");
 
     // `render` on the add-on's export, with the scene's settings: the same pixels.
     let gltf = path(&out.join("bound-export/scene.gltf"));

@@ -28,6 +28,10 @@ from .runner import Cancelled, RenderError
 
 ENGINE = "NEURAL_BRDF"
 
+# Seconds taken by the export and by `render` for the last frame rendered (for scripts that
+# time renders, e.g. assets-scripts/addon_vs_cycles.py).
+last_timings = {}
+
 
 def render_size(engine, scene):
     """The image size Blender asks for (the resolution scaled by its percentage)."""
@@ -141,6 +145,7 @@ class NeuralBrdfRenderEngine(bpy.types.RenderEngine):
         if not os.path.isfile(exr):
             raise RenderError(f"render wrote no image ({exr})")
         self._load(exr, width, height)
+        last_timings.update(export=export_seconds, render=render_seconds)
         print(
             f"Neural BRDF: frame {scene.frame_current}: export {export_seconds:.2f} s, "
             f"render {render_seconds:.2f} s ({directory})"
