@@ -4,12 +4,13 @@
 //!
 //! The add-on test starts Blender twice (`blender` on PATH; `.ci/run` installs Debian's
 //! package): `plugins/blender/tests/addon_scene.py` builds a scene by script, renders it
-//! through the add-on and checks the errors of Esc, a missing binary, a missing latent file
-//! and an unknown code; then `blender -b scene.blend -E NEURAL_BRDF -f 1`, with the add-on
-//! installed from the zip that `plugins/blender/make_zip.py` packs, renders the saved scene
-//! from the command line. Checked here: both images equal `render` run on the add-on's
-//! exported glTF bit for bit, binding a code changes the bound sphere's pixels only, and a
-//! glTF exported by hand with a mix of codes renders.
+//! through the add-on and checks the errors of Esc, a missing binary, a missing latent file,
+//! an unknown code and an incomplete binding; then `blender -b scene.blend -E NEURAL_BRDF -a`,
+//! with the add-on installed from the zip that `plugins/blender/make_zip.py` packs, renders
+//! the saved scene's two frames from the command line. Checked here: the images equal
+//! `render` run on the add-on's exported glTF bit for bit (the sphere moves in frame 2),
+//! binding a code changes the bound sphere's pixels only, and a glTF exported by hand with a
+//! mix of codes renders.
 
 use renderer::formats::image_io::read_image;
 use std::path::{Path, PathBuf};
@@ -122,25 +123,32 @@ fn blender_addon_renders_like_render_on_its_export() {
     let mut command = Command::new("blender");
     command.env("BLENDER_USER_SCRIPTS", dir.path().join("user-scripts"));
     blender(
-        command.args(["-b", "--factory-startup", &blend, "--python-expr", &install, "-E", "NEURAL_BRDF", "-f", "1"]),
+        command.args(["-b", "--factory-startup", &blend, "--python-expr", &install, "-E", "NEURAL_BRDF", "-a"]),
         dir.path(),
     );
     assert!(dir.path().join("user-scripts/addons/neural_brdf_blender/__init__.py").is_file(), "not installed from the zip");
 
-    // `render` on the add-on's export, with the scene's settings: the same pixels.
-    let gltf = path(&out.join("bound-export/scene.gltf"));
-    let direct = render(
-        &[&gltf, "--material", &latents, "--resolution", "64x48", "--spp", "4", "--max-depth", "2", "--seed", "7", "--output", "direct.exr"],
-        dir.path(),
-    );
-    assert!(direct.status.success(), "{}", String::from_utf8_lossy(&direct.stderr));
-    let (w, h, expected) = pixels(&dir.path().join("direct.exr"));
+    // `render` on an export of the add-on with the scene's settings (addon_scene.py's).
+    let render_export = |export: &str, output: &str| {
+        let gltf = path(&out.join(export).join("scene.gltf"));
+        let settings = ["--resolution", "64x48", "--spp", "4", "--max-depth", "2", "--seed", "7"];
+        let run = render(&[&[gltf.as_str(), "--material", &latents, "--output", output][..], &settings[..]].concat(), dir.path());
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        pixels(&dir.path().join(output))
+    };
+    let (w, h, expected) = render_export("bound-export", "direct.exr");
     assert_eq!((w, h), (64, 48));
     for image in ["bound.exr", "frame-0001.exr"] {
         let (iw, ih, through_blender) = pixels(&out.join(image));
         assert_eq!((iw, ih), (w, h), "{image}");
         assert!(through_blender == expected, "{image} differs from render on the add-on's glTF");
     }
+
+    // The animation's frame 2 (the sphere moved) equals `render` on its export, kept in
+    // frame-export/ (the last frame's).
+    let (_, _, frame2) = pixels(&out.join("frame-0002.exr"));
+    assert!(frame2 == render_export("frame-export", "moved.exr").2, "frame 2 differs from render on its export");
+    assert!(frame2 != expected, "the sphere did not move in frame 2");
 
     // Binding the code changes the sphere's pixels and nothing else (direct light only).
     let results: serde_json::Value =
@@ -161,7 +169,10 @@ fn blender_addon_renders_like_render_on_its_export() {
     assert!(changed * 3 > inside, "only {changed} of the {inside} pixels of the sphere's box changed");
 
     // A glTF exported by hand with a mix of two codes and a Lambertian ground renders.
-    let mixed = render(&[&path(&out.join("mix.gltf")), "--material", &latents, "--resolution", "16x12", "--spp", "1", "--output", "mix.exr"], dir.path());
+    let mixed = render(
+        &[&path(&out.join("mix.gltf")), "--material", &latents, "--resolution", "16x12", "--spp", "1", "--output", "mix.exr"],
+        dir.path(),
+    );
     let stderr = String::from_utf8_lossy(&mixed.stderr);
     assert!(mixed.status.success() && !stderr.contains("warning"), "{stderr}");
 }

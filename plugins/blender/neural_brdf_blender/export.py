@@ -292,6 +292,9 @@ def export_scene(depsgraph, path, test_break):
 
     def export():
         start = time.perf_counter()
+        # Evaluate the frame afresh: the exporter reads the objects as the viewport last
+        # evaluated them, which may predate the latest edits of their animation.
+        scene.frame_set(scene.frame_current, subframe=scene.frame_subframe)
         # Command-line renders (`-f 1`) run without a window, whose context the exporter reads.
         override = {"scene": scene, "active_object": None}
         if view_layer is not None:

@@ -13,7 +13,8 @@ OUT_DIR:
 - unbound.exr: the same with no code (Metal renders its glTF parameters);
 - results.json: what the checks found, and "metal_box": the pixel box [x0, y0, x1, y1)
   (top-left origin, ends exclusive) holding the sphere's image;
-- scene.blend: the bound scene, set to write frame 1 to frame-0001.exr (for `-f 1`);
+- scene.blend: the bound scene, its sphere moving to the right in frame 2, set to write
+  frames 1 and 2 to frame-0001.exr and frame-0002.exr (for `-a`);
 - mix.gltf: a File > Export of the scene with the metal a mix of two codes weighted by a
   packed image and the ground Lambertian (a Diffuse BSDF).
 Checks here (an AssertionError fails the run with exit code 1): the errors for Esc
@@ -258,8 +259,14 @@ def main():
     ground = next(m for m in gltf["materials"] if m["name"] == "Ground")
     assert close(ground["pbrMetallicRoughness"]["baseColorFactor"][:3], [0.5, 0.4, 0.3]), ground
 
-    # The bound scene for `blender -b scene.blend -E NEURAL_BRDF -f 1`.
+    # The bound scene for `blender -b scene.blend -E NEURAL_BRDF -a`: frame 1 as above, in
+    # frame 2 the sphere has moved 0.5 m to the right.
     metal.neural_brdf.mode = 'CODE'
+    sphere.keyframe_insert("location", frame=1)
+    sphere.location.x += 0.5
+    sphere.keyframe_insert("location", frame=2)
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.frame_set(1)
     ground_mat.node_tree.links.new(nodes["Principled BSDF"].outputs["BSDF"], nodes["Material Output"].inputs["Surface"])
     settings.export_dir = os.path.join(out, "frame-export")
     scene.render.engine = "BLENDER_EEVEE"  # `-E NEURAL_BRDF` chooses it
