@@ -86,12 +86,12 @@ class NEURAL_BRDF_PT_material(_EnginePanel, bpy.types.Panel):
             box.prop(
                 wm,
                 "neural_brdf_show_codes",
-                text=f"{len(codes)} codes in {bpy.path.basename(settings.latent_file)}",
+                text=f"Codes ({len(codes)})",
                 icon='TRIA_DOWN' if wm.neural_brdf_show_codes else 'TRIA_RIGHT',
                 emboss=False,
             )
             if wm.neural_brdf_show_codes:
-                flow = box.grid_flow(row_major=True, columns=3, even_columns=True, align=True)
+                flow = box.grid_flow(row_major=True, columns=0, even_columns=True, align=True)
                 for code in codes:
                     flow.operator(NEURAL_BRDF_OT_pick_code.bl_idname, text=code, depress=code == binding.code).code = code
 
