@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: MIT
-"""Blender side of render-cli/tests/blender_addon.rs: builds a scene by script, renders it
+"""Blender side of render-cli/tests/cli/blender_addon.rs: builds a scene by script, renders it
 through the add-on and checks its errors. Run by the Rust test as
 
     blender -b --factory-startup --python-exit-code 1 --python plugins/blender/tests/addon_scene.py -- \\

@@ -18,7 +18,7 @@ REPO = pathlib.Path(__file__).resolve().parents[3]
 def _path(variable, default=None):
     value = os.environ.get(variable) or default
     if value is None or not pathlib.Path(value).exists() and not pathlib.Path(str(value) + "_b1.npy").exists():
-        pytest.fail(f"{variable} is not set or does not exist ({value}); run the suite with `cargo test --test python_plugin`")
+        pytest.fail(f"{variable} is not set or does not exist ({value}); run the suite with `cargo test -p neural-brdf-python --test python`")
     return str(value)
 
 

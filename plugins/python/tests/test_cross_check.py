@@ -21,7 +21,7 @@ SPP, RESOLUTION = 64, "128x128"
 def render_bin():
     path = os.environ.get("NEURAL_BRDF_RENDER_BIN")
     if not path or not os.path.isfile(path):
-        pytest.fail("NEURAL_BRDF_RENDER_BIN (the render binary) is not set; run the suite with `cargo test --test python`")
+        pytest.fail("NEURAL_BRDF_RENDER_BIN (the render binary) is not set; run the suite with `cargo test -p neural-brdf-python --test python`")
     return path
 
 

@@ -49,7 +49,7 @@ fn render_with((scene, camera): &(RenderScene, Camera), strategy: Strategy, seed
     render(scene, camera, SIZE, SIZE, SPP, integrator, seed)
 }
 
-/// Re-bless on purpose with `BLESS=1 cargo test --test feature_scene`.
+/// Re-bless on purpose with `BLESS=1 cargo test --test renders -- feature_scene::`.
 #[test]
 fn feature_scene_renders_as_pinned_and_its_estimators_agree() {
     let scene = scene();

@@ -1,7 +1,5 @@
 //! Helpers shared by the `render` command-line tests.
 
-#![allow(dead_code)]
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

@@ -51,7 +51,7 @@ fn render_preview_towards(spp: u32, seed: u64, strategy: Strategy, t: f32) -> Re
 }
 
 /// Re-bless on purpose (after re-training the shipped model) with
-/// `BLESS=1 cargo test --release --test neural_material regression`.
+/// `BLESS=1 cargo test --release --test renders -- neural_material::regression`.
 #[test]
 fn regression_against_reference() {
     CASE.check(|spp, seed| render_preview(spp, seed, Strategy::Mis));

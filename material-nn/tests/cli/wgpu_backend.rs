@@ -2,15 +2,12 @@
 //! the CPU backend does: the same run on both follows the same loss curve. Any Vulkan driver
 //! serves; without a GPU, Mesa's software one (lavapipe, Debian `mesa-vulkan-drivers`):
 //!
-//!     cargo test --release -p material-nn --features wgpu --test wgpu_backend
+//!     cargo test --release -p material-nn --features wgpu --test cli -- wgpu_backend::
 //!
 //! Not part of `cargo test --workspace` (the wgpu stack adds about 10 minutes of build on two
 //! cores); `assets-scripts/wgpu_check.sh` runs it with its set-up.
-#![cfg(feature = "wgpu")]
 
-mod common;
-
-use common::{make_data, path_str, small_config};
+use crate::common::{make_data, path_str, small_config};
 use material_nn::checkpoint::Checkpoint;
 use material_nn::run::RunDir;
 use std::path::Path;

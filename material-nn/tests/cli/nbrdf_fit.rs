@@ -3,9 +3,7 @@
 //! bit-identical, a stop request writes nothing unfinished, and bad input gives one-line
 //! errors with exit code 2.
 
-mod common;
-
-use common::{error_line, make_tables, material_nn, path_str};
+use crate::common::{error_line, make_tables, material_nn, path_str};
 use material_nn::nbrdf_fit::{self, FitConfig, FitOutcome, FitSummary};
 use renderer::analytic::AnalyticBrdf;
 use renderer::neural::latent_library::LatentLibrary;

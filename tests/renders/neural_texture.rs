@@ -4,7 +4,7 @@
 //!
 //! The palette's error at the midpoints between its entries, against exact decodes at 1,024
 //! spp, is measured by the ignored test `palette_error_at_midpoints`:
-//! `cargo test --release -p neural-brdf-tests --test neural_texture -- --ignored --nocapture`.
+//! `cargo test --release -p neural-brdf-tests --test renders -- neural_texture:: --ignored --nocapture`.
 
 use neural_brdf_tests::{image_mean_z, mean_rgb, pinned, render, Rendered};
 use renderer::formats::image_io::ToneMap;

@@ -1,7 +1,5 @@
 //! Helpers shared by the material-nn command-line tests.
 
-#![allow(dead_code)]
-
 use material_nn::checkpoint::Checkpoint;
 use material_nn::config::{FreConfig, ModelConfig, TrainConfig};
 use material_nn::run::load_model;

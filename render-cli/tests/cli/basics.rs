@@ -2,9 +2,7 @@
 //! of bad input gives a one-line error naming the file or flag, exit code 2, no panic, and
 //! no output file.
 
-mod common;
-
-use common::{assert_clean_failure, cornell_box, render, write};
+use crate::common::{assert_clean_failure, cornell_box, render, write};
 use std::path::Path;
 use std::process::Command;
 

@@ -1,8 +1,6 @@
 //! `render report CONFIG.toml` end to end on a tiny configuration, and its bad-input errors.
 
-mod common;
-
-use common::{assert_clean_failure, render, repo_file};
+use crate::common::{assert_clean_failure, render, repo_file};
 use renderer::formats::merl::MerlTable;
 use renderer::neural::nbrdf::NbrdfNetwork;
 

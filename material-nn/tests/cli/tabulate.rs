@@ -1,8 +1,6 @@
 //! The `material-nn tabulate` command line: outputs, and one-line errors with exit code 2.
 
-mod common;
-
-use common::{error_line, path_str};
+use crate::common::{error_line, path_str};
 use std::path::PathBuf;
 use std::process::{Command, Output};
 

@@ -40,7 +40,7 @@ const CASE: Case = Case {
 /// Compares a 48² render at 64 spp with the committed reference (4096 spp) by per-pixel
 /// Z-tests at α = 0.01 with Šidák's correction; ≥ 99.75 % of pixel channels must pass,
 /// and the image means must agree.
-/// Re-bless on purpose with `BLESS=1 cargo test --test cornell_box regression` (see
+/// Re-bless on purpose with `BLESS=1 cargo test --test renders -- cornell_box::regression` (see
 /// tests/README.md).
 #[test]
 fn regression_against_reference() {

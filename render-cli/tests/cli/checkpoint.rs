@@ -4,9 +4,7 @@
 
 #![cfg(unix)]
 
-mod common;
-
-use common::{assert_clean_failure, cornell_box, render, repo_file};
+use crate::common::{assert_clean_failure, cornell_box, render, repo_file};
 use renderer::formats::image_io::read_image;
 use renderer::formats::image_part::ImagePart;
 use std::path::Path;

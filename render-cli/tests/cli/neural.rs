@@ -1,9 +1,7 @@
 //! `render --material latent.bin`: binding latent codes (extras, equal names, `--bind`),
 //! editing sweeps, and clean errors for bad latent files and names.
 
-mod common;
-
-use common::{assert_clean_failure, render, repo_file};
+use crate::common::{assert_clean_failure, render, repo_file};
 use renderer::formats::merl::MerlTable;
 use renderer::neural::nbrdf::NbrdfNetwork;
 use std::path::Path;
@@ -85,7 +83,7 @@ fn bad_latent_files_and_names_fail_cleanly() {
         (vec!["--material", &latents, "--bind", "preview=alum-bronze", "--sweep", "alum-bronze:nothing:3"], vec!["nothing"]),
         (vec!["--material", &latents, "--sweep", "alum-bronze:chrome:1"], vec!["--sweep"]),
     ];
-    let cornell = common::cornell_box().to_string_lossy().into_owned();
+    let cornell = crate::common::cornell_box().to_string_lossy().into_owned();
     let out = render(
         &[&cornell, "--material", &latents, "--sweep", "alum-bronze:chrome:3", "--output", "out"],
         dir.path(),

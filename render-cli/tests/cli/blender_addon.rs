@@ -12,19 +12,10 @@
 //! binding a code changes the bound sphere's pixels only, and a glTF exported by hand with a
 //! mix of codes renders.
 
+use crate::common::{render, repo_file};
 use renderer::formats::image_io::read_image;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
-
-/// Runs `render` with `args` in `dir`.
-fn render(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_render")).args(args).current_dir(dir).output().expect("run render")
-}
-
-/// A file of the repository.
-fn repo_file(relative: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(relative)
-}
 
 fn path(p: &Path) -> String {
     p.to_string_lossy().into_owned()

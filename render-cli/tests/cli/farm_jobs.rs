@@ -3,9 +3,7 @@
 //! implementation AWS Deadline Cloud's workers use; `.ci/run` installs it), and the result
 //! equals the same render done in one process.
 
-mod common;
-
-use common::{render, repo_file};
+use crate::common::{render, repo_file};
 use renderer::formats::image_io::read_image;
 use std::path::Path;
 use std::process::Command;

@@ -2,9 +2,7 @@
 //! the merged image equals the whole render, and parts that cannot make one image are
 //! refused with one line naming the file.
 
-mod common;
-
-use common::{assert_clean_failure, render, repo_file};
+use crate::common::{assert_clean_failure, render, repo_file};
 use renderer::formats::image_io::read_image;
 use std::path::Path;
 
