@@ -89,6 +89,11 @@ def arrays(draw, rows=None, columns=None, unit_like=False):
         norm = np.linalg.norm(v, axis=1, keepdims=True)
         v = np.where(norm > 1e-3, v / np.maximum(norm, 1e-3), [0.0, 0.0, 1.0])
         a = v.astype(dtype)
+    elif draw(st.booleans()):
+        # Raw bytes: every bit pattern (NaN payloads, infinities, subnormals), cheaply.
+        size = int(np.prod(shape)) * dtype.itemsize
+        raw = np.frombuffer(draw(st.binary(min_size=size, max_size=size)), dtype=np.uint8)
+        a = (raw != 0).reshape(shape) if dtype.kind == "b" else raw.view(dtype).reshape(shape).copy()
     else:
         a = draw(hnp.arrays(dtype, shape, elements=_values(dtype)))
     layout = draw(st.sampled_from(["contiguous", "fortran", "strided", "reversed", "transposed"]))
@@ -112,7 +117,7 @@ def _as_f32(a):
         warnings.simplefilter("ignore")
         with np.errstate(all="ignore"):
             try:
-                return np.ascontiguousarray(a, dtype=np.float32)
+                return np.array(a, dtype=np.float32, order="C")
             except REFUSED:
                 return None
 
