@@ -8,6 +8,7 @@ mod cornell_box;
 mod estimators;
 mod feature_scene;
 mod glass;
+mod glass_and_coats;
 mod layers;
 mod neural_material;
 mod neural_texture;
