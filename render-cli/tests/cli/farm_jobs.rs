@@ -134,7 +134,7 @@ fn an_interrupted_tile_task_resumes_from_its_checkpoint() {
     let start = std::time::Instant::now();
     while !checkpoint.exists() {
         assert!(child.try_wait().expect("wait").is_none(), "the task ended before its first checkpoint");
-        assert!(start.elapsed().as_secs() < 60, "no checkpoint after 60 s");
+        assert!(start.elapsed().as_secs() < 600, "no checkpoint after 600 s (a guard against hanging only)");
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
     let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill");
