@@ -537,6 +537,12 @@ impl Bxdf for Dielectric {
     fn transmits(&self) -> bool {
         true
     }
+
+    /// [`Self::is_smooth`].
+    #[inline]
+    fn is_delta(&self) -> bool {
+        self.is_smooth()
+    }
 }
 
 #[cfg(test)]

@@ -158,6 +158,10 @@ impl Bxdf for Base<'_> {
     fn transmits(&self) -> bool {
         dispatch_base!(self, b => b.transmits())
     }
+    #[inline]
+    fn is_delta(&self) -> bool {
+        dispatch_base!(self, b => b.is_delta())
+    }
 }
 
 impl<'a> Base<'a> {
@@ -232,7 +236,13 @@ impl<'a> Layered<'a> {
     /// Value and density given the lobe choice.
     #[inline]
     fn eval_pdf_with(&self, at: Choice, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        let (fb, pb) = self.base.eval_pdf(wo, wi);
+        self.layer(at, wo, wi, self.base.eval_pdf(wo, wi))
+    }
+
+    /// Value and density given the lobe choice and the base's value and density `(fb, pb)`
+    /// at (`wo`, `wi`).
+    #[inline]
+    fn layer(&self, at: Choice, wo: Vec3, wi: Vec3, (fb, pb): (Rgb, f32)) -> (Rgb, f32) {
         let mut below = fb;
         let mut pdf = (1.0 - at.p_coat - at.p_sheen) * pb;
         if let Some(sheen) = &self.sheen {
@@ -291,6 +301,12 @@ impl Bxdf for Layered<'_> {
                 let f = s.f * (scaling * (1.0 - at.coat_reflectance));
                 return Some(BsdfSample { f, pdf: s.pdf * p_base, ..s });
             }
+            if let Base::Merl(_) | Base::Nbrdf(_) | Base::Neural(_) = self.base {
+                // A tabulated base's sample carries its value and density at wi, the same
+                // bits as its eval_pdf: no second look-up or network pass.
+                let (f, pdf) = self.layer(at, wo, s.wi, (s.f, s.pdf));
+                return (pdf > 0.0 && pdf.is_finite() && f.is_finite()).then_some(BsdfSample::new(s.wi, f, pdf));
+            }
             s.wi
         };
         let (f, pdf) = self.eval_pdf_with(at, wo, wi);
@@ -299,6 +315,10 @@ impl Bxdf for Layered<'_> {
 
     fn transmits(&self) -> bool {
         self.base.transmits()
+    }
+
+    fn is_delta(&self) -> bool {
+        self.sheen.is_none() && self.coat.is_none() && self.base.is_delta()
     }
 }
 
@@ -400,6 +420,38 @@ mod tests {
         // Far from the mirror direction the sharp coat's lobe adds only its GGX tail.
         assert!((coated.eval(wo, wi) - expected).abs().max_element() < 1e-3 * expected.max_element(), "{} vs {expected}", coated.eval(wo, wi));
         assert!((coat.reflectance(Vec3::Z) - 0.8 * 0.04).abs() < 1e-7);
+    }
+
+    /// Over a tabulated base (a decoded neural code) the base's draws reuse the value and
+    /// density the base's sample carries instead of evaluating the network again: every
+    /// sample, the coat's and the sheen's draws too, is `eval_pdf` at its direction bit for
+    /// bit.
+    #[test]
+    fn samples_over_a_tabulated_base_are_eval_pdf_bit_for_bit() {
+        let neural = crate::testing::data::shipped_latents().decode("alum-bronze").unwrap();
+        let bsdf = Layered::new(Base::Neural(&neural), Some(Sheen::new(Rgb::splat(0.3), 0.5)), Some(Coat::new(1.0, 0.1, Vec3::Z)));
+        let wo = unit(35.0, 0.4);
+        let mut drawn = 0;
+        for k in 0..500 {
+            let u = Vec2::new((k as f32 * 0.618_034).fract(), (k as f32 * 0.414_214).fract());
+            if let Some(s) = bsdf.sample(wo, u, (k as f32 + 0.5) / 500.0) {
+                assert_eq!((s.f, s.pdf), bsdf.eval_pdf(wo, s.wi), "sample {k}");
+                drawn += 1;
+            }
+        }
+        assert!(drawn > 400, "{drawn} of 500 drawn");
+    }
+
+    /// Only a smooth dielectric alone is all delta lobes: a rough one, an opaque part or a
+    /// layer above it has values that next-event estimation needs.
+    #[test]
+    fn only_smooth_glass_alone_is_delta() {
+        let glass = |roughness, transmission| Transmission::new(Rgb::ONE, 0.0, roughness, transmission, (Rgb::splat(0.04), 1.0), Dielectric::new(1.5, roughness));
+        assert!(glass(0.0, 1.0).is_delta() && Bsdf::Transmission(glass(0.0, 1.0)).is_delta());
+        assert!(!glass(0.3, 1.0).is_delta() && !glass(0.0, 0.5).is_delta());
+        assert!(Layered::new(Base::Transmission(glass(0.0, 1.0)), None, None).is_delta());
+        assert!(!Layered::new(Base::Transmission(glass(0.0, 1.0)), None, Some(Coat::new(1.0, 0.1, Vec3::Z))).is_delta());
+        assert!(!Bsdf::Lambert(Lambert::new(Rgb::ONE)).is_delta());
     }
 
     /// A smooth glass base under a coat: its delta samples carry the coat's transmittance

@@ -94,6 +94,13 @@ pub trait Bxdf {
     fn transmits(&self) -> bool {
         false
     }
+
+    /// Whether every lobe is a delta lobe (smooth glass alone): `eval` and `pdf` are zero
+    /// for every pair of directions, so next-event estimation cannot contribute and is
+    /// skipped (pbrt-v4's `IsNonSpecular`, negated).
+    fn is_delta(&self) -> bool {
+        false
+    }
 }
 
 /// The formulas of a BxDF written once over [`Real`] values: for one shading point (`f32`,
@@ -202,5 +209,9 @@ impl Bxdf for Bsdf<'_> {
     #[inline]
     fn transmits(&self) -> bool {
         dispatch!(self, b => b.transmits())
+    }
+    #[inline]
+    fn is_delta(&self) -> bool {
+        dispatch!(self, b => b.is_delta())
     }
 }

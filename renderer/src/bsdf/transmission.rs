@@ -102,6 +102,10 @@ impl Bxdf for Transmission {
     fn transmits(&self) -> bool {
         true
     }
+
+    fn is_delta(&self) -> bool {
+        self.opaque_weight() == 0.0 && self.glass.is_smooth()
+    }
 }
 
 impl<'a> From<Transmission> for Bsdf<'a> {

@@ -312,9 +312,12 @@ impl PathTracer {
     #[inline(always)]
     fn scatter(&self, scene: &RenderScene, vertex: &Vertex, beta: Rgb) -> Scattered {
         let Vertex { sp, bsdf, wo, u, uc, .. } = *vertex;
-        let shadow = self
-            .light_sample(scene, vertex)
-            .and_then(|ls| self.light_term(&bsdf, &sp, wo, beta, &ls));
+        // A BSDF of delta lobes alone (smooth glass) has no value toward a light sample.
+        let shadow = if bsdf.is_delta() {
+            None
+        } else {
+            self.light_sample(scene, vertex).and_then(|ls| self.light_term(&bsdf, &sp, wo, beta, &ls))
+        };
         let next = bsdf.sample(wo, u, uc).and_then(|bs| {
             let mut next = continuation(&sp, &bs, beta)?;
             if bs.wi.z < 0.0 {
