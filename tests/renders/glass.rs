@@ -13,7 +13,7 @@ use renderer::Rgb;
 
 /// Clear glass as glTF describes it: transmission 1 on a white dielectric of `roughness`
 /// and index `ior`, solid (a volume with `sigma_a`) or thin-walled.
-fn glass(roughness: f32, ior: f32, volume: Option<Volume>) -> Material {
+pub(crate) fn glass(roughness: f32, ior: f32, volume: Option<Volume>) -> Material {
     Material {
         model: SurfaceModel::MetallicRoughness,
         base_color: Rgb::ONE,

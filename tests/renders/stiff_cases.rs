@@ -139,17 +139,7 @@ fn glass_coats_and_neural_mixtures_stay_finite_under_a_tiny_bright_emitter() {
     use renderer::scene::{Binding, Clearcoat, SheenLayer, Texture, TextureRef, Varying, VaryingForm, Volume};
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let latents = LatentLibrary::load(&[root.join("scenes/materials/latent.bin")]).expect("shipped latents");
-    let glass = |roughness: f32, ior: f32, volume: Option<Volume>| Material {
-        model: SurfaceModel::MetallicRoughness,
-        base_color: Rgb::ONE,
-        metallic: 0.0,
-        roughness,
-        ior,
-        transmission: 1.0,
-        volume,
-        double_sided: false,
-        ..Material::default_diffuse("glass")
-    };
+    use crate::glass::glass;
     let clear = Volume::from_attenuation(Rgb::ONE, f32::INFINITY);
     let coat = |roughness: f32| Some(Clearcoat { factor: 1.0, texture: None, roughness, roughness_texture: None, normal_texture: None });
     let sheen = |roughness: f32| Some(SheenLayer { color: Rgb::ONE, color_texture: None, roughness, roughness_texture: None });
