@@ -561,6 +561,10 @@ mod tests {
             SmoothGlass,
             /// Metallic-roughness under a sheen and a clear coat (one by one).
             Layered,
+            /// The decoded neural material under a sheen and a clear coat (in its batch).
+            LayeredNeural,
+            /// A MERL table under a clear coat (in its batch).
+            CoatedMerl,
         }
         let cases = [
             ("cornell-box", 8, Strategy::Mis, Sphere::Gltf, false),
@@ -585,6 +589,10 @@ mod tests {
             ("material-preview", 8, Strategy::LightOnly, Sphere::SmoothGlass, false),
             ("material-preview", 8, Strategy::BsdfOnly, Sphere::SmoothGlass, false),
             ("material-preview", 6, Strategy::Mis, Sphere::Layered, false),
+            ("material-preview", 6, Strategy::Mis, Sphere::LayeredNeural, false),
+            ("material-preview", 5, Strategy::LightOnly, Sphere::LayeredNeural, false),
+            ("material-preview", 5, Strategy::BsdfOnly, Sphere::LayeredNeural, true),
+            ("material-preview", 6, Strategy::Mis, Sphere::CoatedMerl, false),
         ];
         for (name, max_depth, strategy, sphere, constant_environment) in cases {
             let mut description = crate::testing::data::shipped_scene(name);
@@ -593,11 +601,13 @@ mod tests {
                 spec.source = crate::scene::EnvironmentSource::Constant(Rgb::new(0.9, 1.0, 1.2));
             }
             let camera = description.camera(None).expect("camera").clone();
-            if matches!(sphere, Sphere::Glass | Sphere::SmoothGlass | Sphere::Layered) {
+            if matches!(sphere, Sphere::Glass | Sphere::SmoothGlass | Sphere::Layered | Sphere::LayeredNeural | Sphere::CoatedMerl) {
                 let m = description.materials.iter_mut().find(|m| m.name == "preview").expect("the preview material");
-                if sphere == Sphere::Layered {
+                if matches!(sphere, Sphere::Layered | Sphere::LayeredNeural | Sphere::CoatedMerl) {
                     m.clearcoat = Some(crate::scene::Clearcoat { factor: 0.8, texture: None, roughness: 0.1, roughness_texture: None, normal_texture: None });
-                    m.sheen = Some(crate::scene::SheenLayer { color: Rgb::new(0.6, 0.5, 0.7), color_texture: None, roughness: 0.4, roughness_texture: None });
+                    if sphere != Sphere::CoatedMerl {
+                        m.sheen = Some(crate::scene::SheenLayer { color: Rgb::new(0.6, 0.5, 0.7), color_texture: None, roughness: 0.4, roughness_texture: None });
+                    }
                 } else {
                     m.transmission = 1.0;
                     m.metallic = 0.0;
@@ -611,8 +621,8 @@ mod tests {
             };
             let mut scene = RenderScene::with_latents(description, latents).expect("scene");
             let slots = scene.materials.neural_slots();
-            assert_eq!(slots.len(), matches!(sphere, Sphere::Neural | Sphere::Merl | Sphere::Nbrdf) as usize, "{name}: the sphere's neural binding");
-            if sphere == Sphere::Merl {
+            assert_eq!(slots.len(), matches!(sphere, Sphere::Neural | Sphere::Merl | Sphere::Nbrdf | Sphere::LayeredNeural | Sphere::CoatedMerl) as usize, "{name}: the sphere's neural binding");
+            if matches!(sphere, Sphere::Merl | Sphere::CoatedMerl) {
                 let table = crate::testing::bsdfs::merl_fitted_table("alum-bronze");
                 let merl = crate::bsdf::merl::MerlBsdf::new(&table, Default::default(), &Default::default());
                 scene.materials.set_shared(slots[0], crate::material::SharedBsdf::Merl(merl));

@@ -180,48 +180,66 @@ impl<'a> Base<'a> {
     }
 }
 
-/// A base BSDF under a sheen and a clear coat (see the module documentation).
+/// The layers above a base: a sheen and a clear coat (either may be absent). Their value
+/// and density need only the base's value and density at the same pair of directions, so a
+/// renderer that evaluates many bases together (the deferred batch of decoded networks and
+/// tables) layers them afterwards with the same [`Layers::layer`].
 #[derive(Clone, Copy, Debug)]
-pub struct Layered<'a> {
-    base: Base<'a>,
+pub struct Layers {
     sheen: Option<Sheen>,
     coat: Option<Coat>,
 }
 
-/// The lobe probabilities of [`Layered`] for one `wo`: coat, sheen (the base has the rest).
+/// The lobe probabilities of [`Layers`] for one `wo`: coat, sheen (the base has the rest).
 #[derive(Clone, Copy, Debug)]
-struct Choice {
+pub struct Choice {
     /// c F_c(μo) (0 without a coat).
     coat_reflectance: f32,
     p_coat: f32,
     p_sheen: f32,
 }
 
-impl<'a> Layered<'a> {
-    /// `base` under `sheen` and `coat` (either may be absent; a black sheen or a coat of
-    /// weight 0 is left out).
-    pub fn new(base: Base<'a>, sheen: Option<Sheen>, coat: Option<Coat>) -> Self {
-        Layered {
-            base,
+impl Choice {
+    /// The probability of drawing from the base.
+    #[inline]
+    pub fn p_base(&self) -> f32 {
+        1.0 - self.p_coat - self.p_sheen
+    }
+}
+
+/// The lobe [`Layers::draw`] chose for a sample.
+#[derive(Clone, Copy, Debug)]
+pub enum Draw {
+    /// A layer's direction (base local frame; `None`: the coat could not draw one).
+    Layer(Option<Vec3>),
+    /// The base draws the direction, with this lobe-choice number (`uc` rescaled to [0, 1)).
+    Base(f32),
+}
+
+impl Layers {
+    /// A sheen and a coat (a black sheen or a coat of weight 0 is left out).
+    pub fn new(sheen: Option<Sheen>, coat: Option<Coat>) -> Self {
+        Layers {
             sheen: sheen.filter(|s| !s.is_black()),
             coat: coat.filter(|c| c.weight > 0.0),
         }
     }
 
-    /// The base.
-    pub fn base(&self) -> &Base<'a> {
-        &self.base
+    /// Whether there is no layer at all.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.sheen.is_none() && self.coat.is_none()
     }
 
-    /// What the layers above the base let through toward `wo`: 1 − c F_c(μo) (emission from
-    /// under a clear coat is darkened by it, as the specification says).
+    /// What the layers let through toward `wo`: 1 − c F_c(μo).
     #[inline]
     pub fn coat_transmittance(&self, wo: Vec3) -> f32 {
         1.0 - self.coat.map_or(0.0, |c| c.reflectance(wo))
     }
 
+    /// The lobe probabilities for `wo` (z > 0).
     #[inline]
-    fn choice(&self, wo: Vec3) -> Choice {
+    pub fn choice(&self, wo: Vec3) -> Choice {
         let (coat_reflectance, p_coat) = match &self.coat {
             Some(c) => {
                 let r = c.reflectance(wo);
@@ -233,18 +251,24 @@ impl<'a> Layered<'a> {
         Choice { coat_reflectance, p_coat, p_sheen }
     }
 
-    /// Value and density given the lobe choice.
+    /// Picks the lobe of a sample by `uc` and draws a layer's direction from `u`.
     #[inline]
-    fn eval_pdf_with(&self, at: Choice, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        self.layer(at, wo, wi, self.base.eval_pdf(wo, wi))
+    pub fn draw(&self, at: Choice, wo: Vec3, u: Vec2, uc: f32) -> Draw {
+        if uc < at.p_coat {
+            Draw::Layer(self.coat.as_ref().and_then(|c| c.sample(wo, u)))
+        } else if uc < at.p_coat + at.p_sheen {
+            Draw::Layer(Some(sample_cosine_hemisphere(u)))
+        } else {
+            Draw::Base(((uc - at.p_coat - at.p_sheen) / at.p_base()).min(1.0 - f32::EPSILON / 2.0))
+        }
     }
 
-    /// Value and density given the lobe choice and the base's value and density `(fb, pb)`
-    /// at (`wo`, `wi`).
+    /// The layered value (1/sr) and density (1/sr) at (`wo`, `wi`) given the lobe choice and
+    /// the base's value and density `(fb, pb)` there.
     #[inline]
-    fn layer(&self, at: Choice, wo: Vec3, wi: Vec3, (fb, pb): (Rgb, f32)) -> (Rgb, f32) {
+    pub fn layer(&self, at: Choice, wo: Vec3, wi: Vec3, (fb, pb): (Rgb, f32)) -> (Rgb, f32) {
         let mut below = fb;
-        let mut pdf = (1.0 - at.p_coat - at.p_sheen) * pb;
+        let mut pdf = at.p_base() * pb;
         if let Some(sheen) = &self.sheen {
             below = fb * sheen.base_scaling(wo.z, wi.z.abs());
             if wi.z > 0.0 {
@@ -259,6 +283,60 @@ impl<'a> Layered<'a> {
             pdf += at.p_coat * pc;
         }
         (f, pdf)
+    }
+
+    /// A delta sample `s` of the base (smooth glass) through the layers: its value carries
+    /// the layers' weights, its probability that of choosing the base.
+    #[inline]
+    pub fn pass_delta(&self, at: Choice, wo: Vec3, s: BsdfSample) -> BsdfSample {
+        let scaling = self.sheen.map_or(1.0, |sh| sh.base_scaling(wo.z, s.wi.z.abs()));
+        let f = s.f * (scaling * (1.0 - at.coat_reflectance));
+        BsdfSample { f, pdf: s.pdf * at.p_base(), ..s }
+    }
+}
+
+/// A sample's value and density as [`Bxdf::sample`] keeps them: `None` unless the density is
+/// positive and finite and the value finite.
+#[inline]
+pub fn checked_sample(wi: Vec3, (f, pdf): (Rgb, f32)) -> Option<BsdfSample> {
+    (pdf > 0.0 && pdf.is_finite() && f.is_finite()).then_some(BsdfSample::new(wi, f, pdf))
+}
+
+/// A base BSDF under a sheen and a clear coat (see the module documentation).
+#[derive(Clone, Copy, Debug)]
+pub struct Layered<'a> {
+    base: Base<'a>,
+    layers: Layers,
+}
+
+impl<'a> Layered<'a> {
+    /// `base` under `sheen` and `coat` (either may be absent; a black sheen or a coat of
+    /// weight 0 is left out).
+    pub fn new(base: Base<'a>, sheen: Option<Sheen>, coat: Option<Coat>) -> Self {
+        Layered { base, layers: Layers::new(sheen, coat) }
+    }
+
+    /// The base.
+    pub fn base(&self) -> &Base<'a> {
+        &self.base
+    }
+
+    /// The layers above the base.
+    pub fn layers(&self) -> &Layers {
+        &self.layers
+    }
+
+    /// What the layers above the base let through toward `wo`: 1 − c F_c(μo) (emission from
+    /// under a clear coat is darkened by it, as the specification says).
+    #[inline]
+    pub fn coat_transmittance(&self, wo: Vec3) -> f32 {
+        self.layers.coat_transmittance(wo)
+    }
+
+    /// Value and density given the lobe choice.
+    #[inline]
+    fn eval_pdf_with(&self, at: Choice, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        self.layers.layer(at, wo, wi, self.base.eval_pdf(wo, wi))
     }
 }
 
@@ -278,39 +356,30 @@ impl Bxdf for Layered<'_> {
         if wo.z <= 0.0 {
             return (Rgb::ZERO, 0.0);
         }
-        self.eval_pdf_with(self.choice(wo), wo, wi)
+        self.eval_pdf_with(self.layers.choice(wo), wo, wi)
     }
 
     fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
         if wo.z <= 0.0 {
             return None;
         }
-        let at = self.choice(wo);
-        let p_base = 1.0 - at.p_coat - at.p_sheen;
-        let rescale = |x: f32, p: f32| (x / p).min(1.0 - f32::EPSILON / 2.0);
-        let wi = if uc < at.p_coat {
-            self.coat.as_ref()?.sample(wo, u)?
-        } else if uc < at.p_coat + at.p_sheen {
-            sample_cosine_hemisphere(u)
-        } else {
-            let s = self.base.sample(wo, u, rescale(uc - at.p_coat - at.p_sheen, p_base))?;
-            if s.delta {
-                // A delta lobe of the base (smooth glass): its value through the layers, and
-                // its probability times that of choosing the base.
-                let scaling = self.sheen.map_or(1.0, |sh| sh.base_scaling(wo.z, s.wi.z.abs()));
-                let f = s.f * (scaling * (1.0 - at.coat_reflectance));
-                return Some(BsdfSample { f, pdf: s.pdf * p_base, ..s });
+        let at = self.layers.choice(wo);
+        let wi = match self.layers.draw(at, wo, u, uc) {
+            Draw::Layer(wi) => wi?,
+            Draw::Base(uc) => {
+                let s = self.base.sample(wo, u, uc)?;
+                if s.delta {
+                    return Some(self.layers.pass_delta(at, wo, s));
+                }
+                if let Base::Merl(_) | Base::Nbrdf(_) | Base::Neural(_) = self.base {
+                    // A tabulated base's sample carries its value and density at wi, the
+                    // same bits as its eval_pdf: no second look-up or network pass.
+                    return checked_sample(s.wi, self.layers.layer(at, wo, s.wi, (s.f, s.pdf)));
+                }
+                s.wi
             }
-            if let Base::Merl(_) | Base::Nbrdf(_) | Base::Neural(_) = self.base {
-                // A tabulated base's sample carries its value and density at wi, the same
-                // bits as its eval_pdf: no second look-up or network pass.
-                let (f, pdf) = self.layer(at, wo, s.wi, (s.f, s.pdf));
-                return (pdf > 0.0 && pdf.is_finite() && f.is_finite()).then_some(BsdfSample::new(s.wi, f, pdf));
-            }
-            s.wi
         };
-        let (f, pdf) = self.eval_pdf_with(at, wo, wi);
-        (pdf > 0.0 && pdf.is_finite() && f.is_finite()).then_some(BsdfSample::new(wi, f, pdf))
+        checked_sample(wi, self.eval_pdf_with(at, wo, wi))
     }
 
     fn transmits(&self) -> bool {
@@ -318,7 +387,7 @@ impl Bxdf for Layered<'_> {
     }
 
     fn is_delta(&self) -> bool {
-        self.sheen.is_none() && self.coat.is_none() && self.base.is_delta()
+        self.layers.is_empty() && self.base.is_delta()
     }
 }
 

@@ -5,7 +5,7 @@
 //! surface points, elsewhere begun one by one), those on decoded neural
 //! materials, NBRDF networks and MERL tables with their values evaluated together after all
 //! were sampled ([`DeferredScatter`]: one batched forward pass per net, table entries
-//! prefetched), the others (transmitting and layered surfaces) one by one. Each vertex's path is advanced as soon as its
+//! prefetched), layers over those joining their base's batch, the others (transmitting surfaces and layers over analytic bases) one by one. Each vertex's path is advanced as soon as its
 //! vertex is scattered (a lane group's paths right after the group), while its result is
 //! still in cache.
 
@@ -148,6 +148,8 @@ impl PathTracer {
                     Bsdf::Merl(b) => merl.push(self, scene, i, &v, b, beta),
                     // A mixture of one kind of parts joins their batch; of several, one by one.
                     Bsdf::Mixture(m) if neural.push_mixture(self, scene, i, &v, &m, beta) || nbrdf.push_mixture(self, scene, i, &v, &m, beta) || merl.push_mixture(self, scene, i, &v, &m, beta) => {}
+                    // Layers over such a base (or mixture) join the base's batch.
+                    Bsdf::Layered(l) if neural.push_layered(self, scene, i, &v, &l, beta) || nbrdf.push_layered(self, scene, i, &v, &l, beta) || merl.push_layered(self, scene, i, &v, &l, beta) => {}
                     Bsdf::Transmission(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => {
                         let scattered = self.scatter(scene, &v, beta);
                         self.settle(paths, results, i, v.sp.p, scattered);

@@ -16,6 +16,7 @@ use super::{continuation, light_direction, PathTracer, Scattered, Vertex};
 use crate::bsdf::tabulated_sampling::{SamplerView, TabulatedBrdf, TabulatedSampler};
 use crate::lanes::{Vec2s, Vec3s, LANES};
 use crate::lights::environment::Environment;
+use crate::bsdf::layered::{checked_sample, Base, Choice, Draw, Layered, Layers};
 use crate::bsdf::mixture::{Mixture, Part};
 use crate::bsdf::{BatchEval, BsdfSample};
 use crate::scene::MAX_MIX_PARTS;
@@ -44,6 +45,9 @@ struct Pending {
     parts: [PendingPart; MAX_MIX_PARTS],
     count: u8,
     tint: Option<Rgb>,
+    /// The layers above the parts ([`Layered`]) and their lobe choice at wo: the vertex's
+    /// value and density are theirs over the parts' (`None`: no layers).
+    layers: Option<(Layers, Choice)>,
     light: Option<PendingLight>,
     /// The u and selection probability of an environment sample still to draw (`light` is
     /// `None` until then).
@@ -60,12 +64,25 @@ struct PendingPart {
     view: SamplerView,
 }
 
-/// A vertex's parts ([`Pending`]'s fields) and its BSDF sample's direction, as drawn.
-struct Drawn {
+/// A vertex's BSDF as the batch holds it: its parts ([`Pending`]'s fields) and the BSDFs
+/// that draw their samples.
+struct Parts<'s, B> {
     parts: [PendingPart; MAX_MIX_PARTS],
     count: u8,
     tint: Option<Rgb>,
-    sample: Option<Vec3>,
+    bsdfs: [Option<&'s B>; MAX_MIX_PARTS],
+    /// The mixture that chooses the part drawing a sample (`None`: one part).
+    mixture: Option<Mixture<'s>>,
+}
+
+impl<B: TabulatedBrdf> Parts<'_, B> {
+    /// The direction `Bxdf::sample` of the parts draws from `u` and `uc` (a mixture's part
+    /// chosen by `uc`, as `Mixture::sample`).
+    fn draw(&self, u: Vec2, uc: f32) -> Option<Vec3> {
+        let (chosen, uc) = self.mixture.map_or((0, uc), |m| m.choose(uc));
+        let bsdf = self.bsdfs[chosen].expect("every part has its BSDF");
+        bsdf.sampler().sample_in(&self.parts[chosen].view, u, uc)
+    }
 }
 
 /// Where the values of a direction are, one per part (`None`: zero, below the horizon).
@@ -89,19 +106,30 @@ struct PendingLight {
 #[derive(Clone, Copy, Debug)]
 struct PendingSample {
     wi: Vec3,
+    /// Whether a layer above the parts drew it (their density may be zero there); else the
+    /// parts drew it, and it is dropped where their density is not positive and finite.
+    by_layer: bool,
     pdf: f32,
     slots: Slots,
 }
 
-/// The BSDFs of a kind among the parts of a [`Mixture`].
+/// The BSDFs of a kind among the parts of a [`Mixture`] and as the base of a [`Layered`].
 pub(super) trait MixturePart<'s>: Sized {
     fn of(part: Part<'s>) -> Option<&'s Self>;
+    fn of_base(base: Base<'s>) -> Option<&'s Self>;
 }
 
 impl<'s> MixturePart<'s> for crate::bsdf::neural::NeuralBsdf {
     fn of(part: Part<'s>) -> Option<&'s Self> {
         match part {
             Part::Neural(b) => Some(b),
+            _ => None,
+        }
+    }
+
+    fn of_base(base: Base<'s>) -> Option<&'s Self> {
+        match base {
+            Base::Neural(b) => Some(b),
             _ => None,
         }
     }
@@ -114,12 +142,26 @@ impl<'s> MixturePart<'s> for crate::bsdf::nbrdf::NbrdfBsdf {
             _ => None,
         }
     }
+
+    fn of_base(base: Base<'s>) -> Option<&'s Self> {
+        match base {
+            Base::Nbrdf(b) => Some(b),
+            _ => None,
+        }
+    }
 }
 
 impl<'s> MixturePart<'s> for crate::bsdf::merl::MerlBsdf {
     fn of(part: Part<'s>) -> Option<&'s Self> {
         match part {
             Part::Merl(b) => Some(b),
+            _ => None,
+        }
+    }
+
+    fn of_base(base: Base<'s>) -> Option<&'s Self> {
+        match base {
+            Base::Merl(b) => Some(b),
             _ => None,
         }
     }
@@ -173,15 +215,40 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
         k as u32
     }
 
+    /// The parts of a BSDF that is one `B`.
+    fn single(&mut self, bsdf: &'s B, wo: Vec3) -> Parts<'s, B> {
+        // Both the sample and the densities read the sampler's view of wo, found once.
+        let part = PendingPart { material: self.material(bsdf), weight: 1.0, view: bsdf.sampler().view(wo) };
+        let mut bsdfs = [None; MAX_MIX_PARTS];
+        bsdfs[0] = Some(bsdf);
+        Parts { parts: [part; MAX_MIX_PARTS], count: 1, tint: None, bsdfs, mixture: None }
+    }
+
+    /// The parts of `mixture`; `None` (and nothing added) where one of them is not a `B`.
+    fn mixture(&mut self, mixture: &Mixture<'s>, wo: Vec3) -> Option<Parts<'s, B>>
+    where
+        B: MixturePart<'s>,
+    {
+        let mut bsdfs = [None; MAX_MIX_PARTS];
+        for (k, (part, _)) in mixture.parts().enumerate() {
+            bsdfs[k] = Some(B::of(part)?);
+        }
+        let mut parts = [PendingPart { material: 0, weight: 0.0, view: SamplerView::default() }; MAX_MIX_PARTS];
+        let mut count = 0;
+        for (k, (_, weight)) in mixture.parts().enumerate() {
+            let bsdf = bsdfs[k].expect("every part is a B");
+            parts[k] = PendingPart { material: self.material(bsdf), weight, view: bsdf.sampler().view(wo) };
+            count += 1;
+        }
+        Some(Parts { parts, count, tint: Some(mixture.tint()), bsdfs, mixture: Some(*mixture) })
+    }
+
     /// Draws vertex `v`'s light and BSDF samples (on `bsdf`, its BSDF) for path `path` of
     /// throughput `beta`; [`Self::scatter`] finishes it.
     pub fn push(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, bsdf: &'s B, beta: Rgb) {
-        let material = self.material(bsdf);
-        // Both the sample and the densities read the sampler's view of wo, found once.
-        let view = bsdf.sampler().view(v.wo);
-        let sample = bsdf.sampler().sample_in(&view, v.u, v.uc);
-        let part = PendingPart { material, weight: 1.0, view };
-        self.push_parts(tracer, scene, path, v, beta, Drawn { parts: [part; MAX_MIX_PARTS], count: 1, tint: None, sample });
+        let parts = self.single(bsdf, v.wo);
+        let sample = parts.draw(v.u, v.uc).map(|wi| (wi, false));
+        self.push_parts(tracer, scene, path, v, beta, parts, None, sample);
     }
 
     /// [`Self::push`] for a vertex whose BSDF is `mixture`; `false` (and nothing pushed)
@@ -190,29 +257,42 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
     where
         B: MixturePart<'s>,
     {
-        let mut bsdfs = [None; MAX_MIX_PARTS];
-        for (k, (part, _)) in mixture.parts().enumerate() {
-            match B::of(part) {
-                Some(b) => bsdfs[k] = Some(b),
-                None => return false,
-            }
+        let Some(parts) = self.mixture(mixture, v.wo) else { return false };
+        let sample = parts.draw(v.u, v.uc).map(|wi| (wi, false));
+        self.push_parts(tracer, scene, path, v, beta, parts, None, sample);
+        true
+    }
+
+    /// [`Self::push`] for a vertex whose BSDF is `layered`, over a `B` or a mixture of them;
+    /// `false` (and nothing pushed) over any other base. Its sample is drawn as
+    /// `Layered::sample` draws it, and its values and densities are the layers' over the
+    /// base's, found in the batch.
+    pub fn push_layered(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, layered: &Layered<'s>, beta: Rgb) -> bool
+    where
+        B: MixturePart<'s>,
+    {
+        if v.wo.z <= 0.0 {
+            return false;
         }
-        let mut parts = [PendingPart { material: 0, weight: 0.0, view: SamplerView::default() }; MAX_MIX_PARTS];
-        let mut count = 0;
-        for (k, (_, weight)) in mixture.parts().enumerate() {
-            let bsdf = bsdfs[k].expect("every part is a B");
-            parts[k] = PendingPart { material: self.material(bsdf), weight, view: bsdf.sampler().view(v.wo) };
-            count += 1;
-        }
-        // As `Mixture::sample`: the part chosen by uc draws the direction.
-        let (chosen, uc) = mixture.choose(v.uc);
-        let sample = bsdfs[chosen].expect("a part").sampler().sample_in(&parts[chosen].view, v.u, uc);
-        self.push_parts(tracer, scene, path, v, beta, Drawn { parts, count, tint: Some(mixture.tint()), sample });
+        let parts = match *layered.base() {
+            Base::Mixture(m) => self.mixture(&m, v.wo),
+            base => B::of_base(base).map(|b| self.single(b, v.wo)),
+        };
+        let Some(parts) = parts else { return false };
+        let layers = *layered.layers();
+        let at = layers.choice(v.wo);
+        let sample = match layers.draw(at, v.wo, v.u, v.uc) {
+            Draw::Layer(wi) => wi.map(|wi| (wi, true)),
+            Draw::Base(uc) => parts.draw(v.u, uc).map(|wi| (wi, false)),
+        };
+        self.push_parts(tracer, scene, path, v, beta, parts, Some((layers, at)), sample);
         true
     }
 
     /// Pushes a vertex with its parts and its BSDF sample's direction.
-    fn push_parts(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, beta: Rgb, Drawn { parts, count, tint, sample }: Drawn) {
+    #[allow(clippy::too_many_arguments)]
+    fn push_parts(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, beta: Rgb, parts: Parts<'s, B>, layers: Option<(Layers, Choice)>, sample: Option<(Vec3, bool)>) {
+        let Parts { parts, count, tint, .. } = parts;
         // As `PathTracer::light_term` and `Bxdf::sample` of a tabulated BSDF, with the
         // densities (and the values) left to `scatter`.
         let environment_draw = tracer.environment_draw(scene, v);
@@ -231,9 +311,10 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             parts,
             count,
             tint,
+            layers,
             light,
             environment_draw: environment_draw.map(|(_, u, select_pdf)| (u, select_pdf)),
-            sample: sample.map(|wi| PendingSample { wi, pdf: 0.0, slots: None }),
+            sample: sample.map(|(wi, by_layer)| PendingSample { wi, by_layer, pdf: 0.0, slots: None }),
         });
     }
 
@@ -337,7 +418,9 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
                 light.slots = add(light.wi);
             }
             if let Some(sample) = &mut p.sample {
-                sample.slots = if sample.pdf > 0.0 && sample.pdf.is_finite() { add(sample.wi) } else { None };
+                // A layer's sample may lie where the parts' density is zero; their value
+                // still counts.
+                sample.slots = if sample.by_layer || (sample.pdf > 0.0 && sample.pdf.is_finite()) { add(sample.wi) } else { None };
             }
         }
         for m in materials.iter_mut() {
@@ -356,11 +439,28 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             Some(p.tint.map_or(f, |tint| tint * f))
         };
         for p in vertices.iter() {
-            let scattered = Scattered {
-                shadow: p.light.and_then(|l| tracer.light_contribution(&p.sp, p.beta, &l.ls, l.wi, value(p, l.slots)?, l.pdf)),
-                next: p
-                    .sample
-                    .and_then(|s| continuation(&p.sp, &BsdfSample::new(s.wi, value(p, s.slots)?, s.pdf), p.beta)),
+            let scattered = match p.layers {
+                None => Scattered {
+                    shadow: p.light.and_then(|l| tracer.light_contribution(&p.sp, p.beta, &l.ls, l.wi, value(p, l.slots)?, l.pdf)),
+                    next: p
+                        .sample
+                        .and_then(|s| continuation(&p.sp, &BsdfSample::new(s.wi, value(p, s.slots)?, s.pdf), p.beta)),
+                },
+                // As `Layered::eval_pdf` and `Layered::sample`: the layers over the parts'
+                // value (zero below the horizon) and density.
+                Some((layers, at)) => {
+                    let layer = |wi: Vec3, slots: Slots, pdf: f32| layers.layer(at, p.wo, wi, (value(p, slots).unwrap_or(Rgb::ZERO), pdf));
+                    Scattered {
+                        shadow: p.light.and_then(|l| {
+                            let (f, pdf) = layer(l.wi, l.slots, l.pdf);
+                            tracer.light_contribution(&p.sp, p.beta, &l.ls, l.wi, f, pdf)
+                        }),
+                        next: p
+                            .sample
+                            .filter(|s| s.by_layer || s.slots.is_some())
+                            .and_then(|s| continuation(&p.sp, &checked_sample(s.wi, layer(s.wi, s.slots, s.pdf))?, p.beta)),
+                    }
+                }
             };
             settle(p.path, p.sp.p, scattered);
         }
