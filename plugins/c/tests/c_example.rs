@@ -134,44 +134,16 @@ fn eight_threads_get_one_threads_results() {
     println!("{stdout}");
 }
 
-/// A latent file that decodes cheaply (a 6-4-3 target net; the shipped 6-60-60-60-60-3 one
-/// makes each decode's sampler fit take ~20 s under Valgrind) with the codes the C programs
-/// open, `alum-bronze` and `chrome`: the net outputs y = ln 3 for every input, so under the
-/// code mapping f = 2 f_ref + ε, twice the shipped file's reference BRDF (a glossy median
-/// material: the example's peak and albedo checks hold); chrome's offset scales it.
-fn cheap_latent_file(path: &Path) {
-    use renderer::formats::latent_file::{LatentFile, WeightType};
-    let shipped = LatentFile::read(crate_dir().join("../../scenes/materials/latent.bin")).expect("the shipped latent file");
-    let mut file = LatentFile::synthetic(&[5], WeightType::F32);
-    file.mapping = renderer::neural::mapping::MappingForm::Code;
-    file.epsilon = shipped.epsilon;
-    file.f_ref = shipped.f_ref;
-    let heads = file.hypernetwork.len();
-    for (k, head) in file.hypernetwork.iter_mut().enumerate() {
-        let last = head.layers.len() - 1;
-        for (j, layer) in head.layers.iter_mut().enumerate() {
-            layer.weight.fill(0.0);
-            let output_bias = k == heads - 1 && j == last;
-            layer.bias.fill(if output_bias { 3f32.ln() } else { 0.0 });
-        }
-    }
-    file.latents[0].name = "alum-bronze".into();
-    file.latents[1].name = "chrome".into();
-    file.latents[1].offset = [0.1, 0.05, 0.0];
-    file.latents[1].residual.clear();
-    file.write(path).expect("write the latent file");
-}
-
 /// The C example and the multi-threaded client under Valgrind's memcheck: no invalid read
 /// or write, no use of an uninitialised value, no definite leak (exit code 99 otherwise).
-/// On a cheap latent file ([`cheap_latent_file`]) to keep it to seconds. Needs `valgrind`
+/// On a cheap latent file (`renderer::testing::latent::write_cheap_latent_file`) to keep it to seconds. Needs `valgrind`
 /// (`.ci/run` installs it).
 #[test]
 fn c_clients_are_clean_under_valgrind() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (example, threads) = (compile("example", dir.path()), compile("threads", dir.path()));
     let latent = dir.path().join("cheap.bin");
-    cheap_latent_file(&latent);
+    renderer::testing::latent::write_cheap_latent_file(&latent).expect("write the cheap latent file");
     let valgrind = ["valgrind", "-q", "--error-exitcode=99", "--leak-check=full", "--errors-for-leak-kinds=definite"];
     let scratch = dir.path().join("wrong-version.bin");
     // Both at once (Valgrind runs a program's threads one at a time): ~30 s on 2 cores.

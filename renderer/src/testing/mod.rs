@@ -1,6 +1,7 @@
 //! Testing support, for this crate's unit tests, benchmarks and examples and for other
 //! crates' tests: statistical checks of any [`crate::bsdf::Bxdf`] ([`chi2`]), reproducible
-//! ray sets for traversal benchmarks ([`rays`]) and, in unit tests, the checks shared by the
+//! ray sets for traversal benchmarks ([`rays`]), cheap latent files for the plugins' and fuzz
+//! targets' tests ([`latent`]) and, in unit tests, the checks shared by the
 //! BSDFs made from data (`bsdfs`) and the real data they read (`data`).
 //!
 //! Not part of the library as shipped: it is compiled for this crate's unit tests and with
@@ -12,6 +13,7 @@
 #[cfg(test)]
 pub(crate) mod bsdfs;
 pub mod chi2;
+pub mod latent;
 pub mod rays;
 #[cfg(test)]
 pub(crate) mod data;
