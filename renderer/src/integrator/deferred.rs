@@ -85,6 +85,14 @@ impl<B: TabulatedBrdf> Parts<'_, B> {
     }
 }
 
+/// A vertex's BSDF as [`DeferredScatter::push_drawn`] takes it: its parts, the layers above
+/// them with their lobe choice, and its sample's direction with whether a layer drew it.
+struct Drawn<'s, B> {
+    parts: Parts<'s, B>,
+    layers: Option<(Layers, Choice)>,
+    sample: Option<(Vec3, bool)>,
+}
+
 /// Where the values of a direction are, one per part (`None`: zero, below the horizon).
 type Slots = Option<[Slot; MAX_MIX_PARTS]>;
 
@@ -248,7 +256,7 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
     pub fn push(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, bsdf: &'s B, beta: Rgb) {
         let parts = self.single(bsdf, v.wo);
         let sample = parts.draw(v.u, v.uc).map(|wi| (wi, false));
-        self.push_parts(tracer, scene, path, v, beta, parts, None, sample);
+        self.push_drawn(tracer, scene, path, v, beta, Drawn { parts, layers: None, sample });
     }
 
     /// [`Self::push`] for a vertex whose BSDF is `mixture`; `false` (and nothing pushed)
@@ -259,7 +267,7 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
     {
         let Some(parts) = self.mixture(mixture, v.wo) else { return false };
         let sample = parts.draw(v.u, v.uc).map(|wi| (wi, false));
-        self.push_parts(tracer, scene, path, v, beta, parts, None, sample);
+        self.push_drawn(tracer, scene, path, v, beta, Drawn { parts, layers: None, sample });
         true
     }
 
@@ -285,14 +293,13 @@ impl<'s, B: BatchEval + TabulatedBrdf> DeferredScatter<'s, B> {
             Draw::Layer(wi) => wi.map(|wi| (wi, true)),
             Draw::Base(uc) => parts.draw(v.u, uc).map(|wi| (wi, false)),
         };
-        self.push_parts(tracer, scene, path, v, beta, parts, Some((layers, at)), sample);
+        self.push_drawn(tracer, scene, path, v, beta, Drawn { parts, layers: Some((layers, at)), sample });
         true
     }
 
-    /// Pushes a vertex with its parts and its BSDF sample's direction.
-    #[allow(clippy::too_many_arguments)]
-    fn push_parts(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, beta: Rgb, parts: Parts<'s, B>, layers: Option<(Layers, Choice)>, sample: Option<(Vec3, bool)>) {
-        let Parts { parts, count, tint, .. } = parts;
+    /// Pushes a vertex with its BSDF as drawn.
+    fn push_drawn(&mut self, tracer: &PathTracer, scene: &'s RenderScene, path: u32, v: &Vertex, beta: Rgb, drawn: Drawn<'s, B>) {
+        let Drawn { parts: Parts { parts, count, tint, .. }, layers, sample } = drawn;
         // As `PathTracer::light_term` and `Bxdf::sample` of a tabulated BSDF, with the
         // densities (and the values) left to `scatter`.
         let environment_draw = tracer.environment_draw(scene, v);
