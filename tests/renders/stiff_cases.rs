@@ -129,9 +129,8 @@ fn bright_sun_environment_estimators_agree() {
 /// lets light bounce inside glass. No sample may be discarded as NaN, infinite or negative
 /// (`Rendered::discarded`, the renderer's counter) and no pixel may be non-finite. The
 /// mixture's weights texture holds NaN, infinite, negative, zero, huge and subnormal texels
-/// (each must count as 0 or be normalised away). (A blend's t texels are clamped to [0, 1],
-/// NaN to 0, in `SceneMaterials`; its 32-entry palette takes ~25 s of CPU to decode in the
-/// debug build, so it is left out here.)
+/// (each must count as 0 or be normalised away); the latent blend's t texture holds the
+/// same texels (t is clamped to [0, 1], NaN read as 0, before its palette is chosen).
 #[test]
 fn glass_coats_and_neural_mixtures_stay_finite_under_a_tiny_bright_emitter() {
     use renderer::neural::latent_library::LatentLibrary;
@@ -147,6 +146,7 @@ fn glass_coats_and_neural_mixtures_stay_finite_under_a_tiny_bright_emitter() {
     let neural = |form: VaryingForm| Material { model: SurfaceModel::Varying(Varying { form, tint: None }), ..Material::default_diffuse("neural") };
     let codes = ["alum-bronze", "chrome", "blue-fabric"];
     let mix = VaryingForm::Mix { parts: codes.iter().map(|c| Binding::Neural(c.to_string())).collect(), weights: texture() };
+    let blend = VaryingForm::Blend { ends: ["alum-bronze".into(), "blue-fabric".into()], t: texture(), channel: 0 };
     let (nan, inf) = (f32::NAN, f32::INFINITY);
     let texels = vec![
         Rgb::new(nan, 1.0, 0.0),
@@ -166,6 +166,7 @@ fn glass_coats_and_neural_mixtures_stay_finite_under_a_tiny_bright_emitter() {
         ("coat and sheen over rough glass", Material { clearcoat: coat(0.001), sheen: sheen(1.0), ..glass(0.3, 1.5, clear) }, None),
         ("coated neural code", Material { clearcoat: coat(0.0), sheen: sheen(0.0), model: SurfaceModel::Bound(Binding::Neural("chrome".into())), ..Material::default_diffuse("coated chrome") }, None),
         ("neural mixture, extreme weights", neural(mix), Some(texels.clone())),
+        ("latent blend, extreme t", neural(blend), Some(texels.clone())),
     ];
     let cam = look_at(Vec3::new(0.0, 1.5, 3.0), Vec3::new(0.0, 0.4, 0.0), 45.0);
     for (name, sphere, texels) in cases {
