@@ -242,19 +242,19 @@ impl MaterialBsdf {
     /// f_r(wo, wi) in 1/sr per RGB channel.
     #[inline]
     pub fn eval(&self, wo: [f32; 3], wi: [f32; 3]) -> [f32; 3] {
-        self.bsdf().eval(Vec3::from(wo), Vec3::from(wi)).to_array()
+        self.bsdf().eval(direction(wo), direction(wi)).to_array()
     }
 
     /// The density (1/sr) with which [`MaterialBsdf::sample`] draws `wi` given `wo`.
     #[inline]
     pub fn pdf(&self, wo: [f32; 3], wi: [f32; 3]) -> f32 {
-        self.bsdf().pdf(Vec3::from(wo), Vec3::from(wi))
+        self.bsdf().pdf(direction(wo), direction(wi))
     }
 
     /// Value and density together.
     #[inline]
     pub fn eval_pdf(&self, wo: [f32; 3], wi: [f32; 3]) -> ([f32; 3], f32) {
-        let (f, pdf) = self.bsdf().eval_pdf(Vec3::from(wo), Vec3::from(wi));
+        let (f, pdf) = self.bsdf().eval_pdf(direction(wo), direction(wi));
         (f.to_array(), pdf)
     }
 
@@ -264,14 +264,14 @@ impl MaterialBsdf {
     /// [`MaterialBsdf::pdf`].
     #[inline]
     pub fn sample(&self, wo: [f32; 3], u: [f32; 3]) -> Option<Sample> {
-        self.bsdf().sample(Vec3::from(wo), Vec2::new(u[0], u[1]), u[2]).map(Sample::from)
+        self.bsdf().sample(direction(wo), Vec2::new(u[0], u[1]), u[2]).map(Sample::from)
     }
 
     /// As [`MaterialBsdf::sample`] from two uniform numbers: `u[0]` also chooses the lobe
     /// (and for a mixture first the part, as [`Mixture`] chooses it; what is left of it after
     /// each choice is reused). Same density.
     pub fn sample_2d(&self, wo: [f32; 3], u: [f32; 2]) -> Option<Sample> {
-        let wo = Vec3::from(wo);
+        let wo = direction(wo);
         let wi = match &self.inner {
             Inner::One(b) => sampler_of(b).sample_2d(wo, Vec2::from(u))?,
             Inner::Mix(parts) => {
@@ -351,7 +351,7 @@ impl MaterialBsdf {
         f.par_chunks_mut(BATCH_CHUNK).zip(pdf_chunks.par_iter_mut()).enumerate().for_each(|(c, (fc, pc))| {
             let first = c * BATCH_CHUNK;
             let pairs: Vec<(Vec3, Vec3)> =
-                (first..first + fc.len()).map(|i| (Vec3::from(wo[i]), Vec3::from(wi[i]))).collect();
+                (first..first + fc.len()).map(|i| (direction(wo[i]), direction(wi[i]))).collect();
             let mut values = vec![Rgb::ZERO; pairs.len()];
             self.values(&pairs, &mut values);
             for (o, v) in fc.iter_mut().zip(&values) {
@@ -389,10 +389,10 @@ impl MaterialBsdf {
         out.par_chunks_mut(BATCH_CHUNK).enumerate().for_each(|(c, chunk)| {
             let first = c * BATCH_CHUNK;
             let drawn: Vec<Option<(Vec3, f32)>> =
-                (first..first + chunk.len()).map(|i| u[i].direction(sampler, Vec3::from(wo[i]))).collect();
+                (first..first + chunk.len()).map(|i| u[i].direction(sampler, direction(wo[i]))).collect();
             let pairs: Vec<(Vec3, Vec3)> = (first..first + chunk.len())
                 .zip(&drawn)
-                .filter_map(|(i, d)| d.map(|(wi, _)| (Vec3::from(wo[i]), wi)))
+                .filter_map(|(i, d)| d.map(|(wi, _)| (direction(wo[i]), wi)))
                 .collect();
             let mut values = vec![Rgb::ZERO; pairs.len()];
             self.values(&pairs, &mut values);
@@ -503,6 +503,25 @@ fn batch_error(what: &str, reason: String) -> Error {
     Error::InvalidArgument {
         flag: what.to_string(),
         reason,
+    }
+}
+
+/// A direction as the BSDFs take it: unit length. Callers may pass any finite length: a
+/// vector unit to within 10⁻⁴ in its squared length is used as given (bit for bit what the
+/// renderer evaluates), any other is scaled by its largest component first and then
+/// normalised, so that tiny (subnormal) or huge vectors keep their direction; the zero vector
+/// stays zero (below every horizon: value and density 0).
+#[inline]
+fn direction(v: [f32; 3]) -> Vec3 {
+    let v = Vec3::from(v);
+    if (v.length_squared() - 1.0).abs() <= 1e-4 {
+        return v;
+    }
+    let largest = v.abs().max_element();
+    if largest > 0.0 && largest.is_finite() {
+        (v / largest).normalize()
+    } else {
+        v
     }
 }
 
@@ -774,5 +793,29 @@ mod tests {
         let mut s = vec![None; 1];
         let e = m.sample_batch(&[[0.0, 0.0, 1.0]], &[[0.5, 1.5, 0.0]], &mut s).unwrap_err().to_string();
         assert!(e.contains("not in [0, 1]"), "{e}");
+    }
+
+    /// Directions of any finite length are normalised first: a tiny (subnormal components),
+    /// a huge and a short vector give what their unit vector gives, and drawn directions
+    /// are unit vectors (found by the c_abi fuzz target: wo = (1.28e-22, 1.28e-22,
+    /// 1.28e-22) drew a direction of length 0.989).
+    #[test]
+    fn directions_of_any_length_are_normalised() {
+        let m = MaterialBsdf::open(&crate::testing::latent::shipped_latent_path().to_path_buf(), Some("alum-bronze")).unwrap();
+        let unit = Vec3::new(1.0, 1.0, 1.0).normalize().to_array();
+        let wi = Vec3::new(-0.3, 0.2, 0.9).normalize().to_array();
+        for scale in [1.28e-22f32, 1e-40, 3e30, 0.5, 7.0] {
+            let wo = unit.map(|c| c * scale);
+            assert_eq!(m.eval(wo, wi), m.eval(unit, wi), "scale {scale}");
+            assert_eq!(m.pdf(wo, wi).to_bits(), m.pdf(unit, wi).to_bits(), "scale {scale}");
+            for k in 0..64 {
+                let u = [(k as f32 * 0.618_034).fract(), (k as f32 * 0.414_214).fract(), (k as f32 + 0.5) / 64.0];
+                if let Some(s) = m.sample(wo, u) {
+                    let length = Vec3::from(s.wi).length();
+                    assert!((length - 1.0).abs() < 1e-4, "scale {scale}: drawn {:?}", s.wi);
+                }
+            }
+        }
+        assert_eq!(m.eval([0.0; 3], wi), [0.0; 3]);
     }
 }
