@@ -801,7 +801,7 @@ mod tests {
     /// 1.28e-22) drew a direction of length 0.989).
     #[test]
     fn directions_of_any_length_are_normalised() {
-        let m = MaterialBsdf::open(&crate::testing::latent::shipped_latent_path().to_path_buf(), Some("alum-bronze")).unwrap();
+        let m = MaterialBsdf::open(crate::testing::latent::shipped_latent_path(), Some("alum-bronze")).unwrap();
         let unit = Vec3::new(1.0, 1.0, 1.0).normalize().to_array();
         let wi = Vec3::new(-0.3, 0.2, 0.9).normalize().to_array();
         for scale in [1.28e-22f32, 1e-40, 3e30, 0.5, 7.0] {
