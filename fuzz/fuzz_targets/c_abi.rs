@@ -117,10 +117,16 @@ fn materials() -> &'static [*mut NbMaterial] {
             let network_path = repo().join("../shared/data/nbrdf/merl/chrome");
             let mut network = null_mut();
             let network = open_ok(unsafe { nb_material_open(c_path(&network_path).as_ptr(), null(), &mut network) }, network, "network");
-            // A MERL table tabulated from the network.
-            let table_path = scratch().join("chrome.binary");
-            let net = renderer::neural::nbrdf::NbrdfNetwork::load(&network_path).expect("the shared NBRDF network");
-            renderer::formats::merl::MerlTable::from_fn(|th, td, pd| net.eval_angles(th, td, pd)).write(&table_path).expect("write the table");
+            // A MERL table tabulated from the network (about a minute under AddressSanitizer):
+            // made once per machine and shared by later processes (libFuzzer's -jobs and
+            // -fork start many), written to a file of this process's and renamed into place.
+            let table_path = std::env::temp_dir().join("c_abi-fuzz-chrome.binary");
+            if !table_path.is_file() {
+                let net = renderer::neural::nbrdf::NbrdfNetwork::load(&network_path).expect("the shared NBRDF network");
+                let mine = scratch().join("chrome.binary");
+                renderer::formats::merl::MerlTable::from_fn(|th, td, pd| net.eval_angles(th, td, pd)).write(&mine).expect("write the table");
+                std::fs::rename(&mine, &table_path).expect("move the table into place");
+            }
             let mut table = null_mut();
             let table = open_ok(unsafe { nb_material_open(c_path(&table_path).as_ptr(), null(), &mut table) }, table, "table");
             let parts = [code.cast_const(), network.cast_const(), table.cast_const()];
