@@ -388,12 +388,9 @@ impl MaterialBsdf {
         };
         out.par_chunks_mut(BATCH_CHUNK).enumerate().for_each(|(c, chunk)| {
             let first = c * BATCH_CHUNK;
-            let drawn: Vec<Option<(Vec3, f32)>> =
-                (first..first + chunk.len()).map(|i| u[i].direction(sampler, direction(wo[i]))).collect();
-            let pairs: Vec<(Vec3, Vec3)> = (first..first + chunk.len())
-                .zip(&drawn)
-                .filter_map(|(i, d)| d.map(|(wi, _)| (direction(wo[i]), wi)))
-                .collect();
+            let wos: Vec<Vec3> = (first..first + chunk.len()).map(|i| direction(wo[i])).collect();
+            let drawn: Vec<Option<(Vec3, f32)>> = (first..first + chunk.len()).zip(&wos).map(|(i, &wo)| u[i].direction(sampler, wo)).collect();
+            let pairs: Vec<(Vec3, Vec3)> = wos.iter().zip(&drawn).filter_map(|(&wo, d)| d.map(|(wi, _)| (wo, wi))).collect();
             let mut values = vec![Rgb::ZERO; pairs.len()];
             self.values(&pairs, &mut values);
             let mut values = values.into_iter();

@@ -27,7 +27,6 @@ pub(crate) fn shipped_scene(name: &str) -> SceneDescription {
 pub(crate) fn shipped_latents() -> &'static LatentLibrary {
     static LIB: OnceLock<LatentLibrary> = OnceLock::new();
     LIB.get_or_init(|| {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/materials/latent.bin");
-        LatentLibrary::load(&[path]).expect("scenes/materials/latent.bin")
+        LatentLibrary::load(&[super::latent::shipped_latent_path()]).expect("scenes/materials/latent.bin")
     })
 }
