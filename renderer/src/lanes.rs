@@ -30,7 +30,7 @@ pub const LANES: usize = 16;
 pub struct F32s(pub [f32; LANES]);
 
 /// [`LANES`] booleans, the result of a comparison.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Mask(pub [bool; LANES]);
 
 /// Three [`F32s`]: a vector per lane.
@@ -302,7 +302,7 @@ pub trait Real:
     + Div<f32, Output = Self>
 {
     /// The result of a comparison: `bool`, or [`Mask`] per lane.
-    type Mask: MaskOps;
+    type Mask: MaskOps + Blend<Self::Mask>;
 
     /// `v` (in every lane).
     fn splat(v: f32) -> Self;
@@ -341,7 +341,9 @@ pub trait Real:
 }
 
 /// A comparison's result: `bool` for one value, [`Mask`] for [`LANES`].
-pub trait MaskOps: Copy + Debug + BitAnd<Output = Self> + BitOr<Output = Self> + Not<Output = Self> {
+pub trait MaskOps: Copy + Debug + Default + BitAnd<Output = Self> + BitOr<Output = Self> + Not<Output = Self> {
+    /// `v` in every lane.
+    fn splat(v: bool) -> Self;
     /// Whether some lane is set.
     fn any(self) -> bool;
     /// Whether every lane is set.
@@ -377,6 +379,11 @@ pub fn choose<M: MaskOps, T: Blend<M>>(mask: M, a: impl FnOnce() -> T, b: impl F
 
 impl MaskOps for bool {
     #[inline(always)]
+    fn splat(v: bool) -> bool {
+        v
+    }
+
+    #[inline(always)]
     fn any(self) -> bool {
         self
     }
@@ -388,6 +395,11 @@ impl MaskOps for bool {
 }
 
 impl MaskOps for Mask {
+    #[inline(always)]
+    fn splat(v: bool) -> Mask {
+        Mask([v; LANES])
+    }
+
     #[inline(always)]
     fn any(self) -> bool {
         let mut r = false;
@@ -404,6 +416,24 @@ impl MaskOps for Mask {
             r &= self.0[i];
         }
         r
+    }
+}
+
+impl Blend<bool> for bool {
+    #[inline(always)]
+    fn blend(mask: bool, a: bool, b: bool) -> bool {
+        if mask {
+            a
+        } else {
+            b
+        }
+    }
+}
+
+impl Blend<Mask> for Mask {
+    #[inline(always)]
+    fn blend(mask: Mask, a: Mask, b: Mask) -> Mask {
+        (mask & a) | (!mask & b)
     }
 }
 
@@ -439,6 +469,13 @@ impl<M: Copy, A: Blend<M>, B: Blend<M>> Blend<M> for (A, B) {
     #[inline(always)]
     fn blend(mask: M, a: (A, B), b: (A, B)) -> (A, B) {
         (A::blend(mask, a.0, b.0), B::blend(mask, a.1, b.1))
+    }
+}
+
+impl<M: Copy, A: Blend<M>, B: Blend<M>, C: Blend<M>> Blend<M> for (A, B, C) {
+    #[inline(always)]
+    fn blend(mask: M, a: (A, B, C), b: (A, B, C)) -> (A, B, C) {
+        (A::blend(mask, a.0, b.0), B::blend(mask, a.1, b.1), C::blend(mask, a.2, b.2))
     }
 }
 

@@ -555,10 +555,14 @@ mod tests {
             Neural,
             Merl,
             Nbrdf,
-            /// Rough glass (one by one, transmitted paths with their volume).
+            /// Rough glass (in lanes, transmitted paths with their volume).
             Glass,
             /// Smooth glass (delta lobes).
             SmoothGlass,
+            /// Rough thin-walled glass (no volume).
+            ThinGlass,
+            /// Rough glass mixed with an opaque part (one by one).
+            HalfGlass,
             /// Metallic-roughness under a sheen and a clear coat (one by one).
             Layered,
             /// The decoded neural material under a sheen and a clear coat (in its batch).
@@ -588,6 +592,8 @@ mod tests {
             ("material-preview", 8, Strategy::Mis, Sphere::Glass, false),
             ("material-preview", 8, Strategy::LightOnly, Sphere::SmoothGlass, false),
             ("material-preview", 8, Strategy::BsdfOnly, Sphere::SmoothGlass, false),
+            ("material-preview", 8, Strategy::Mis, Sphere::ThinGlass, false),
+            ("material-preview", 8, Strategy::Mis, Sphere::HalfGlass, true),
             ("material-preview", 6, Strategy::Mis, Sphere::Layered, false),
             ("material-preview", 6, Strategy::Mis, Sphere::LayeredNeural, false),
             ("material-preview", 5, Strategy::LightOnly, Sphere::LayeredNeural, false),
@@ -601,7 +607,7 @@ mod tests {
                 spec.source = crate::scene::EnvironmentSource::Constant(Rgb::new(0.9, 1.0, 1.2));
             }
             let camera = description.camera(None).expect("camera").clone();
-            if matches!(sphere, Sphere::Glass | Sphere::SmoothGlass | Sphere::Layered | Sphere::LayeredNeural | Sphere::CoatedMerl) {
+            if matches!(sphere, Sphere::Glass | Sphere::SmoothGlass | Sphere::ThinGlass | Sphere::HalfGlass | Sphere::Layered | Sphere::LayeredNeural | Sphere::CoatedMerl) {
                 let m = description.materials.iter_mut().find(|m| m.name == "preview").expect("the preview material");
                 if matches!(sphere, Sphere::Layered | Sphere::LayeredNeural | Sphere::CoatedMerl) {
                     m.clearcoat = Some(crate::scene::Clearcoat { factor: 0.8, texture: None, roughness: 0.1, roughness_texture: None, normal_texture: None });
@@ -609,14 +615,14 @@ mod tests {
                         m.sheen = Some(crate::scene::SheenLayer { color: Rgb::new(0.6, 0.5, 0.7), color_texture: None, roughness: 0.4, roughness_texture: None });
                     }
                 } else {
-                    m.transmission = 1.0;
+                    m.transmission = if sphere == Sphere::HalfGlass { 0.5 } else { 1.0 };
                     m.metallic = 0.0;
-                    m.roughness = if sphere == Sphere::Glass { 0.3 } else { 0.0 };
-                    m.volume = crate::scene::Volume::from_attenuation(Rgb::new(0.9, 0.7, 0.5), 2.0);
+                    m.roughness = if sphere == Sphere::SmoothGlass { 0.0 } else { 0.3 };
+                    m.volume = if sphere == Sphere::ThinGlass { None } else { crate::scene::Volume::from_attenuation(Rgb::new(0.9, 0.7, 0.5), 2.0) };
                 }
             }
             let latents = match sphere {
-                Sphere::Gltf | Sphere::Glass | Sphere::SmoothGlass | Sphere::Layered => &crate::neural::latent_library::LatentLibrary::default(),
+                Sphere::Gltf | Sphere::Glass | Sphere::SmoothGlass | Sphere::ThinGlass | Sphere::HalfGlass | Sphere::Layered => &crate::neural::latent_library::LatentLibrary::default(),
                 _ => crate::testing::data::shipped_latents(),
             };
             let mut scene = RenderScene::with_latents(description, latents).expect("scene");

@@ -41,8 +41,7 @@ fn assemble_package() -> PathBuf {
             std::fs::copy(&path, package.join(path.file_name().unwrap())).expect("copy a package file");
         }
     }
-    let module = profile_dir().join("examples/libnative_module.so");
-    assert!(module.is_file(), "no extension module at {}", module.display());
+    let module = built(&["--example", "native_module"], "examples/libnative_module.so");
     std::fs::copy(&module, package.join("_native.abi3.so")).expect("copy the extension module");
     root
 }
@@ -67,14 +66,24 @@ fn merl_table() -> PathBuf {
 /// fewer features for shared dependencies (serde, half, syn, ...) and rebuild most of the
 /// dependency tree under different hashes, minutes of a cold CI run.
 fn render_binary() -> PathBuf {
-    let path = profile_dir().join("render");
+    built(&["--bin", "render"], "render")
+}
+
+/// `target/<profile>/<path>` of the `target` (cargo's selection: `--bin render`, `--example
+/// native_module`) built now with this test's profile, so that a test run alone (`cargo test
+/// --test python`, which builds no example) never uses a stale one; cargo only checks it is
+/// up to date after `cargo test --workspace`.
+fn built(target: &[&str], path: &str) -> PathBuf {
+    let path = profile_dir().join(path);
     let profile = profile_name();
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| env!("CARGO").into());
     let status = Command::new(cargo)
-        .args(["build", "--quiet", "--workspace", "--bin", "render", "--profile", &profile])
+        .args(["build", "--quiet", "--workspace"])
+        .args(target)
+        .args(["--profile", &profile])
         .current_dir(crate_dir())
         .status()
-        .expect("run cargo build for the render binary");
+        .expect("run cargo build");
     assert!(status.success() && path.is_file(), "cannot build {}", path.display());
     path
 }

@@ -89,6 +89,12 @@
 //! probability R'(wo·wm), mirrors it otherwise. The lobes' energy weights sum to at most 1
 //! (that of a white GGX mirror).
 //!
+//! # One formulation
+//! The formulas are written once over [`Real`] values ([`DielectricLobes`], masks where one
+//! point would branch): [`Dielectric`]'s [`Bxdf`] methods evaluate them for one point, the
+//! path tracer's glass kernel for sixteen vertices at once, so each lane gets the scalar
+//! bits.
+//!
 //! # References
 //! - B. Walter, S. Marschner, H. Li, K. Torrance, "Microfacet Models for Refraction through
 //!   Rough Surfaces", EGSR 2007.
@@ -116,8 +122,9 @@
 //! assert!(s.delta && s.wi == Vec3::Z && (s.pdf - 0.04).abs() < 1e-6);
 //! ```
 
-use super::microfacet::{reflect, GgxDistribution};
-use super::{BsdfSample, Bxdf};
+use super::microfacet::{reflect_about, Ggx, GgxDistribution};
+use super::{BsdfSample, Bxdf, RealBxdf, RealSample};
+use crate::lanes::{choose, F32s, MaskOps, Real, SetLane, V2, V3};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -139,26 +146,27 @@ pub const MIN_ETA: f32 = 0.01;
 /// η = 1 (no interface) at every angle.
 #[inline]
 pub fn fresnel_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
-    if eta == 1.0 {
-        // No interface (also on the horizon, where the formulas below are 0/0).
-        return 0.0;
-    }
-    let mut cos_i = cos_theta_i.clamp(-1.0, 1.0);
-    let mut eta = eta;
-    if cos_i < 0.0 {
-        eta = 1.0 / eta;
-        cos_i = -cos_i;
-    }
-    let sin2_i = 1.0 - cos_i * cos_i;
-    let sin2_t = sin2_i / (eta * eta);
-    // NaN inputs reflect everything rather than propagate NaN.
-    if sin2_t >= 1.0 || sin2_t.is_nan() {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
-    let r_parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    let r_perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    (0.5 * (r_parallel * r_parallel + r_perpendicular * r_perpendicular)).clamp(0.0, 1.0)
+    fresnel(cos_theta_i, eta)
+}
+
+/// [`fresnel_dielectric`] over [`Real`] values.
+#[inline(always)]
+fn fresnel<R: Real>(cos_theta_i: R, eta: R) -> R {
+    let (zero, one) = (R::splat(0.0), R::splat(1.0));
+    let cos = cos_theta_i.clamp(-1.0, 1.0);
+    // Arriving from the other side: the interface with 1/η.
+    let behind = cos.lt(zero);
+    let eta_i = R::select(behind, one / eta, eta);
+    let cos_i = R::select(behind, -cos, cos);
+    let sin2_i = one - cos_i * cos_i;
+    let sin2_t = sin2_i / (eta_i * eta_i);
+    let cos_t = (one - sin2_t).max(zero).sqrt();
+    let r_parallel = (eta_i * cos_i - cos_t) / (eta_i * cos_i + cos_t);
+    let r_perpendicular = (cos_i - eta_i * cos_t) / (cos_i + eta_i * cos_t);
+    let r = (R::splat(0.5) * (r_parallel * r_parallel + r_perpendicular * r_perpendicular)).clamp(0.0, 1.0);
+    // Total internal reflection (and NaN inputs) reflect everything rather than propagate
+    // NaN; η = 1 is no interface (also on the horizon, where the formulas are 0/0).
+    R::select(eta.eq(one), zero, R::select(sin2_t.lt(one), r, one))
 }
 
 /// Reflectance R' = R + T² R / (1 − R²) = 2R / (1 + R) of a thin sheet with parallel faces
@@ -168,8 +176,13 @@ pub fn fresnel_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
 /// transmits 1 − R'.
 #[inline]
 pub fn thin_reflectance(cos_theta: f32, eta: f32) -> f32 {
-    let r = fresnel_dielectric(cos_theta, eta);
-    2.0 * r / (1.0 + r)
+    sheet_reflectance(fresnel(cos_theta, eta))
+}
+
+/// R' = 2R / (1 + R) of a sheet whose faces reflect R each ([`thin_reflectance`]).
+#[inline(always)]
+fn sheet_reflectance<R: Real>(r: R) -> R {
+    R::splat(2.0) * r / (R::splat(1.0) + r)
 }
 
 /// The direction refracted from `w` through an interface with unit normal `n` on `w`'s side
@@ -178,20 +191,26 @@ pub fn thin_reflectance(cos_theta: f32, eta: f32) -> f32 {
 /// reflection.
 #[inline]
 pub fn refract(w: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
+    let (wt, ok) = refract_real(w.into(), n.into(), eta);
+    ok.then(|| wt.into())
+}
+
+/// [`refract`] over [`Real`] values: the refracted direction, and where it exists.
+#[inline(always)]
+fn refract_real<R: Real>(w: V3<R>, n: V3<R>, eta: R) -> (V3<R>, R::Mask) {
+    let (zero, one) = (R::splat(0.0), R::splat(1.0));
     let cos_i = w.dot(n);
-    let sin2_i = (1.0 - cos_i * cos_i).max(0.0);
+    let sin2_i = (one - cos_i * cos_i).max(zero);
     let sin2_t = sin2_i / (eta * eta);
-    if sin2_t >= 1.0 || sin2_t.is_nan() {
-        return None;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    (-w / eta + (cos_i / eta - cos_t) * n).try_normalize()
+    let cos_t = (one - sin2_t).sqrt();
+    let (wt, unit) = (-w / eta + n * (cos_i / eta - cos_t)).try_normalize();
+    (wt, unit & sin2_t.lt(one))
 }
 
 /// `w` seen from the other side of the surface: z negated.
-#[inline]
-fn flip_z(w: Vec3) -> Vec3 {
-    Vec3::new(w.x, w.y, -w.z)
+#[inline(always)]
+fn flip_z<R: Real>(w: V3<R>) -> V3<R> {
+    V3::new(w.x, w.y, -w.z)
 }
 
 /// Clamps to [0, 1]; NaN becomes 0.
@@ -310,184 +329,196 @@ impl Dielectric {
         self.alpha() < SMOOTH_ALPHA || self.eta == 1.0
     }
 
-    /// The index of a thin sheet relative to the surrounding medium, max(η, 1/η) ≥ 1: the
-    /// sheet looks the same from both faces.
-    #[inline]
-    fn sheet_eta(&self) -> f32 {
-        self.eta.max(1.0 / self.eta)
-    }
-
-    /// Fraction of light the interface reflects (specular or per microfacet) for the cosine
-    /// `cos_theta` between `wo` and the (micro)normal: Fr, or R' for a thin sheet.
-    #[inline]
-    fn reflectance(&self, cos_theta: f32) -> f32 {
-        if self.thin {
-            thin_reflectance(cos_theta, self.sheet_eta())
-        } else {
-            fresnel_dielectric(cos_theta, self.eta)
+    /// The interface's formulas ([`DielectricLobes`]) for one shading point.
+    #[inline(always)]
+    pub(crate) fn lobes(&self) -> DielectricLobes<f32> {
+        DielectricLobes {
+            eta: self.eta,
+            ggx: self.distribution.formulas(),
+            tint: self.tint.into(),
+            thin: self.thin,
+            smooth: self.is_smooth(),
         }
     }
+}
 
-    /// [`Bxdf::sample`] of the smooth interface (delta lobes).
-    fn sample_smooth(&self, wo: Vec3, uc: f32) -> Option<BsdfSample> {
+/// The dielectric's formulas over [`Real`] values (the module documentation has them): for
+/// one shading point ([`Dielectric::lobes`], what its [`Bxdf`] implementation evaluates) or
+/// for [`LANES`](crate::lanes::LANES) points with their own interfaces (the path tracer's
+/// glass kernel fills one lane per vertex with [`DielectricLobes::set`]). Masks stand where
+/// one point would branch, so each lane gets the scalar bits.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct DielectricLobes<R: Real> {
+    /// Relative index of refraction η seen from `wo`'s side.
+    eta: R,
+    /// The rough interface's microfacet distribution.
+    ggx: Ggx<R>,
+    /// Factor of transmitted light per channel.
+    tint: V3<R>,
+    /// Thin-walled.
+    thin: R::Mask,
+    /// Delta lobes only ([`Dielectric::is_smooth`]).
+    smooth: R::Mask,
+}
+
+impl DielectricLobes<F32s> {
+    /// Sets lane `i` to one shading point's interface.
+    #[inline]
+    pub fn set(&mut self, i: usize, one: &DielectricLobes<f32>) {
+        self.eta.set_lane(i, one.eta);
+        self.ggx.alpha_x.set_lane(i, one.ggx.alpha_x);
+        self.ggx.alpha_y.set_lane(i, one.ggx.alpha_y);
+        self.tint.set_lane(i, one.tint);
+        self.thin.0[i] = one.thin;
+        self.smooth.0[i] = one.smooth;
+    }
+
+    /// Whether every lane's interface is smooth (delta lobes only).
+    #[inline(always)]
+    pub fn all_smooth(&self) -> bool {
+        self.smooth.all()
+    }
+}
+
+impl<R: Real> DielectricLobes<R> {
+    /// Fraction of light the interface reflects for the cosine `cos_theta` between `wo` and
+    /// the (micro)normal: Fr, or R' for a thin sheet, which looks the same from both faces
+    /// (its index max(η, 1/η) ≥ 1).
+    #[inline(always)]
+    fn reflectance(&self, cos_theta: R) -> R {
+        let sheet_eta = self.eta.max(R::splat(1.0) / self.eta);
+        let r = fresnel(cos_theta, R::select(self.thin, sheet_eta, self.eta));
+        R::select(self.thin, sheet_reflectance(r), r)
+    }
+
+    /// [`Bxdf::sample`] of the smooth interface (delta lobes), `wo.z > 0`.
+    #[inline(always)]
+    fn sample_smooth(&self, wo: V3<R>, uc: R) -> RealSample<R> {
+        let (zero, one) = (R::splat(0.0), R::splat(1.0));
         let r = self.reflectance(wo.z);
-        let t = 1.0 - r;
-        if uc < r || t <= 0.0 {
-            let wi = Vec3::new(-wo.x, -wo.y, wo.z);
-            return Some(BsdfSample {
-                wi,
-                f: Rgb::splat(r / wi.z),
-                pdf: r,
-                delta: true,
-            });
+        let t = one - r;
+        let reflection = uc.lt(r) | t.le(zero);
+        let wr = V3::new(-wo.x, -wo.y, wo.z);
+        let fr = r / wr.z;
+        // Refraction (straight through a thin sheet), radiance scaled by 1/η² across a bulk
+        // interface.
+        let (refracted, refracts) = refract_real(wo, V3::new(zero, zero, one), self.eta);
+        let wt = self.thin.select(-wo, refracted);
+        let radiance_scale = R::select(self.thin, one, one / (self.eta * self.eta));
+        let ft = self.tint * (t * radiance_scale / -wt.z);
+        let transmits = (self.thin | refracts) & wt.z.lt(zero) & ft.is_finite();
+        RealSample {
+            ok: reflection | transmits,
+            wi: reflection.select(wr, wt),
+            f: reflection.select(V3::new(fr, fr, fr), ft),
+            pdf: R::select(reflection, r, t),
+            delta: R::Mask::splat(true),
         }
-        let (wi, radiance_scale) = if self.thin {
-            (-wo, 1.0)
-        } else {
-            (refract(wo, Vec3::Z, self.eta)?, 1.0 / (self.eta * self.eta))
-        };
-        if wi.z >= 0.0 {
-            return None;
-        }
-        let f = self.tint * (t * radiance_scale / -wi.z);
-        f.is_finite().then_some(BsdfSample {
-            wi,
-            f,
-            pdf: t,
-            delta: true,
-        })
-    }
-
-    /// Value (1/sr) and density (1/sr) of the rough interface for `wo.z > 0`.
-    fn rough_eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
-        const ZERO: (Rgb, f32) = (Rgb::ZERO, 0.0);
-        if wi.z == 0.0 || !wi.is_finite() {
-            return ZERO;
-        }
-        let reflection = wi.z > 0.0;
-        if self.thin {
-            // Transmission is the reflection lobe mirrored through the surface.
-            let wr = if reflection { wi } else { flip_z(wi) };
-            let Some(wm) = (wo + wr).try_normalize() else {
-                return ZERO;
-            };
-            let cos_om = wo.dot(wm);
-            if cos_om <= 0.0 {
-                return ZERO;
-            }
-            let r = self.reflectance(cos_om);
-            let ggx = &self.distribution;
-            let value = ggx.d(wm) * ggx.visibility(wo, wr);
-            let density = ggx.visible_normal_pdf(wo, wm) / (4.0 * cos_om);
-            return if reflection {
-                (Rgb::splat(value * r), density * r)
-            } else {
-                (self.tint * (value * (1.0 - r)), density * (1.0 - r))
-            };
-        }
-        // Generalised half vector, turned to +z.
-        let eta_prime = if reflection { 1.0 } else { self.eta };
-        let Some(mut wm) = (wi * eta_prime + wo).try_normalize() else {
-            return ZERO;
-        };
-        if wm.z < 0.0 {
-            wm = -wm;
-        }
-        let (cos_om, cos_im) = (wo.dot(wm), wi.dot(wm));
-        // Microfacets facing away from either direction.
-        if cos_om <= 0.0 || cos_im * wi.z <= 0.0 {
-            return ZERO;
-        }
-        let f = fresnel_dielectric(cos_om, self.eta);
-        if reflection {
-            self.rough_reflection(wo, wi, wm, cos_om, f)
-        } else {
-            self.rough_transmission(wo, wi, wm, cos_om, cos_im, 1.0 - f)
-        }
-    }
-
-    /// Value and density of the rough interface's reflection about the microfacet normal `wm`,
-    /// with cos_om = wo·wm > 0 and `f` the Fresnel reflectance.
-    #[inline]
-    fn rough_reflection(&self, wo: Vec3, wi: Vec3, wm: Vec3, cos_om: f32, f: f32) -> (Rgb, f32) {
-        let ggx = &self.distribution;
-        let value = ggx.d(wm) * ggx.visibility(wo, wi) * f;
-        let density = ggx.visible_normal_pdf(wo, wm) / (4.0 * cos_om) * f;
-        (Rgb::splat(value), density)
     }
 
     /// Value and density of the rough interface's refraction through the microfacet normal
-    /// `wm`, with cos_om = wo·wm > 0, cos_im = wi·wm < 0 and `t` the Fresnel transmittance.
-    #[inline]
-    fn rough_transmission(
-        &self,
-        wo: Vec3,
-        wi: Vec3,
-        wm: Vec3,
-        cos_om: f32,
-        cos_im: f32,
-        t: f32,
-    ) -> (Rgb, f32) {
+    /// `wm`, with cos_om = wo·wm > 0, cos_im = wi·wm < 0 and `t` the Fresnel transmittance;
+    /// zero where the Jacobian's denominator vanishes or either is not finite.
+    #[inline(always)]
+    fn rough_transmission(&self, wo: V3<R>, wi: V3<R>, wm: V3<R>, cos_om: R, cos_im: R, t: R) -> (V3<R>, R) {
+        let zero = R::splat(0.0);
         let eta = self.eta;
         // (η wi·wm + wo·wm)² = η² (wi·wm + wo·wm/η)²: the Jacobian's denominator, which also
         // carries the radiance scaling 1/η² of the value.
         let s = eta * cos_im + cos_om;
         let s2 = s * s;
-        if s2 <= 0.0 || s2.is_nan() || t <= 0.0 {
-            return (Rgb::ZERO, 0.0);
-        }
-        let ggx = &self.distribution;
         // D G (1 − F) |wi·wm wo·wm| / (|cos θi cos θo| (η wi·wm + wo·wm)²), with
         // G / (|cos θi cos θo|) = 4 V.
-        let value = ggx.d(wm) * 4.0 * ggx.visibility(wo, wi) * t * (cos_im * cos_om).abs() / s2;
+        let value = self.ggx.d(wm) * 4.0 * self.ggx.visibility(wo, wi) * t * (cos_im * cos_om).abs() / s2;
         let dwm_dwi = eta * eta * cos_im.abs() / s2;
-        let density = ggx.visible_normal_pdf(wo, wm) * dwm_dwi * t;
-        if !(value.is_finite() && density.is_finite()) {
-            return (Rgb::ZERO, 0.0);
-        }
-        (self.tint * value, density)
+        let density = self.ggx.visible_normal_pdf(wo, wm) * dwm_dwi * t;
+        let ok = s2.gt(zero) & t.gt(zero) & value.is_finite() & density.is_finite();
+        (ok.select(self.tint * value, V3::default()), R::select(ok, density, zero))
     }
 
     /// [`Bxdf::sample`] of the rough interface, `wo.z > 0`.
-    fn sample_rough(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
-        let wm = self.distribution.sample_visible_normal(wo, u);
+    #[inline(always)]
+    fn sample_rough(&self, wo: V3<R>, u: V2<R>, uc: R) -> RealSample<R> {
+        let (zero, one) = (R::splat(0.0), R::splat(1.0));
+        let wm = self.ggx.sample_visible_normal(wo, u);
         let cos_om = wo.dot(wm);
-        if cos_om <= 0.0 {
-            return None;
-        }
         let r = self.reflectance(cos_om);
-        let choose_reflection = uc < r || r >= 1.0;
-        let wr = reflect(wo, wm);
-        let (wi, (f, pdf)) = if self.thin {
-            if wr.z <= 0.0 {
-                return None;
-            }
-            let ggx = &self.distribution;
-            let value = ggx.d(wm) * ggx.visibility(wo, wr);
-            let density = ggx.visible_normal_pdf(wo, wm) / (4.0 * cos_om);
-            if choose_reflection {
-                (wr, (Rgb::splat(value * r), density * r))
-            } else {
-                let t = 1.0 - r;
-                (flip_z(wr), (self.tint * (value * t), density * t))
-            }
-        } else if choose_reflection {
-            if wr.z <= 0.0 {
-                return None;
-            }
-            (wr, self.rough_reflection(wo, wr, wm, cos_om, r))
-        } else {
-            let wi = refract(wo, wm, self.eta)?;
-            if wi.z >= 0.0 {
-                return None;
-            }
-            let cos_im = wi.dot(wm);
-            (
-                wi,
-                self.rough_transmission(wo, wi, wm, cos_om, cos_im, 1.0 - r),
-            )
-        };
-        (pdf > 0.0 && pdf.is_finite() && f.is_finite()).then_some(BsdfSample::new(wi, f, pdf))
+        let t = one - r;
+        let reflection = uc.lt(r) | r.ge(one);
+        let wr = reflect_about(wo, wm);
+        // Reflection about wm, and a thin sheet's transmission (the reflection mirrored).
+        let value = self.ggx.d(wm) * self.ggx.visibility(wo, wr);
+        let density = self.ggx.visible_normal_pdf(wo, wm) / (R::splat(4.0) * cos_om);
+        let mirrored = reflection | self.thin;
+        let (wi, (f, pdf), side) = choose(
+            mirrored,
+            || {
+                let thin_transmission = (self.tint * (value * t), density * t);
+                let reflected = (V3::new(value * r, value * r, value * r), density * r);
+                (reflection.select(wr, flip_z(wr)), reflection.select(reflected, thin_transmission), !wr.z.le(zero))
+            },
+            || {
+                let (wi, refracts) = refract_real(wo, wm, self.eta);
+                (wi, self.rough_transmission(wo, wi, wm, cos_om, wi.dot(wm), t), refracts & !wi.z.ge(zero))
+            },
+        );
+        let ok = !cos_om.le(zero) & side & pdf.gt(zero) & pdf.is_finite() & f.is_finite();
+        RealSample::new(ok, wi, f, pdf)
+    }
+}
+
+impl<R: Real> RealBxdf<R> for DielectricLobes<R> {
+    type AtWo = ();
+
+    #[inline(always)]
+    fn at_wo(&self, _wo: V3<R>) {}
+
+    /// The rough interface's value and density (module documentation); zero for a smooth
+    /// one (delta lobes only), where `wo.z ≤ 0`, `wi.z = 0` or `wi` is not finite.
+    #[inline(always)]
+    fn eval_pdf(&self, _at: (), wo: V3<R>, wi: V3<R>) -> (V3<R>, R) {
+        let (zero, one) = (R::splat(0.0), R::splat(1.0));
+        let valid = wo.z.gt(zero) & !self.smooth & !wi.z.eq(zero) & wi.is_finite();
+        if !valid.any() {
+            return (V3::default(), zero);
+        }
+        let reflection = wi.z.gt(zero);
+        // A thin sheet's transmission is its reflection lobe mirrored through the surface:
+        // the half vector of wo and the mirrored wi.
+        let wr = reflection.select(wi, flip_z(wi));
+        let (thin_half, thin_ok) = (wo + wr).try_normalize();
+        // Elsewhere the generalised half vector, turned to +z.
+        let eta_prime = R::select(reflection, one, self.eta);
+        let (half, half_ok) = (wi * eta_prime + wo).try_normalize();
+        let half = half.z.lt(zero).select(-half, half);
+        let wm = self.thin.select(thin_half, half);
+        let (cos_om, cos_im) = (wo.dot(wm), wi.dot(wm));
+        // Microfacets facing away from either direction contribute nothing.
+        let facing = !cos_om.le(zero) & (self.thin | !(cos_im * wi.z).le(zero));
+        let ok = valid & self.thin.select(thin_ok, half_ok) & facing;
+        let r = self.reflectance(cos_om);
+        let t = one - r;
+        let value = self.ggx.d(wm) * self.ggx.visibility(wo, wr);
+        let density = self.ggx.visible_normal_pdf(wo, wm) / (R::splat(4.0) * cos_om);
+        let reflected = (V3::new(value * r, value * r, value * r), density * r);
+        let transmitted = choose(
+            self.thin,
+            || (self.tint * (value * t), density * t),
+            || self.rough_transmission(wo, wi, wm, cos_om, cos_im, t),
+        );
+        let (f, pdf) = reflection.select(reflected, transmitted);
+        (ok.select(f, V3::default()), R::select(ok, pdf, zero))
+    }
+
+    /// Smooth: a delta sample, reflection when `uc` < R (or R'), refraction (straight
+    /// through a thin sheet) otherwise; `u` is unused. Rough: a GGX visible normal from
+    /// `u`, then reflection when `uc` < F(wo·wm) (or R'), refraction otherwise. Not `ok`
+    /// where `wo.z ≤ 0` or the drawn direction ends on the wrong side of the surface.
+    #[inline(always)]
+    fn sample(&self, _at: (), wo: V3<R>, u: V2<R>, uc: R) -> RealSample<R> {
+        let mut s = choose(self.smooth, || self.sample_smooth(wo, uc), || self.sample_rough(wo, u, uc));
+        s.ok = s.ok & wo.z.gt(R::splat(0.0));
+        s
     }
 }
 
@@ -506,21 +537,15 @@ impl Bxdf for Dielectric {
         self.eval_pdf(wo, wi).1
     }
 
-    /// Smooth: a delta sample, reflection when `uc` < R (or R'), refraction (straight
-    /// through for a thin sheet) otherwise; `u` is unused. Rough: a GGX visible normal from
-    /// `u`, then reflection when `uc` < F(wo·wm) (or R'), refraction otherwise. `None` when
-    /// `wo.z ≤ 0` or the drawn direction ends on the wrong side of the surface.
+    /// [`DielectricLobes`]' sample for this interface: `None` when `wo.z ≤ 0` or the drawn
+    /// direction ends on the wrong side of the surface.
     #[inline]
     fn sample(&self, wo: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
         let above = wo.z > 0.0; // false for NaN too
         if !above {
             return None;
         }
-        if self.is_smooth() {
-            self.sample_smooth(wo, uc)
-        } else {
-            self.sample_rough(wo, u, uc)
-        }
+        self.lobes().sample((), wo.into(), u.into(), uc).into_option()
     }
 
     #[inline]
@@ -529,7 +554,8 @@ impl Bxdf for Dielectric {
         if !above || self.is_smooth() {
             return (Rgb::ZERO, 0.0);
         }
-        self.rough_eval_pdf(wo, wi)
+        let (f, pdf) = self.lobes().eval_pdf((), wo.into(), wi.into());
+        (f.into(), pdf)
     }
 
     /// True: glass scatters into both hemispheres.
@@ -545,6 +571,7 @@ impl Bxdf for Dielectric {
     }
 }
 
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -552,6 +579,11 @@ mod tests {
     use crate::testing::chi2::{self, Chi2Config, Chi2Domain};
     use rand::{Rng, SeedableRng};
     use rand_pcg::Pcg32;
+
+    /// `w` seen from the other side of the surface: z negated.
+    fn mirrored(w: Vec3) -> Vec3 {
+        Vec3::new(w.x, w.y, -w.z)
+    }
 
     /// Roughnesses of the chi-square tests (α = 0.09 and 0.49).
     const CHI2_ROUGHNESSES: [f32; 2] = [0.3, 0.7];
@@ -919,7 +951,7 @@ mod tests {
             let scale = if thin { 1.0 } else { eta * eta };
             for degrees in [0.0f32, 30.0, 60.0] {
                 let wo = wo_at(degrees);
-                let expected = glass.reflectance(wo.z);
+                let expected = glass.lobes().reflectance(wo.z);
                 let mut rng = Pcg32::seed_from_u64(9);
                 let (mut reflected, mut transmitted) = (0.0f64, 0.0f64);
                 for _ in 0..n {
@@ -1004,7 +1036,7 @@ mod tests {
                     let wo = Vec3::new(pair[0].x, pair[0].y, pair[0].z.abs());
                     let wi = Vec3::new(pair[1].x, pair[1].y, -pair[1].z.abs());
                     let a = forward.eval(wo, wi) * (eta * eta);
-                    let b = backward.eval(flip_z(wi), flip_z(wo));
+                    let b = backward.eval(mirrored(wi), mirrored(wo));
                     let wm = (wi * eta + wo).normalize();
                     let grazing = wo.dot(wm).abs().min(wi.dot(wm).abs()) < 0.1;
                     let tolerance = if grazing { 2e-2 } else { 1e-3 };
@@ -1030,7 +1062,7 @@ mod tests {
             let wi = Vec3::new(pair[1].x, pair[1].y, -pair[1].z.abs());
             let (a, b) = (
                 sheet.eval(wo, wi),
-                sheet_behind.eval(flip_z(wi), flip_z(wo)),
+                sheet_behind.eval(mirrored(wi), mirrored(wo)),
             );
             assert!(
                 (0..3).all(|c| close(a[c], b[c], 1e-4)),
@@ -1049,7 +1081,7 @@ mod tests {
         for &wo in &wos {
             probes.extend([
                 -wo,
-                flip_z(wo),
+                mirrored(wo),
                 Vec3::new(-wo.x, -wo.y, wo.z),
                 wo,
                 Vec3::Z,
@@ -1110,7 +1142,7 @@ mod tests {
                             );
                         }
                         // Below the horizon and on it: nothing.
-                        for below in [flip_z(wo), Vec3::X] {
+                        for below in [mirrored(wo), Vec3::X] {
                             assert!(glass.sample(below, Vec2::splat(0.5), 0.5).is_none());
                             assert_eq!(glass.eval_pdf(below, -wo), (Rgb::ZERO, 0.0));
                         }

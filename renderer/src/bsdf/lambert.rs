@@ -112,12 +112,7 @@ impl<R: Real> RealBxdf<R> for LambertLobe<R> {
     fn sample(&self, _at: (), wo: V3<R>, u: V2<R>, _uc: R) -> RealSample<R> {
         let zero = R::splat(0.0);
         let wi = cosine_hemisphere(u);
-        RealSample {
-            ok: wo.z.gt(zero) & wi.z.gt(zero),
-            wi,
-            f: self.albedo * R::splat(FRAC_1_PI),
-            pdf: cosine_hemisphere_pdf(wi.z),
-        }
+        RealSample::new(wo.z.gt(zero) & wi.z.gt(zero), wi, self.albedo * R::splat(FRAC_1_PI), cosine_hemisphere_pdf(wi.z))
     }
 }
 

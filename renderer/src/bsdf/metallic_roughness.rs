@@ -405,12 +405,7 @@ impl<R: Real> RealBxdf<R> for MetallicRoughnessLobes<R> {
         let (h, has_half) = half_vector_or_z(wo, wi);
         let pdf = self.density(p_specular, wo, wi, h, has_half);
         let ok = wo.z.gt(zero) & wi.z.gt(zero) & pdf.gt(zero) & pdf.is_finite();
-        RealSample {
-            ok,
-            wi,
-            f: self.value(wo, wi, h),
-            pdf,
-        }
+        RealSample::new(ok, wi, self.value(wo, wi, h), pdf)
     }
 }
 

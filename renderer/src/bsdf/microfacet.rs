@@ -190,14 +190,7 @@ impl GgxDistribution {
     /// α² |wo_xy|²)) so it stays finite at grazing `wo`. Zero when `wo.z < 0` or `h.z ≤ 0`.
     #[inline]
     pub fn visible_normal_pdf(&self, wo: Vec3, h: Vec3) -> f32 {
-        if wo.z < 0.0 {
-            return 0.0;
-        }
-        let cos_oh = wo.dot(h);
-        if cos_oh <= 0.0 {
-            return 0.0;
-        }
-        2.0 * cos_oh * self.d(h) / (wo.z + self.projected_length(wo))
+        self.formulas().visible_normal_pdf(wo.into(), h.into())
     }
 
     /// Draws an incident direction by reflecting `wo` about a visible normal
@@ -281,6 +274,16 @@ impl<R: Real> Ggx<R> {
         let sin_theta = (R::splat(1.0) - z * z).max(zero).sqrt();
         let h_std = V3::new(sin_theta * cos_phi, sin_theta * sin_phi, z) + wo_std;
         V3::new(h_std.x * self.alpha_x, h_std.y * self.alpha_y, h_std.z.max(zero)).normalize_or(Vec3::Z)
+    }
+
+    /// [`GgxDistribution::visible_normal_pdf`]: 2 max(0, wo·h) D(h) / (wo.z + |wo|_α), 0
+    /// where wo.z < 0 or wo·h ≤ 0.
+    #[inline(always)]
+    pub fn visible_normal_pdf(&self, wo: V3<R>, h: V3<R>) -> R {
+        let zero = R::splat(0.0);
+        let cos_oh = wo.dot(h);
+        let pdf = R::splat(2.0) * cos_oh * self.d(h) / (wo.z + self.projected_length(wo));
+        R::select(wo.z.lt(zero) | cos_oh.le(zero), zero, pdf)
     }
 
     /// [`GgxDistribution::reflection_pdf`] given the half vector `h` of `wo` and `wi`, where

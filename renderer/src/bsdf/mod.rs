@@ -16,7 +16,7 @@
 //! [`tabulated_sampling::TabulatedBrdf`]; which BSDF a material gets is decided in
 //! [`crate::material`].
 
-use crate::lanes::{Real, V2, V3};
+use crate::lanes::{Blend, MaskOps, Real, V2, V3};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -121,20 +121,48 @@ pub(crate) trait RealBxdf<R: Real> {
     fn sample(&self, at: Self::AtWo, wo: V3<R>, u: V2<R>, uc: R) -> RealSample<R>;
 }
 
-/// A [`RealBxdf::sample`]: where `ok`, what [`Bxdf::sample`] gives as `Some`.
+/// A [`RealBxdf::sample`]: where `ok`, what [`Bxdf::sample`] gives as `Some` (`delta` its
+/// [`BsdfSample::delta`]).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct RealSample<R: Real> {
     pub ok: R::Mask,
     pub wi: V3<R>,
     pub f: V3<R>,
     pub pdf: R,
+    pub delta: R::Mask,
+}
+
+impl<R: Real> RealSample<R> {
+    /// A sample from lobes that `eval` and `pdf` describe (no delta lobe).
+    #[inline(always)]
+    pub fn new(ok: R::Mask, wi: V3<R>, f: V3<R>, pdf: R) -> Self {
+        RealSample { ok, wi, f, pdf, delta: R::Mask::splat(false) }
+    }
+}
+
+impl<R: Real> Blend<R::Mask> for RealSample<R> {
+    #[inline(always)]
+    fn blend(mask: R::Mask, a: Self, b: Self) -> Self {
+        RealSample {
+            ok: mask.select(a.ok, b.ok),
+            wi: mask.select(a.wi, b.wi),
+            f: mask.select(a.f, b.f),
+            pdf: R::select(mask, a.pdf, b.pdf),
+            delta: mask.select(a.delta, b.delta),
+        }
+    }
 }
 
 impl RealSample<f32> {
     /// The sample as [`Bxdf::sample`] returns it.
     #[inline(always)]
     pub fn into_option(self) -> Option<BsdfSample> {
-        self.ok.then(|| BsdfSample::new(self.wi.into(), self.f.into(), self.pdf))
+        self.ok.then(|| BsdfSample {
+            wi: self.wi.into(),
+            f: self.f.into(),
+            pdf: self.pdf,
+            delta: self.delta,
+        })
     }
 }
 

@@ -52,6 +52,13 @@ impl Transmission {
         self.glass_weight
     }
 
+    /// The glass, where it is the whole BSDF (τ = 1: value, density and samples are the
+    /// glass's, bit for bit); `None` where an opaque part is mixed in.
+    #[inline]
+    pub fn glass_alone(&self) -> Option<&Dielectric> {
+        (self.opaque_weight() == 0.0).then_some(&self.glass)
+    }
+
     /// The part of the BSDF a shading point of it evaluates: the glass alone where τ = 1.
     #[inline]
     fn opaque_weight(&self) -> f32 {

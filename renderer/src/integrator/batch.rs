@@ -1,20 +1,22 @@
 //! [`PathTracer::step`] for a batch of paths: each vertex's random numbers are drawn and
-//! its light chosen one by one; those on Lambertian and metallic-roughness surfaces are
-//! scattered [`LANES`](crate::lanes::LANES) at a time under any light ([`DiffuseLanes`],
-//! [`GlossyLanes`]: their formulas instantiated for lanes; on uniform materials pushed as their hits, the kernel finding their
-//! surface points, elsewhere begun one by one), those on decoded neural
-//! materials, NBRDF networks and MERL tables with their values evaluated together after all
-//! were sampled ([`DeferredScatter`]: one batched forward pass per net, table entries
-//! prefetched), layers over those joining their base's batch, the others (transmitting surfaces and layers over analytic bases) one by one. Each vertex's path is advanced as soon as its
-//! vertex is scattered (a lane group's paths right after the group), while its result is
-//! still in cache.
+//! its light chosen one by one; those on Lambertian and metallic-roughness surfaces and on
+//! glass are scattered [`LANES`](crate::lanes::LANES) at a time under any light
+//! ([`DiffuseLanes`], [`GlossyLanes`], [`GlassLanes`]: their formulas instantiated for
+//! lanes; on uniform opaque materials pushed as their hits, the kernel finding their surface
+//! points, elsewhere begun one by one), those on decoded neural materials, NBRDF networks and
+//! MERL tables with their values evaluated together after all were sampled
+//! ([`DeferredScatter`]: one batched forward pass per net, table entries prefetched), layers
+//! over those joining their base's batch, the others (glass mixed with an opaque part, layers
+//! over analytic bases) one by one. Each vertex's path is advanced as soon as its vertex is
+//! scattered (a lane group's paths right after the group), while its result is still in
+//! cache.
 
 use super::deferred::DeferredScatter;
-use super::bxdf_lanes::{DiffuseLanes, GlossyLanes};
+use super::bxdf_lanes::{DiffuseLanes, GlassLanes, GlossyLanes};
 use super::hit_lanes::HitAt;
 use super::scattered_lanes::LaneGroup;
 use super::light_lanes::LaneLight;
-use super::{Draws, PathState, PathTracer, Scattered, Strategy};
+use super::{entered_volume, Draws, PathState, PathTracer, Scattered, Strategy};
 use crate::accel::{Hit, Ray};
 use crate::Rgb;
 use crate::bsdf::merl::MerlBsdf;
@@ -36,6 +38,7 @@ const CHUNK: usize = 256;
 pub struct BatchBuffers<'s> {
     diffuse: LaneGroup<DiffuseLanes<'s>>,
     glossy: LaneGroup<GlossyLanes<'s>>,
+    glass: LaneGroup<GlassLanes<'s>>,
     neural: DeferredScatter<'s, NeuralBsdf>,
     nbrdf: DeferredScatter<'s, NbrdfBsdf>,
     merl: DeferredScatter<'s, MerlBsdf>,
@@ -80,6 +83,7 @@ impl PathTracer {
         let BatchBuffers {
             diffuse,
             glossy,
+            glass,
             neural,
             nbrdf,
             merl,
@@ -139,10 +143,15 @@ impl PathTracer {
                 };
                 // Every kind's route, in one exhaustive match: a kind added to `Bsdf` does not
                 // compile until it is given one (lanes, deferred batch, or one by one).
-                let settle = |i, p, s| self.settle(paths, results, i, p, s);
+                let mut settle = |i, p, s| self.settle(paths, results, i, p, s);
                 match v.bsdf {
                     Bsdf::Lambert(b) => diffuse.push(i, light_only, |lanes| lanes.push(&v, &b.lobe(), beta, self.lane_light(scene, &v)), settle),
                     Bsdf::MetallicRoughness(b) => glossy.push(i, light_only, |lanes| lanes.push(&v, &b.lobes(), beta, self.lane_light(scene, &v)), settle),
+                    // Glass alone in lanes; mixed with an opaque part, one by one.
+                    Bsdf::Transmission(t) => match t.glass_alone() {
+                        Some(g) => glass.push(i, light_only, |lanes| lanes.push(&v, &(g.lobes(), entered_volume(scene, &v.sp)), beta, self.lane_light(scene, &v)), settle),
+                        None => settle(i, v.sp.p, self.scatter(scene, &v, beta)),
+                    },
                     Bsdf::Neural(b) => neural.push(self, scene, i, &v, b, beta),
                     Bsdf::Nbrdf(b) => nbrdf.push(self, scene, i, &v, b, beta),
                     Bsdf::Merl(b) => merl.push(self, scene, i, &v, b, beta),
@@ -150,10 +159,7 @@ impl PathTracer {
                     Bsdf::Mixture(m) if neural.push_mixture(self, scene, i, &v, &m, beta) || nbrdf.push_mixture(self, scene, i, &v, &m, beta) || merl.push_mixture(self, scene, i, &v, &m, beta) => {}
                     // Layers over such a base (or mixture) join the base's batch.
                     Bsdf::Layered(l) if neural.push_layered(self, scene, i, &v, &l, beta) || nbrdf.push_layered(self, scene, i, &v, &l, beta) || merl.push_layered(self, scene, i, &v, &l, beta) => {}
-                    Bsdf::Transmission(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => {
-                        let scattered = self.scatter(scene, &v, beta);
-                        self.settle(paths, results, i, v.sp.p, scattered);
-                    }
+                    Bsdf::Layered(_) | Bsdf::Mixture(_) => settle(i, v.sp.p, self.scatter(scene, &v, beta)),
                 }
             }
             neural.scatter(self, |i, p, s| self.settle(paths, results, i, p, s));
@@ -162,6 +168,7 @@ impl PathTracer {
         }
         diffuse.finish(light_only, |i, p, s| self.settle(paths, results, i, p, s));
         glossy.finish(light_only, |i, p, s| self.settle(paths, results, i, p, s));
+        glass.finish(light_only, |i, p, s| self.settle(paths, results, i, p, s));
     }
 
     /// What beginning the vertex of `path` at `hit` (its random numbers `draws`) in a lane

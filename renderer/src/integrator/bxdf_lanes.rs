@@ -1,6 +1,6 @@
 //! [`PathTracer::scatter`] for [`LANES`] vertices at once on the BSDFs written over
 //! [`Real`](crate::lanes::Real) values ([`RealBxdf`]: Lambertian and metallic-roughness
-//! surfaces), lit by any light ([`super::light_lanes`]: triangles', the environment's and
+//! surfaces, glass), lit by any light ([`super::light_lanes`]: triangles', the environment's and
 //! point lights' samples drawn by the kernel).
 //!
 //! The kernel does all of `scatter` for all lanes together — the light samples, the BSDF's
@@ -16,9 +16,10 @@ use super::hit_lanes::{HitAt, HitLanes};
 use super::light_lanes::{next_event, LaneLight, LightLanes};
 use super::scattered_lanes::{LaneKernel, ScatteredLanes};
 use super::{continue_path, Draws, Vertex};
+use crate::bsdf::dielectric::DielectricLobes;
 use crate::bsdf::lambert::LambertLobe;
 use crate::bsdf::metallic_roughness::MetallicRoughnessLobes;
-use crate::bsdf::RealBxdf;
+use crate::bsdf::{RealBxdf, RealSample};
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::Rgb;
 use glam::Vec2;
@@ -30,8 +31,28 @@ pub(crate) trait LaneBxdf: RealBxdf<F32s> + Default + Clone + Debug {
     /// One shading point's parameters (the formulas over `f32`).
     type One;
 
+    /// Whether the BSDF transmits ([`Bxdf::transmits`](crate::bsdf::Bxdf::transmits)):
+    /// paths it sends below the surface may enter or leave a volume
+    /// ([`Self::entered_volume`]).
+    const TRANSMITS: bool = false;
+
     /// Sets lane `i` to `one`.
     fn set_lane(&mut self, i: usize, one: &Self::One);
+
+    /// Whether every lane's BSDF has delta lobes alone, so that no light sample can
+    /// contribute (next-event estimation is skipped, as `scatter` skips it).
+    #[inline(always)]
+    fn all_delta(&self) -> bool {
+        false
+    }
+
+    /// The absorption coefficient of the volume a path transmitted at lane `i` enters
+    /// ([`Continuation::sigma_a`](super::Continuation::sigma_a)); read only where
+    /// [`Self::TRANSMITS`].
+    #[inline(always)]
+    fn entered_volume(&self, _i: usize) -> Option<Rgb> {
+        None
+    }
 }
 
 impl LaneBxdf for LambertLobe<F32s> {
@@ -52,11 +73,64 @@ impl LaneBxdf for MetallicRoughnessLobes<F32s> {
     }
 }
 
+/// Glass in lanes: the interfaces' formulas and, per lane, the absorption of the volume a
+/// path transmitted there enters (`None` for a thin-walled surface).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct GlassLobes {
+    interface: DielectricLobes<F32s>,
+    enters: [Option<Rgb>; LANES],
+}
+
+impl RealBxdf<F32s> for GlassLobes {
+    type AtWo = ();
+
+    #[inline(always)]
+    fn at_wo(&self, _wo: Vec3s) {}
+
+    #[inline(always)]
+    fn eval_pdf(&self, at: (), wo: Vec3s, wi: Vec3s) -> (Vec3s, F32s) {
+        self.interface.eval_pdf(at, wo, wi)
+    }
+
+    #[inline(always)]
+    fn sample(&self, at: (), wo: Vec3s, u: Vec2s, uc: F32s) -> RealSample<F32s> {
+        self.interface.sample(at, wo, u, uc)
+    }
+}
+
+impl LaneBxdf for GlassLobes {
+    /// The interface, and the absorption of the volume a transmitted path enters
+    /// ([`super::PathTracer::entered_volume`]).
+    type One = (DielectricLobes<f32>, Option<Rgb>);
+
+    const TRANSMITS: bool = true;
+
+    #[inline(always)]
+    fn set_lane(&mut self, i: usize, (interface, enters): &Self::One) {
+        self.interface.set(i, interface);
+        self.enters[i] = *enters;
+    }
+
+    #[inline(always)]
+    fn all_delta(&self) -> bool {
+        self.interface.all_smooth()
+    }
+
+    #[inline(always)]
+    fn entered_volume(&self, i: usize) -> Option<Rgb> {
+        self.enters[i]
+    }
+}
+
 /// Lambertian vertices in lanes.
 pub(crate) type DiffuseLanes<'s> = BxdfLanes<'s, LambertLobe<F32s>>;
 
 /// Metallic-roughness vertices in lanes.
 pub(crate) type GlossyLanes<'s> = BxdfLanes<'s, MetallicRoughnessLobes<F32s>>;
+
+/// Vertices on glass alone (a transmitting material whose glass weight is 1), smooth or
+/// rough, bulk or thin-walled, in lanes.
+pub(crate) type GlassLanes<'s> = BxdfLanes<'s, GlassLobes>;
 
 /// Up to [`LANES`] vertices on BSDF `B` with their light samples, in structure-of-arrays
 /// form.
@@ -135,13 +209,18 @@ impl<B: LaneBxdf> LaneKernel for BxdfLanes<'_, B> {
         let (p, p_error, ng, wo, beta) = (surface.p, surface.p_error, surface.ng, surface.wo, self.beta);
         out.p = p;
 
-        // Next-event estimation (PathTracer::light_term and light_contribution).
-        let light = self.light.samples(p);
-        let wi = surface.to_local(light.sample.direction);
+        // Next-event estimation (PathTracer::light_term and light_contribution), where some
+        // lane's BSDF has a lobe a light sample can reach.
         let at_wo = self.bsdf.at_wo(wo);
-        let (f, bsdf_pdf) = self.bsdf.eval_pdf(at_wo, wo, wi);
-        next_event(&light, &surface, wi.z, (f, bsdf_pdf), beta, light_only, out);
-        out.shadow_ok = (Mask(out.shadow_ok) & scatters).0;
+        if self.bsdf.all_delta() {
+            out.shadow_ok = [false; LANES];
+        } else {
+            let light = self.light.samples(p);
+            let wi = surface.to_local(light.sample.direction);
+            let (f, bsdf_pdf) = self.bsdf.eval_pdf(at_wo, wo, wi);
+            next_event(&light, &surface, wi.z, (f, bsdf_pdf), beta, light_only, out);
+            out.shadow_ok = (Mask(out.shadow_ok) & scatters).0;
+        }
 
         // BSDF sampling and the continuation.
         let sample = self.bsdf.sample(at_wo, wo, self.u, self.uc);
@@ -152,6 +231,12 @@ impl<B: LaneBxdf> LaneKernel for BxdfLanes<'_, B> {
         out.next_direction = wi_world;
         out.next_beta = next.beta;
         out.next_pdf = next.pdf;
+        out.next_delta = sample.delta.0;
+        if B::TRANSMITS {
+            for i in 0..LANES {
+                out.next_sigma_a[i] = if sample.wi.z.0[i] < 0.0 { self.bsdf.entered_volume(i) } else { None };
+            }
+        }
     }
 }
 
@@ -290,6 +375,71 @@ mod tests {
             let kernel_draws = strategy != Strategy::BsdfOnly;
             assert_eq!(environment > 0, kernel_draws, "{strategy:?}: {environment} environment samples drawn in lanes");
             assert!(continued > cases.len() / 2 && continued < cases.len(), "{strategy:?}: {continued} continue");
+        }
+    }
+
+    /// Every lane gives what the scalar `scatter` gives for its vertex, bit for bit, on the
+    /// glass of the glass-and-coats scene (smooth clear and amber glass with absorbing
+    /// volumes, frosted rough glass; seen from outside and from inside), and on the same
+    /// glass thin-walled: continuations from delta lobes, transmitted paths entering and
+    /// leaving volumes, every strategy, full and partial groups, zero throughputs.
+    #[test]
+    fn glass_lanes_equal_scalar_scatter_bit_for_bit() {
+        let description = crate::testing::data::shipped_scene("glass-and-coats");
+        let mut thin = description.clone();
+        for m in thin.materials.iter_mut().filter(|m| m.transmits()) {
+            m.volume = None;
+        }
+        for (description, thin_walled) in [(description, false), (thin, true)] {
+            glass_lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"), thin_walled);
+        }
+    }
+
+    fn glass_lanes_equal_scalar_scatter_in(scene: &RenderScene, thin_walled: bool) {
+        let mut rng = Sampler::new(9, 4, 2);
+        for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
+            let tracer = PathTracer {
+                strategy,
+                ..PathTracer::default()
+            };
+            let cases = vertices(scene, &tracer, &mut rng, 16 * 40 + 9, |bsdf| match *bsdf {
+                Bsdf::Transmission(t) => t.glass_alone().copied(),
+                _ => None,
+            });
+            let (mut lanes, mut out) = (GlassLanes::default(), ScatteredLanes::default());
+            let (mut smooth, mut shadows, mut delta, mut entering, mut leaving, mut inside) = (0, 0, 0, 0, 0, 0);
+            for group in cases.chunks(LANES) {
+                lanes.clear();
+                for (vertex, glass, beta) in group {
+                    smooth += glass.is_smooth() as usize;
+                    inside += !vertex.sp.front_face as usize;
+                    lanes.push(vertex, &(glass.lobes(), super::super::entered_volume(scene, &vertex.sp)), *beta, tracer.lane_light(scene, vertex));
+                }
+                crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
+                for (lane, (vertex, _, beta)) in group.iter().enumerate() {
+                    let expected = tracer.scatter(scene, vertex, *beta);
+                    assert_eq!(format!("{:?}", out.get(lane)), format!("{expected:?}"), "{strategy:?}, lane {lane}");
+                    shadows += expected.shadow.is_some() as usize;
+                    if let Some(next) = expected.next {
+                        delta += next.delta as usize;
+                        entering += next.sigma_a.is_some_and(|s| s != Rgb::ZERO) as usize;
+                        leaving += (next.sigma_a == Some(Rgb::ZERO)) as usize;
+                    }
+                }
+            }
+            let n = cases.len();
+            assert!(smooth > n / 10 && smooth < n * 9 / 10, "{strategy:?}: smooth and rough glass: {smooth} of {n}");
+            assert!(inside > 0, "{strategy:?}: vertices inside the glass: {inside} of {n}");
+            assert!(delta > n / 10, "{strategy:?}: continuations from delta lobes: {delta}");
+            if thin_walled {
+                assert_eq!(entering + leaving, 0, "{strategy:?}: thin-walled glass has no volume");
+            } else {
+                assert!(entering > 0 && leaving > 0, "{strategy:?}: paths entering ({entering}) and leaving ({leaving}) volumes");
+            }
+            // Rough glass is lit, also through its back.
+            if strategy != Strategy::BsdfOnly {
+                assert!(shadows > 0, "{strategy:?}: {shadows} lit lanes");
+            }
         }
     }
 

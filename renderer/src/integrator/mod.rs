@@ -321,9 +321,7 @@ impl PathTracer {
         let next = bsdf.sample(wo, u, uc).and_then(|bs| {
             let mut next = continuation(&sp, &bs, beta)?;
             if bs.wi.z < 0.0 {
-                // Transmission: into the material's volume through its front, out through
-                // its back; thin-walled surfaces have none.
-                next.sigma_a = scene.materials.volume_absorption(sp.material).map(|s| if sp.front_face { s } else { Rgb::ZERO });
+                next.sigma_a = entered_volume(scene, &sp);
             }
             Some(next)
         });
@@ -433,6 +431,14 @@ impl PathTracer {
     }
 }
 
+/// The absorption coefficient of the medium a path transmitted at `sp` enters: the
+/// material's volume through its front, vacuum (zero) through its back; `None` for
+/// thin-walled surfaces, which have no volume (the path stays in its medium).
+#[inline(always)]
+pub(crate) fn entered_volume(scene: &RenderScene, sp: &SurfacePoint) -> Option<Rgb> {
+    scene.materials.volume_absorption(sp.material).map(|s| if sp.front_face { s } else { Rgb::ZERO })
+}
+
 /// The direction of light sample `ls` in the local frame of `sp`, `None` where it leaves
 /// below the geometric surface (also where a NaN makes the test fail) and the BSDF does not
 /// transmit (`transmits` false).
@@ -454,6 +460,7 @@ fn continuation(sp: &SurfacePoint, bs: &BsdfSample, beta: Rgb) -> Option<Continu
         wi: bs.wi.into(),
         f: bs.f.into(),
         pdf: bs.pdf,
+        delta: bs.delta,
     };
     let next = continue_path((sp.p.into(), sp.p_error.into(), sp.ng_facing.into()), wi_world, &sample, beta.into());
     next.ok.then(|| Continuation {

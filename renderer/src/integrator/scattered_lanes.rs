@@ -4,6 +4,7 @@
 use super::{Continuation, Scattered, ShadowTest};
 use crate::accel::Ray;
 use crate::lanes::{F32s, Vec3s, LANES};
+use crate::Rgb;
 use glam::Vec3;
 
 /// [`Scattered`] for [`LANES`] vertices, structure of arrays.
@@ -21,6 +22,10 @@ pub(crate) struct ScatteredLanes {
     pub next_direction: Vec3s,
     pub next_beta: Vec3s,
     pub next_pdf: F32s,
+    /// Whether the continuation comes from a delta lobe.
+    pub next_delta: [bool; LANES],
+    /// [`Continuation::sigma_a`] (set by transmitting kernels only).
+    pub next_sigma_a: [Option<Rgb>; LANES],
 }
 
 impl ScatteredLanes {
@@ -40,8 +45,8 @@ impl ScatteredLanes {
                 ray: Ray::new(self.next_origin.get(i), self.next_direction.get(i)),
                 beta: self.next_beta.get(i),
                 pdf: self.next_pdf.0[i],
-                delta: false,
-                sigma_a: None,
+                delta: self.next_delta[i],
+                sigma_a: self.next_sigma_a[i],
             }),
         }
     }
