@@ -124,7 +124,7 @@
 
 use super::microfacet::{reflect_about, Ggx, GgxDistribution};
 use super::{BsdfSample, Bxdf, RealBxdf, RealSample};
-use crate::lanes::{choose, F32s, MaskOps, Real, SetLane, V2, V3};
+use crate::lanes::{choose, Blend, F32s, Mask, MaskOps, Real, SetLane, V2, V3};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -378,6 +378,21 @@ impl DielectricLobes<F32s> {
     pub fn all_smooth(&self) -> bool {
         self.smooth.all()
     }
+
+    /// `a`'s interface where `mask` is set, `b`'s elsewhere.
+    #[inline(always)]
+    pub fn select(mask: Mask, a: &Self, b: &Self) -> Self {
+        DielectricLobes {
+            eta: F32s::select(mask, a.eta, b.eta),
+            ggx: Ggx {
+                alpha_x: F32s::select(mask, a.ggx.alpha_x, b.ggx.alpha_x),
+                alpha_y: F32s::select(mask, a.ggx.alpha_y, b.ggx.alpha_y),
+            },
+            tint: mask.select(a.tint, b.tint),
+            thin: mask.select(a.thin, b.thin),
+            smooth: mask.select(a.smooth, b.smooth),
+        }
+    }
 }
 
 impl<R: Real> DielectricLobes<R> {
@@ -516,7 +531,14 @@ impl<R: Real> RealBxdf<R> for DielectricLobes<R> {
     /// where `wo.z ≤ 0` or the drawn direction ends on the wrong side of the surface.
     #[inline(always)]
     fn sample(&self, _at: (), wo: V3<R>, u: V2<R>, uc: R) -> RealSample<R> {
-        let mut s = choose(self.smooth, || self.sample_smooth(wo, uc), || self.sample_rough(wo, u, uc));
+        // `choose` written out: its closures are not always inlined into the lane kernels.
+        let mut s = if self.smooth.all() {
+            self.sample_smooth(wo, uc)
+        } else if !self.smooth.any() {
+            self.sample_rough(wo, u, uc)
+        } else {
+            RealSample::blend(self.smooth, self.sample_smooth(wo, uc), self.sample_rough(wo, u, uc))
+        };
         s.ok = s.ok & wo.z.gt(R::splat(0.0));
         s
     }

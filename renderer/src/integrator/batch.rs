@@ -12,7 +12,7 @@
 //! cache.
 
 use super::deferred::DeferredScatter;
-use super::bxdf_lanes::{DiffuseLanes, GlassLanes, GlossyLanes};
+use super::bxdf_lanes::{DiffuseLanes, GlassFaces, GlassLanes, GlossyLanes};
 use super::hit_lanes::HitAt;
 use super::scattered_lanes::LaneGroup;
 use super::light_lanes::LaneLight;
@@ -134,7 +134,12 @@ impl PathTracer {
                     match bsdf {
                         Bsdf::Lambert(l) => diffuse.push(i, light_only, |lanes| lanes.push_hit(&at, &l.lobe(), beta, &draws, light), settle),
                         Bsdf::MetallicRoughness(m) => glossy.push(i, light_only, |lanes| lanes.push_hit(&at, &m.lobes(), beta, &draws, light), settle),
-                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Transmission(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => unreachable!("a plain BSDF is Lambertian or metallic-roughness"),
+                        Bsdf::Transmission(t) => {
+                            let material = lane_hit.material;
+                            let faces = t.glass_alone().zip(scene.materials.glass_back(material)).map(|(front, back)| GlassFaces::plain(front, back, scene.materials.volume_absorption(material)));
+                            glass.push(i, light_only, |lanes| lanes.push_hit(&at, &faces.expect("plain glass is glass alone"), beta, &draws, light), settle)
+                        }
+                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => unreachable!("a plain BSDF is Lambertian, metallic-roughness or glass"),
                     }
                     continue;
                 }
@@ -149,7 +154,7 @@ impl PathTracer {
                     Bsdf::MetallicRoughness(b) => glossy.push(i, light_only, |lanes| lanes.push(&v, &b.lobes(), beta, self.lane_light(scene, &v)), settle),
                     // Glass alone in lanes; mixed with an opaque part, one by one.
                     Bsdf::Transmission(t) => match t.glass_alone() {
-                        Some(g) => glass.push(i, light_only, |lanes| lanes.push(&v, &(g.lobes(), entered_volume(scene, &v.sp)), beta, self.lane_light(scene, &v)), settle),
+                        Some(g) => glass.push(i, light_only, |lanes| lanes.push(&v, &GlassFaces::begun(g, entered_volume(scene, &v.sp)), beta, self.lane_light(scene, &v)), settle),
                         None => settle(i, v.sp.p, self.scatter(scene, &v, beta)),
                     },
                     Bsdf::Neural(b) => neural.push(self, scene, i, &v, b, beta),

@@ -19,17 +19,20 @@ use super::{continue_path, Draws, Vertex};
 use crate::bsdf::dielectric::DielectricLobes;
 use crate::bsdf::lambert::LambertLobe;
 use crate::bsdf::metallic_roughness::MetallicRoughnessLobes;
-use crate::bsdf::{RealBxdf, RealSample};
+use crate::bsdf::{Dielectric, RealBxdf};
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::Rgb;
 use glam::Vec2;
 use std::fmt::Debug;
 
-/// A BSDF the lane kernel scatters: its formulas over [`F32s`], and how one shading point's
-/// parameters fill a lane.
-pub(crate) trait LaneBxdf: RealBxdf<F32s> + Default + Clone + Debug {
+/// A BSDF the lane kernel scatters: how one shading point's parameters fill a lane, and its
+/// formulas over [`F32s`] for the side of the surface each lane's path arrives on.
+pub(crate) trait LaneBxdf: Default + Clone + Debug {
     /// One shading point's parameters (the formulas over `f32`).
     type One;
+
+    /// The formulas of the lanes' BSDFs seen from the side their paths arrive on.
+    type Faced: RealBxdf<F32s>;
 
     /// Whether the BSDF transmits ([`Bxdf::transmits`](crate::bsdf::Bxdf::transmits)):
     /// paths it sends below the surface may enter or leave a volume
@@ -39,6 +42,10 @@ pub(crate) trait LaneBxdf: RealBxdf<F32s> + Default + Clone + Debug {
     /// Sets lane `i` to `one`.
     fn set_lane(&mut self, i: usize, one: &Self::One);
 
+    /// The lanes' formulas where the paths arrive at the front of the surface (`front_face`;
+    /// [`HitLanes::surface_points`]) or its back.
+    fn facing(&self, front_face: Mask) -> Self::Faced;
+
     /// Whether every lane's BSDF has delta lobes alone, so that no light sample can
     /// contribute (next-event estimation is skipped, as `scatter` skips it).
     #[inline(always)]
@@ -46,79 +53,110 @@ pub(crate) trait LaneBxdf: RealBxdf<F32s> + Default + Clone + Debug {
         false
     }
 
-    /// The absorption coefficient of the volume a path transmitted at lane `i` enters
+    /// The absorption coefficient of the volume a path transmitted at lane `i`, arriving at
+    /// the front of the surface or not (`front_face`), enters
     /// ([`Continuation::sigma_a`](super::Continuation::sigma_a)); read only where
     /// [`Self::TRANSMITS`].
     #[inline(always)]
-    fn entered_volume(&self, _i: usize) -> Option<Rgb> {
+    fn entered_volume(&self, _i: usize, _front_face: bool) -> Option<Rgb> {
         None
     }
 }
 
-impl LaneBxdf for LambertLobe<F32s> {
-    type One = LambertLobe<f32>;
+/// The same on both sides of the surface (single-sided materials end paths at their back
+/// before they scatter).
+macro_rules! one_sided_lane_bxdf {
+    ($lobes:ident) => {
+        impl LaneBxdf for $lobes<F32s> {
+            type One = $lobes<f32>;
+            type Faced = $lobes<F32s>;
 
+            #[inline(always)]
+            fn set_lane(&mut self, i: usize, one: &$lobes<f32>) {
+                self.set(i, one);
+            }
+
+            #[inline(always)]
+            fn facing(&self, _front_face: Mask) -> $lobes<F32s> {
+                self.clone()
+            }
+        }
+    };
+}
+
+one_sided_lane_bxdf!(LambertLobe);
+one_sided_lane_bxdf!(MetallicRoughnessLobes);
+
+/// One glass vertex: its interface seen from the front and from the back of the surface,
+/// and the absorption of the volume a path transmitted through either enters (`None` for
+/// thin-walled glass). A vertex begun by the scalar code has both the same (its side).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GlassFaces {
+    pub front: DielectricLobes<f32>,
+    pub back: DielectricLobes<f32>,
+    pub enters_front: Option<Rgb>,
+    pub enters_back: Option<Rgb>,
+}
+
+impl GlassFaces {
+    /// The faces of a glass vertex begun on `glass`, a path transmitted there entering
+    /// `enters` ([`super::entered_volume`]).
     #[inline(always)]
-    fn set_lane(&mut self, i: usize, one: &LambertLobe<f32>) {
-        self.set(i, one);
+    pub fn begun(glass: &Dielectric, enters: Option<Rgb>) -> Self {
+        let lobes = glass.lobes();
+        GlassFaces { front: lobes, back: lobes, enters_front: enters, enters_back: enters }
+    }
+
+    /// The faces of plain glass seen from the front as `front` and from the back as `back`,
+    /// whose volume (none where thin-walled) has the absorption coefficient `sigma_a`: a
+    /// path enters it through the front, and leaves it for vacuum through the back.
+    #[inline(always)]
+    pub fn plain(front: &Dielectric, back: &Dielectric, sigma_a: Option<Rgb>) -> Self {
+        GlassFaces { front: front.lobes(), back: back.lobes(), enters_front: sigma_a, enters_back: sigma_a.map(|_| Rgb::ZERO) }
     }
 }
 
-impl LaneBxdf for MetallicRoughnessLobes<F32s> {
-    type One = MetallicRoughnessLobes<f32>;
-
-    #[inline(always)]
-    fn set_lane(&mut self, i: usize, one: &MetallicRoughnessLobes<f32>) {
-        self.set(i, one);
-    }
-}
-
-/// Glass in lanes: the interfaces' formulas and, per lane, the absorption of the volume a
-/// path transmitted there enters (`None` for a thin-walled surface).
+/// Glass in lanes: per lane, the interfaces and volumes of [`GlassFaces`].
 #[derive(Clone, Debug, Default)]
 pub(crate) struct GlassLobes {
-    interface: DielectricLobes<F32s>,
-    enters: [Option<Rgb>; LANES],
-}
-
-impl RealBxdf<F32s> for GlassLobes {
-    type AtWo = ();
-
-    #[inline(always)]
-    fn at_wo(&self, _wo: Vec3s) {}
-
-    #[inline(always)]
-    fn eval_pdf(&self, at: (), wo: Vec3s, wi: Vec3s) -> (Vec3s, F32s) {
-        self.interface.eval_pdf(at, wo, wi)
-    }
-
-    #[inline(always)]
-    fn sample(&self, at: (), wo: Vec3s, u: Vec2s, uc: F32s) -> RealSample<F32s> {
-        self.interface.sample(at, wo, u, uc)
-    }
+    front: DielectricLobes<F32s>,
+    back: DielectricLobes<F32s>,
+    enters_front: [Option<Rgb>; LANES],
+    enters_back: [Option<Rgb>; LANES],
 }
 
 impl LaneBxdf for GlassLobes {
-    /// The interface, and the absorption of the volume a transmitted path enters
-    /// ([`super::PathTracer::entered_volume`]).
-    type One = (DielectricLobes<f32>, Option<Rgb>);
+    type One = GlassFaces;
+    type Faced = DielectricLobes<F32s>;
 
     const TRANSMITS: bool = true;
 
     #[inline(always)]
-    fn set_lane(&mut self, i: usize, (interface, enters): &Self::One) {
-        self.interface.set(i, interface);
-        self.enters[i] = *enters;
+    fn set_lane(&mut self, i: usize, one: &GlassFaces) {
+        self.front.set(i, &one.front);
+        self.back.set(i, &one.back);
+        self.enters_front[i] = one.enters_front;
+        self.enters_back[i] = one.enters_back;
+    }
+
+    #[inline(always)]
+    fn facing(&self, front_face: Mask) -> DielectricLobes<F32s> {
+        DielectricLobes::select(front_face, &self.front, &self.back)
     }
 
     #[inline(always)]
     fn all_delta(&self) -> bool {
-        self.interface.all_smooth()
+        // Both faces are smooth or neither.
+        self.front.all_smooth()
     }
 
     #[inline(always)]
-    fn entered_volume(&self, i: usize) -> Option<Rgb> {
-        self.enters[i]
+    fn entered_volume(&self, i: usize, front_face: bool) -> Option<Rgb> {
+        if front_face {
+            self.enters_front[i]
+        } else {
+            self.enters_back[i]
+        }
     }
 }
 
@@ -205,25 +243,26 @@ impl<B: LaneBxdf> LaneKernel for BxdfLanes<'_, B> {
     /// drawn from the BSDF.
     #[inline(always)]
     fn scatter_lanes(&self, light_only: bool, out: &mut ScatteredLanes) {
-        let (surface, scatters) = self.surface.surface_points();
+        let (surface, scatters, front_face) = self.surface.surface_points();
         let (p, p_error, ng, wo, beta) = (surface.p, surface.p_error, surface.ng, surface.wo, self.beta);
         out.p = p;
+        let bsdf = self.bsdf.facing(front_face);
 
         // Next-event estimation (PathTracer::light_term and light_contribution), where some
         // lane's BSDF has a lobe a light sample can reach.
-        let at_wo = self.bsdf.at_wo(wo);
+        let at_wo = bsdf.at_wo(wo);
         if self.bsdf.all_delta() {
             out.shadow_ok = [false; LANES];
         } else {
             let light = self.light.samples(p);
             let wi = surface.to_local(light.sample.direction);
-            let (f, bsdf_pdf) = self.bsdf.eval_pdf(at_wo, wo, wi);
+            let (f, bsdf_pdf) = bsdf.eval_pdf(at_wo, wo, wi);
             next_event(&light, &surface, wi.z, (f, bsdf_pdf), beta, light_only, out);
             out.shadow_ok = (Mask(out.shadow_ok) & scatters).0;
         }
 
         // BSDF sampling and the continuation.
-        let sample = self.bsdf.sample(at_wo, wo, self.u, self.uc);
+        let sample = bsdf.sample(at_wo, wo, self.u, self.uc);
         let wi_world = surface.to_world(sample.wi);
         let next = continue_path((p, p_error, ng), wi_world, &sample, beta);
         out.next_ok = (scatters & next.ok).0;
@@ -234,7 +273,7 @@ impl<B: LaneBxdf> LaneKernel for BxdfLanes<'_, B> {
         out.next_delta = sample.delta.0;
         if B::TRANSMITS {
             for i in 0..LANES {
-                out.next_sigma_a[i] = if sample.wi.z.0[i] < 0.0 { self.bsdf.entered_volume(i) } else { None };
+                out.next_sigma_a[i] = if sample.wi.z.0[i] < 0.0 { self.bsdf.entered_volume(i, front_face.0[i]) } else { None };
             }
         }
     }
@@ -413,7 +452,7 @@ mod tests {
                 for (vertex, glass, beta) in group {
                     smooth += glass.is_smooth() as usize;
                     inside += !vertex.sp.front_face as usize;
-                    lanes.push(vertex, &(glass.lobes(), super::super::entered_volume(scene, &vertex.sp)), *beta, tracer.lane_light(scene, vertex));
+                    lanes.push(vertex, &GlassFaces::begun(glass, super::super::entered_volume(scene, &vertex.sp)), *beta, tracer.lane_light(scene, vertex));
                 }
                 crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
                 for (lane, (vertex, _, beta)) in group.iter().enumerate() {

@@ -85,14 +85,15 @@ impl HitLanes {
         self.any_smooth |= !hit.flat;
     }
 
-    /// The lanes' surface points, and the lanes whose vertex scatters: those pushed found,
-    /// and those pushed as their hit where [`PathTracer::begin`](super::PathTracer) would
-    /// not end the path (at the back of a single-sided material, or with the ray arriving
-    /// below the shading hemisphere).
+    /// The lanes' surface points; the lanes whose vertex scatters: those pushed found, and
+    /// those pushed as their hit where [`PathTracer::begin`](super::PathTracer) would not end
+    /// the path (at the back of a single-sided material, or with the ray arriving below the
+    /// shading hemisphere); and the lanes pushed as their hit whose ray arrives at the front
+    /// of the surface (set for those pushed found).
     #[inline(always)]
-    pub fn surface_points(&self) -> (SurfaceLanes, Mask) {
+    pub fn surface_points(&self) -> (SurfaceLanes, Mask, Mask) {
         if !self.any_from_hit {
-            return (self.found.clone(), Mask([true; LANES]));
+            return (self.found.clone(), Mask([true; LANES]), Mask([true; LANES]));
         }
         let (hit, front_face) =
             surface_points_lanes(self.corners, self.ng, self.normals, Mask(self.flat), self.any_smooth, self.barycentric, self.direction);
@@ -107,7 +108,7 @@ impl HitLanes {
             n: from_hit.select(hit.n, found.n),
             wo: from_hit.select(hit.wo, found.wo),
         };
-        (surface, !from_hit | scatters)
+        (surface, !from_hit | scatters, !from_hit | front_face)
     }
 }
 
@@ -118,9 +119,9 @@ mod tests {
     use crate::bsdf::Bsdf;
     use crate::bsdf::lambert::LambertLobe;
     use crate::bsdf::metallic_roughness::MetallicRoughnessLobes;
-    use crate::integrator::bxdf_lanes::{BxdfLanes, LaneBxdf};
+    use crate::integrator::bxdf_lanes::{BxdfLanes, GlassFaces, GlassLobes, LaneBxdf};
     use crate::integrator::scattered_lanes::{scatter, LaneKernel, ScatteredLanes};
-    use crate::integrator::{PathState, PathTracer, Strategy};
+    use crate::integrator::{entered_volume, PathState, PathTracer, Strategy};
     use crate::render_scene::RenderScene;
     use crate::sampler::Sampler;
     use crate::sampling::sample_uniform_sphere;
@@ -131,9 +132,10 @@ mod tests {
     /// give what the scalar `begin` and `scatter` give, bit for bit (the position included),
     /// and end where `begin` ends the path: on Lambertian surfaces (the Cornell box, whose
     /// single-sided walls are seen from both sides, and again made double-sided; the
-    /// preview's flat ground, and its smooth-shaded sphere made Lambertian) and
+    /// preview's flat ground, and its smooth-shaded sphere made Lambertian),
     /// metallic-roughness ones (the preview's sphere, and its ground made
-    /// metallic-roughness), under every strategy.
+    /// metallic-roughness) and glass (the glass-and-coats scene's, seen from outside and
+    /// inside, and the same made thin-walled), under every strategy.
     #[test]
     fn hits_pushed_equal_scalar_begin_and_scatter() {
         let load = crate::testing::data::shipped_scene;
@@ -152,30 +154,45 @@ mod tests {
             description
         };
         let (glossy, diffuse) = (with_model(SurfaceModel::MetallicRoughness), with_model(SurfaceModel::Lambert));
-        // Per kernel (diffuse, glossy): vertices, pushed as hits, ended, smooth-shaded, lit.
-        let mut totals = [[0usize; 5]; 2];
-        for (description, double_sided) in [(cornell, false), (double_sided, true), (preview, false), (glossy, false), (diffuse, false)] {
+        let glass = load("glass-and-coats");
+        let mut thin = glass.clone();
+        for m in thin.materials.iter_mut().filter(|m| m.transmits()) {
+            m.volume = None;
+        }
+        // Per kernel (diffuse, glossy, glass): vertices, pushed as hits, ended, smooth-shaded,
+        // lit.
+        let mut totals = [[0usize; 5]; 3];
+        for (description, double_sided) in [(cornell, false), (double_sided, true), (preview, false), (glossy, false), (diffuse, false), (glass, false), (thin, false)] {
             let scene = RenderScene::new(description).expect("scene");
             for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
                 let tracer = PathTracer {
                     strategy,
                     ..PathTracer::default()
                 };
-                let (diffuse, glossy) = cases(&scene, &tracer);
-                for (kernel, cases) in [diffuse, glossy].into_iter().enumerate() {
+                for (kernel, cases) in cases(&scene, &tracer).into_iter().enumerate() {
                     if cases.is_empty() {
                         continue;
                     }
-                    let counts = if kernel == 0 {
-                        check::<LambertLobe<F32s>>(&scene, &tracer, &cases, |bsdf| match bsdf {
+                    let counts = match kernel {
+                        0 => check::<LambertLobe<F32s>>(&scene, &tracer, &cases, |bsdf, _, _| match bsdf {
                             Bsdf::Lambert(b) => b.lobe(),
                             _ => unreachable!(),
-                        })
-                    } else {
-                        check::<MetallicRoughnessLobes<F32s>>(&scene, &tracer, &cases, |bsdf| match bsdf {
+                        }),
+                        1 => check::<MetallicRoughnessLobes<F32s>>(&scene, &tracer, &cases, |bsdf, _, _| match bsdf {
                             Bsdf::MetallicRoughness(m) => m.lobes(),
                             _ => unreachable!(),
-                        })
+                        }),
+                        _ => check::<GlassLobes>(&scene, &tracer, &cases, |bsdf, begun, material| match (bsdf, begun) {
+                            // Begun: the glass of the side its path arrives on.
+                            (_, Some(v)) => match v.bsdf {
+                                Bsdf::Transmission(t) => GlassFaces::begun(t.glass_alone().expect("glass alone"), entered_volume(&scene, &v.sp)),
+                                _ => unreachable!(),
+                            },
+                            (Bsdf::Transmission(t), None) => {
+                                GlassFaces::plain(t.glass_alone().expect("glass alone"), scene.materials.glass_back(material).expect("its back"), scene.materials.volume_absorption(material))
+                            }
+                            _ => unreachable!(),
+                        }),
                     };
                     let Counts { from_hits, ended, shadows, smooth } = counts;
                     let n = cases.len();
@@ -195,13 +212,13 @@ mod tests {
     /// A vertex's path before it, its hit, and whether to push it as its hit.
     type Case = (PathState, Hit, bool);
 
-    /// Up to 169 vertices each for the diffuse and the glossy kernel that can be begun in
-    /// lanes, from rays inside the scene's bounds in random directions or (every other ray)
-    /// toward a random triangle (so mostly the dense meshes'), every eighth vertex with a
-    /// zero throughput.
-    fn cases(scene: &RenderScene, tracer: &PathTracer) -> (Vec<Case>, Vec<Case>) {
+    /// Up to 169 vertices each for the diffuse, the glossy and the glass kernel that can be
+    /// begun in lanes, from rays inside the scene's bounds in random directions or (every
+    /// other ray) toward a random triangle (so mostly the dense meshes'), every eighth vertex
+    /// with a zero throughput.
+    fn cases(scene: &RenderScene, tracer: &PathTracer) -> [Vec<Case>; 3] {
         let mut rng = Sampler::new(9, 2, 6);
-        let (mut diffuse, mut glossy) = (Vec::new(), Vec::new());
+        let (mut diffuse, mut glossy, mut glass) = (Vec::new(), Vec::new(), Vec::new());
         let triangles = scene.geometry.triangle_count();
         for k in 0..20_000 {
             let origin = scene.bounds_centre + (rng.next_2d().extend(rng.next_1d()) - 0.5) * scene.bounds_radius;
@@ -220,14 +237,18 @@ mod tests {
             let mut drawn = state.clone();
             let draws = tracer.draw(scene, &mut drawn);
             let Some((_, &(bsdf, _), _)) = tracer.lane_begin(scene, &drawn, &hit, &draws) else { continue };
-            let cases = if matches!(bsdf, Bsdf::Lambert(_)) { &mut diffuse } else { &mut glossy };
+            let cases = match bsdf {
+                Bsdf::Lambert(_) => &mut diffuse,
+                Bsdf::MetallicRoughness(_) => &mut glossy,
+                _ => &mut glass,
+            };
             if cases.len() < 16 * 10 + 9 {
                 state.beta = if cases.len() % 8 == 0 { Rgb::ZERO } else { rng.next_2d().extend(rng.next_1d()) * 2.0 };
                 // Every third one pushed begun (where it scatters), the rest as hits.
                 cases.push((state, hit, cases.len() % 3 != 0));
             }
         }
-        (diffuse, glossy)
+        [diffuse, glossy, glass]
     }
 
     struct Counts {
@@ -237,9 +258,10 @@ mod tests {
         smooth: usize,
     }
 
-    /// Pushes `cases` into the kernel of BSDF `B` (`one` gives a vertex's parameters) in
+    /// Pushes `cases` into the kernel of BSDF `B` (`one` gives a vertex's parameters from its
+    /// plain BSDF, the vertex where it is pushed begun, and its material) in
     /// groups, begun or as their hit, and compares each lane with the scalar code.
-    fn check<'s, B: LaneBxdf>(scene: &'s RenderScene, tracer: &PathTracer, cases: &[Case], one: impl Fn(&Bsdf<'s>) -> B::One) -> Counts {
+    fn check<'s, B: LaneBxdf>(scene: &'s RenderScene, tracer: &PathTracer, cases: &[Case], one: impl Fn(&Bsdf<'s>, Option<&Vertex<'s>>, u32) -> B::One) -> Counts {
         let strategy = tracer.strategy;
         let (mut lanes, mut out) = (BxdfLanes::<B>::default(), ScatteredLanes::default());
         let mut counts = Counts { from_hits: 0, ended: 0, shadows: 0, smooth: 0 };
@@ -255,10 +277,10 @@ mod tests {
                 assert_eq!(format!("{:?}", drawn.sampler), format!("{:?}", begun.sampler), "the same numbers drawn");
                 let (lane_hit, &(bsdf, double_sided), light) = tracer.lane_begin(scene, &drawn, hit, &draws).expect("begins in lanes");
                 match (vertex, as_hit) {
-                    (Some(v), false) => lanes.push(&v, &one(&bsdf), state.beta, tracer.lane_light(scene, &v)),
+                    (Some(v), false) => lanes.push(&v, &one(&bsdf, Some(&v), lane_hit.material), state.beta, tracer.lane_light(scene, &v)),
                     _ => {
                         let at = HitAt { hit: &lane_hit, barycentric: hit.barycentric, direction: state.ray.direction, double_sided };
-                        lanes.push_hit(&at, &one(&bsdf), state.beta, &draws, light);
+                        lanes.push_hit(&at, &one(&bsdf, None, lane_hit.material), state.beta, &draws, light);
                         counts.from_hits += 1;
                         counts.smooth += !lane_hit.flat as usize;
                     }

@@ -274,12 +274,28 @@ pub struct SceneMaterials {
     kinds: Vec<Kind>,
     /// Per material, its [`SceneMaterials::plain_bsdf`] answer.
     plain: Vec<Option<(Bsdf<'static>, bool)>>,
+    /// Per plain glass material, its [`SceneMaterials::glass_back`].
+    glass_backs: Vec<Option<Dielectric>>,
     shared: Vec<SharedBsdf>,
     varying: Vec<PreparedVarying>,
     stats: MaterialStats,
     /// Materials that bind a latent code while no latent file was given: (material, latent
     /// name); they render with their glTF parameters.
     unbound_neural: Vec<(String, String)>,
+}
+
+/// The BSDF of transmitting material `m` at a point seen from its front (`front_face`) or
+/// back, with base colour `base`, metallic factor and perceptual roughness
+/// `(metallic, roughness)` and transmission factor `transmission` there: glass (its index
+/// across the surface from the side the path arrives on; thin-walled without a volume, the
+/// same from either side) mixed with an opaque part.
+#[inline]
+fn transmission_bsdf(m: &Material, front_face: bool, base: Rgb, (metallic, roughness): (f32, f32), transmission: f32) -> Bsdf<'static> {
+    let ior = m.ior.max(1.0);
+    let eta = if front_face || m.volume.is_none() { ior } else { 1.0 / ior };
+    let glass = Dielectric::new(eta, roughness).with_tint(base);
+    let glass = if m.volume.is_none() { glass.thin() } else { glass };
+    Bsdf::Transmission(Transmission::new(base, metallic, roughness, transmission, m.dielectric_fresnel(), glass))
 }
 
 impl SceneMaterials {
@@ -323,7 +339,8 @@ impl SceneMaterials {
                 // only where some channel is > 0 (so NaN factors count as nothing too).
                 #[allow(clippy::neg_cmp_op_on_partial_ord)]
                 let uniform = m.base_color_texture.is_none()
-                    && (kind != Kind::MetallicRoughness || m.metallic_roughness_texture.is_none())
+                    && (kind == Kind::Lambert || m.metallic_roughness_texture.is_none())
+                    && m.transmission_texture.is_none()
                     && m.normal_texture.is_none()
                     && m.clearcoat.is_none()
                     && m.sheen.is_none()
@@ -334,9 +351,26 @@ impl SceneMaterials {
                         let (f0, f90) = m.dielectric_fresnel();
                         Bsdf::MetallicRoughness(MetallicRoughness::new(m.base_color, m.metallic, m.roughness).with_dielectric(f0, f90))
                     }
-                    Kind::Transmission | Kind::Shared(_) | Kind::Varying(_) => return None,
+                    // Glass alone (no opaque part): seen from its front (`glass_back` has its
+                    // back), scattering on both sides.
+                    Kind::Transmission => match transmission_bsdf(m, true, m.base_color, (m.metallic, m.roughness), m.transmission) {
+                        Bsdf::Transmission(t) if t.glass_alone().is_some() => return uniform.then_some((Bsdf::Transmission(t), true)),
+                        _ => return None,
+                    },
+                    Kind::Shared(_) | Kind::Varying(_) => return None,
                 };
                 uniform.then_some((bsdf, m.double_sided))
+            })
+            .collect::<Vec<_>>();
+        let glass_backs = materials
+            .iter()
+            .zip(&plain)
+            .map(|(m, plain)| match plain {
+                Some((Bsdf::Transmission(_), _)) => match transmission_bsdf(m, false, m.base_color, (m.metallic, m.roughness), m.transmission) {
+                    Bsdf::Transmission(t) => t.glass_alone().copied(),
+                    _ => None,
+                },
+                _ => None,
             })
             .collect();
         Ok(SceneMaterials {
@@ -344,6 +378,7 @@ impl SceneMaterials {
             textures: textures.into(),
             kinds,
             plain,
+            glass_backs,
             shared,
             varying,
             stats,
@@ -428,19 +463,11 @@ impl SceneMaterials {
                 Bsdf::MetallicRoughness(MetallicRoughness::new(base(), metallic, roughness).with_dielectric(f0, f90))
             }
             Kind::Transmission => {
-                let (metallic, roughness) = metallic_roughness();
                 let transmission = match &m.transmission_texture {
                     Some(t) => m.transmission * lookup(t).x,
                     None => m.transmission,
                 };
-                let base = base();
-                // The relative index across the surface from the side the path arrives on;
-                // a thin-walled surface is the same seen from either side.
-                let ior = m.ior.max(1.0);
-                let eta = if front_face || m.volume.is_none() { ior } else { 1.0 / ior };
-                let glass = Dielectric::new(eta, roughness).with_tint(base);
-                let glass = if m.volume.is_none() { glass.thin() } else { glass };
-                Bsdf::Transmission(Transmission::new(base, metallic, roughness, transmission, m.dielectric_fresnel(), glass))
+                transmission_bsdf(m, front_face, base(), metallic_roughness(), transmission)
             }
             Kind::Shared(i) => self.shared[i].as_bsdf(),
             Kind::Varying(i) => Bsdf::Mixture(self.mixture(&self.varying[i], uv)),
@@ -478,13 +505,21 @@ impl SceneMaterials {
     }
 
     /// The BSDF of `material` and whether it is double-sided, where the BSDF is the same at
-    /// every point (what [`SceneMaterials::bsdf`] gives wherever it gives one) and the
-    /// material emits nothing: an untextured Lambertian or metallic-roughness material
-    /// without normal map (so the lane kernels can begin its vertices from their hits);
-    /// `None` elsewhere.
+    /// every point seen from its front (what [`SceneMaterials::bsdf`] gives wherever it gives
+    /// one) and the material emits nothing: an untextured Lambertian or metallic-roughness
+    /// material without normal map, or such a glass (transmission with no opaque part; its
+    /// back is [`SceneMaterials::glass_back`]), so the lane kernels can begin its vertices
+    /// from their hits; `None` elsewhere.
     #[inline]
     pub fn plain_bsdf(&self, material: u32) -> Option<&(Bsdf<'_>, bool)> {
         self.plain[material as usize].as_ref()
+    }
+
+    /// The glass of a plain glass `material` ([`SceneMaterials::plain_bsdf`]) seen from its
+    /// back: what [`SceneMaterials::bsdf`] gives there.
+    #[inline]
+    pub fn glass_back(&self, material: u32) -> Option<&Dielectric> {
+        self.glass_backs[material as usize].as_ref()
     }
 
     /// Radiance `material` emits from its front side, W/(m² sr): its emissive factor, times
