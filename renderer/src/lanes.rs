@@ -363,19 +363,24 @@ pub trait Blend<M>: Sized {
     fn blend(mask: M, a: Self, b: Self) -> Self;
 }
 
-/// `a()` where `mask` is set, `b()` elsewhere, calling a closure only when some lane takes
-/// its value: a branch for one value, both and a select for lanes that differ. Each lane
-/// gets what it would alone.
-#[inline(always)]
-pub fn choose<M: MaskOps, T: Blend<M>>(mask: M, a: impl FnOnce() -> T, b: impl FnOnce() -> T) -> T {
-    if mask.all() {
-        a()
-    } else if !mask.any() {
-        b()
-    } else {
-        T::blend(mask, a(), b())
-    }
+/// `choose!(mask, a, b)`: `a` where `mask` is set, `b` elsewhere, evaluating an expression
+/// only when some lane takes its value: a branch for one value, both and a select
+/// ([`Blend`]) for lanes that differ. Each lane gets what it would alone. A macro rather than
+/// a function of two closures, so that both expressions are always inlined into the lane
+/// kernels (closures passed to a function were not, and ran without the kernels' AVX-512).
+macro_rules! choose {
+    ($mask:expr, $a:expr, $b:expr $(,)?) => {{
+        let mask = $mask;
+        if $crate::lanes::MaskOps::all(mask) {
+            $a
+        } else if !$crate::lanes::MaskOps::any(mask) {
+            $b
+        } else {
+            $crate::lanes::Blend::blend(mask, $a, $b)
+        }
+    }};
 }
+pub(crate) use choose;
 
 impl MaskOps for bool {
     #[inline(always)]
@@ -853,17 +858,17 @@ mod tests {
         let (a, b) = (F32s::splat(1.0), F32s::splat(2.0));
         let mut mask = [false; LANES];
         mask[3] = true;
-        let mixed = choose(Mask(mask), || a, || b);
+        let mixed = choose!(Mask(mask), a, b);
         assert!((0..LANES).all(|i| mixed.0[i] == if i == 3 { 1.0 } else { 2.0 }));
         let calls = std::cell::Cell::new(0);
         let counted = |v: F32s| {
             calls.set(calls.get() + 1);
             v
         };
-        assert_eq!(choose(Mask([true; LANES]), || a, || counted(b)), a);
-        assert_eq!(choose(Mask([false; LANES]), || counted(a), || b), b);
+        assert_eq!(choose!(Mask([true; LANES]), a, counted(b)), a);
+        assert_eq!(choose!(Mask([false; LANES]), counted(a), b), b);
         assert_eq!(calls.get(), 0);
-        assert_eq!(choose(false, || 1.0f32, || 2.0), 2.0);
+        assert_eq!(choose!(false, 1.0f32, 2.0), 2.0);
         assert!(Mask(mask).any() && !Mask(mask).all() && Mask([true; LANES]).all());
     }
 }

@@ -124,7 +124,7 @@
 
 use super::microfacet::{reflect_about, Ggx, GgxDistribution};
 use super::{BsdfSample, Bxdf, RealBxdf, RealSample};
-use crate::lanes::{choose, Blend, F32s, Mask, MaskOps, Real, SetLane, V2, V3};
+use crate::lanes::{choose, F32s, Mask, MaskOps, Real, SetLane, V2, V3};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -465,14 +465,14 @@ impl<R: Real> DielectricLobes<R> {
         let value = self.ggx.d(wm) * self.ggx.visibility(wo, wr);
         let density = self.ggx.visible_normal_pdf(wo, wm) / (R::splat(4.0) * cos_om);
         let mirrored = reflection | self.thin;
-        let (wi, (f, pdf), side) = choose(
+        let (wi, (f, pdf), side) = choose!(
             mirrored,
-            || {
+            {
                 let thin_transmission = (self.tint * (value * t), density * t);
                 let reflected = (V3::new(value * r, value * r, value * r), density * r);
                 (reflection.select(wr, flip_z(wr)), reflection.select(reflected, thin_transmission), !wr.z.le(zero))
             },
-            || {
+            {
                 let (wi, refracts) = refract_real(wo, wm, self.eta);
                 (wi, self.rough_transmission(wo, wi, wm, cos_om, wi.dot(wm), t), refracts & !wi.z.ge(zero))
             },
@@ -516,11 +516,7 @@ impl<R: Real> RealBxdf<R> for DielectricLobes<R> {
         let value = self.ggx.d(wm) * self.ggx.visibility(wo, wr);
         let density = self.ggx.visible_normal_pdf(wo, wm) / (R::splat(4.0) * cos_om);
         let reflected = (V3::new(value * r, value * r, value * r), density * r);
-        let transmitted = choose(
-            self.thin,
-            || (self.tint * (value * t), density * t),
-            || self.rough_transmission(wo, wi, wm, cos_om, cos_im, t),
-        );
+        let transmitted = choose!(self.thin, (self.tint * (value * t), density * t), self.rough_transmission(wo, wi, wm, cos_om, cos_im, t));
         let (f, pdf) = reflection.select(reflected, transmitted);
         (ok.select(f, V3::default()), R::select(ok, pdf, zero))
     }
@@ -531,14 +527,7 @@ impl<R: Real> RealBxdf<R> for DielectricLobes<R> {
     /// where `wo.z ≤ 0` or the drawn direction ends on the wrong side of the surface.
     #[inline(always)]
     fn sample(&self, _at: (), wo: V3<R>, u: V2<R>, uc: R) -> RealSample<R> {
-        // `choose` written out: its closures are not always inlined into the lane kernels.
-        let mut s = if self.smooth.all() {
-            self.sample_smooth(wo, uc)
-        } else if !self.smooth.any() {
-            self.sample_rough(wo, u, uc)
-        } else {
-            RealSample::blend(self.smooth, self.sample_smooth(wo, uc), self.sample_rough(wo, u, uc))
-        };
+        let mut s = choose!(self.smooth, self.sample_smooth(wo, uc), self.sample_rough(wo, u, uc));
         s.ok = s.ok & wo.z.gt(R::splat(0.0));
         s
     }

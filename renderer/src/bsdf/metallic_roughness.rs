@@ -401,7 +401,7 @@ impl<R: Real> RealBxdf<R> for MetallicRoughnessLobes<R> {
     fn sample(&self, p_specular: R, wo: V3<R>, u: V2<R>, uc: R) -> RealSample<R> {
         let zero = R::splat(0.0);
         let specular = uc.lt(p_specular) | p_specular.ge(R::splat(1.0));
-        let wi = choose(specular, || reflect_about(wo, self.ggx.sample_visible_normal(wo, u)), || cosine_hemisphere(u));
+        let wi = choose!(specular, reflect_about(wo, self.ggx.sample_visible_normal(wo, u)), cosine_hemisphere(u));
         let (h, has_half) = half_vector_or_z(wo, wi);
         let pdf = self.density(p_specular, wo, wi, h, has_half);
         let ok = wo.z.gt(zero) & wi.z.gt(zero) & pdf.gt(zero) & pdf.is_finite();

@@ -120,6 +120,10 @@ pub fn texture_transform(offset: Vec2, rotation: f32, scale: Vec2) -> Mat3 {
 #[inline]
 fn wrap_index(i: i64, n: usize, wrap: Wrap) -> usize {
     let n = n as i64;
+    if (0..n).contains(&i) {
+        // Inside the image every mode is the identity (no division).
+        return i as usize;
+    }
     match wrap {
         Wrap::Repeat => i.rem_euclid(n) as usize,
         Wrap::ClampToEdge => i.clamp(0, n - 1) as usize,
@@ -159,15 +163,17 @@ impl Texture {
         // f32 → i64 conversion is exact enough (every wrap mode is periodic or clamps).
         let x = (uv.x * w as f32 - 0.5).clamp(-1e9, 1e9);
         let y = (uv.y * h as f32 - 0.5).clamp(-1e9, 1e9);
-        let t = |xx: i64, yy: i64| texel(wrap_index(xx, w, wrap[0]) + w * wrap_index(yy, h, wrap[1]));
+        let column = |xx: i64| wrap_index(xx, w, wrap[0]);
+        let row = |yy: i64| w * wrap_index(yy, h, wrap[1]);
         match filter {
-            Filter::Nearest => t(x.round() as i64, y.round() as i64),
+            Filter::Nearest => texel(row(y.round() as i64) + column(x.round() as i64)),
             Filter::Linear => {
                 let (x0, y0) = (x.floor(), y.floor());
                 let (fx, fy) = (x - x0, y - y0);
                 let (xi, yi) = (x0 as i64, y0 as i64);
-                let top = lerp(t(xi, yi), t(xi + 1, yi), fx);
-                let bottom = lerp(t(xi, yi + 1), t(xi + 1, yi + 1), fx);
+                let (c0, c1, r0, r1) = (column(xi), column(xi + 1), row(yi), row(yi + 1));
+                let top = lerp(texel(r0 + c0), texel(r0 + c1), fx);
+                let bottom = lerp(texel(r1 + c0), texel(r1 + c1), fx);
                 lerp(top, bottom, fy)
             }
         }
