@@ -50,6 +50,21 @@ def test_samples_carry_their_value_and_density(bronze, numbers):
     assert not wi[~drawn].any() and not f[~drawn].any()
 
 
+@pytest.mark.parametrize("numbers", [2, 3])
+def test_directions_of_any_length_are_normalised(bronze, numbers):
+    # The property tests' finding (wo = (0, 0, 2.9e-23), two numbers): tiny, subnormal, short
+    # and huge vectors give what the unit vector gives, bit for bit.
+    unit = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]], dtype=np.float32)
+    u = np.array([[0.5, 0.5, 0.5], [0.25, 0.75, 0.9]], dtype=np.float32)[:, :numbers]
+    wi = np.array([[0.0, 0.6, 0.8], [-0.3, 0.1, 0.9]], dtype=np.float32)
+    expected = bronze.sample(unit, u)
+    for scale in [2.895132e-23, 1e-40, 0.5, 3.0e30]:
+        wo = (unit * np.float32(scale)).astype(np.float32)
+        for got, want in zip(bronze.sample(wo, u), expected):
+            np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(bronze.eval_pdf(wo, wi)[1], bronze.pdf(unit, wi))
+
+
 def test_exports_the_decoded_net_reference_mapping_and_sampler_tables(bronze):
     layers = bronze.layers
     assert layers[0][0].shape[0] == 6 and layers[-1][0].shape[1] == 3
