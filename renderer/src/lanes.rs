@@ -5,7 +5,7 @@
 //! Every lane operation applies the scalar `f32` operation to each lane, so a formula
 //! instantiated for [`F32s`] gives bit for bit the values of the same formula instantiated for
 //! `f32`, lane by lane (Rust never fuses a multiply and an add on its own). Where one value
-//! would return early, a formula computes a mask and selects; [`choose`] branches where all
+//! would return early, a formula computes a mask and selects; `choose!` branches where all
 //! lanes agree. The loops are fixed-length and branch-free, which LLVM turns into vector
 //! instructions of the width the enclosing function is compiled for (SSE2 by default, AVX2
 //! or AVX-512 under `#[target_feature]`).
@@ -282,7 +282,7 @@ impl<R: Real> Neg for V3<R> {
 /// warps and integrator helpers are written over once, so that the scalar path (`f32`) and
 /// the lane kernels (`F32s`) run the same operations in the same order — the same bits per
 /// lane. Where scalar code would return early, a formula computes a [`Real::Mask`] and
-/// selects ([`MaskOps::select`], [`choose`]); `f32`'s mask is `bool`.
+/// selects ([`MaskOps::select`], `choose!`); `f32`'s mask is `bool`.
 ///
 /// Constants on the left of an operator are written `R::splat(c) − x` (the bits of
 /// `c − x`): Rust does not carry a trait's `f32: Sub<Self>` bound to its users.

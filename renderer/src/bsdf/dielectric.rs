@@ -90,7 +90,7 @@
 //! (that of a white GGX mirror).
 //!
 //! # One formulation
-//! The formulas are written once over [`Real`] values ([`DielectricLobes`], masks where one
+//! The formulas are written once over [`Real`] values (`DielectricLobes`, masks where one
 //! point would branch): [`Dielectric`]'s [`Bxdf`] methods evaluate them for one point, the
 //! path tracer's glass kernel for sixteen vertices at once, so each lane gets the scalar
 //! bits.

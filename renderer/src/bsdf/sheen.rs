@@ -202,7 +202,7 @@ pub struct Sheen {
 }
 
 impl Sheen {
-    /// `color` linear RGB (clamped to [0,1]), `roughness` perceptual (clamped to [0,1]);
+    /// `color` linear RGB (clamped to [0, 1]), `roughness` perceptual (clamped to [0, 1]);
     /// α = r², ≥ 1e-4 ([`MIN_ALPHA`]).
     ///
     /// NaN channels of `color` become 0, a NaN `roughness` becomes 0.
