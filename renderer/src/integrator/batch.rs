@@ -16,7 +16,7 @@ use super::bxdf_lanes::{DiffuseLanes, GlassFaces, GlassLanes, GlossyLanes};
 use super::hit_lanes::HitAt;
 use super::scattered_lanes::LaneGroup;
 use super::light_lanes::LaneLight;
-use super::{entered_volume, Draws, PathState, PathTracer, Scattered, Strategy};
+use super::{Draws, PathState, PathTracer, Scattered, Strategy};
 use crate::accel::{Hit, Ray};
 use crate::Rgb;
 use crate::bsdf::merl::MerlBsdf;
@@ -135,9 +135,8 @@ impl PathTracer {
                         Bsdf::Lambert(l) => diffuse.push(i, light_only, |lanes| lanes.push_hit(&at, &l.lobe(), beta, &draws, light), settle),
                         Bsdf::MetallicRoughness(m) => glossy.push(i, light_only, |lanes| lanes.push_hit(&at, &m.lobes(), beta, &draws, light), settle),
                         Bsdf::Transmission(t) => {
-                            let material = lane_hit.material;
-                            let faces = t.glass_alone().zip(scene.materials.glass_back(material)).map(|(front, back)| GlassFaces::plain(front, back, scene.materials.volume_absorption(material)));
-                            glass.push(i, light_only, |lanes| lanes.push_hit(&at, &faces.expect("plain glass is glass alone"), beta, &draws, light), settle)
+                            let faces = GlassFaces::plain(&scene.materials, lane_hit.material, t.glass_alone().expect("plain glass is glass alone"));
+                            glass.push(i, light_only, |lanes| lanes.push_hit(&at, &faces, beta, &draws, light), settle)
                         }
                         Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => unreachable!("a plain BSDF is Lambertian, metallic-roughness or glass"),
                     }
@@ -154,7 +153,7 @@ impl PathTracer {
                     Bsdf::MetallicRoughness(b) => glossy.push(i, light_only, |lanes| lanes.push(&v, &b.lobes(), beta, self.lane_light(scene, &v)), settle),
                     // Glass alone in lanes; mixed with an opaque part, one by one.
                     Bsdf::Transmission(t) => match t.glass_alone() {
-                        Some(g) => glass.push(i, light_only, |lanes| lanes.push(&v, &GlassFaces::begun(g, entered_volume(scene, &v.sp)), beta, self.lane_light(scene, &v)), settle),
+                        Some(g) => glass.push(i, light_only, |lanes| lanes.push(&v, &GlassFaces::begun(g, scene.materials.entered_volume(v.sp.material, v.sp.front_face)), beta, self.lane_light(scene, &v)), settle),
                         None => settle(i, v.sp.p, self.scatter(scene, &v, beta)),
                     },
                     Bsdf::Neural(b) => neural.push(self, scene, i, &v, b, beta),

@@ -20,6 +20,7 @@ use crate::bsdf::dielectric::DielectricLobes;
 use crate::bsdf::lambert::LambertLobe;
 use crate::bsdf::metallic_roughness::MetallicRoughnessLobes;
 use crate::bsdf::{Dielectric, RealBxdf};
+use crate::material::SceneMaterials;
 use crate::lanes::{F32s, Mask, Vec2s, Vec3s, LANES};
 use crate::Rgb;
 use glam::Vec2;
@@ -100,19 +101,25 @@ pub(crate) struct GlassFaces {
 
 impl GlassFaces {
     /// The faces of a glass vertex begun on `glass`, a path transmitted there entering
-    /// `enters` ([`super::entered_volume`]).
+    /// `enters` ([`SceneMaterials::entered_volume`] of its side).
     #[inline(always)]
     pub fn begun(glass: &Dielectric, enters: Option<Rgb>) -> Self {
         let lobes = glass.lobes();
         GlassFaces { front: lobes, back: lobes, enters_front: enters, enters_back: enters }
     }
 
-    /// The faces of plain glass seen from the front as `front` and from the back as `back`,
-    /// whose volume (none where thin-walled) has the absorption coefficient `sigma_a`: a
-    /// path enters it through the front, and leaves it for vacuum through the back.
+    /// The faces of plain glass `material` ([`SceneMaterials::plain_bsdf`]), whose glass
+    /// seen from the front is `front`: its back from [`SceneMaterials::glass_back`], the
+    /// media entered through either from [`SceneMaterials::entered_volume`].
     #[inline(always)]
-    pub fn plain(front: &Dielectric, back: &Dielectric, sigma_a: Option<Rgb>) -> Self {
-        GlassFaces { front: front.lobes(), back: back.lobes(), enters_front: sigma_a, enters_back: sigma_a.map(|_| Rgb::ZERO) }
+    pub fn plain(materials: &SceneMaterials, material: u32, front: &Dielectric) -> Self {
+        let back = materials.glass_back(material).expect("plain glass has a back");
+        GlassFaces {
+            front: front.lobes(),
+            back: back.lobes(),
+            enters_front: materials.entered_volume(material, true),
+            enters_back: materials.entered_volume(material, false),
+        }
     }
 }
 
@@ -452,7 +459,7 @@ mod tests {
                 for (vertex, glass, beta) in group {
                     smooth += glass.is_smooth() as usize;
                     inside += !vertex.sp.front_face as usize;
-                    lanes.push(vertex, &GlassFaces::begun(glass, super::super::entered_volume(scene, &vertex.sp)), *beta, tracer.lane_light(scene, vertex));
+                    lanes.push(vertex, &GlassFaces::begun(glass, scene.materials.entered_volume(vertex.sp.material, vertex.sp.front_face)), *beta, tracer.lane_light(scene, vertex));
                 }
                 crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
                 for (lane, (vertex, _, beta)) in group.iter().enumerate() {

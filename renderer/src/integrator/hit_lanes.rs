@@ -121,7 +121,7 @@ mod tests {
     use crate::bsdf::metallic_roughness::MetallicRoughnessLobes;
     use crate::integrator::bxdf_lanes::{BxdfLanes, GlassFaces, GlassLobes, LaneBxdf};
     use crate::integrator::scattered_lanes::{scatter, LaneKernel, ScatteredLanes};
-    use crate::integrator::{entered_volume, PathState, PathTracer, Strategy};
+    use crate::integrator::{PathState, PathTracer, Strategy};
     use crate::render_scene::RenderScene;
     use crate::sampler::Sampler;
     use crate::sampling::sample_uniform_sphere;
@@ -185,11 +185,11 @@ mod tests {
                         _ => check::<GlassLobes>(&scene, &tracer, &cases, |bsdf, begun, material| match (bsdf, begun) {
                             // Begun: the glass of the side its path arrives on.
                             (_, Some(v)) => match v.bsdf {
-                                Bsdf::Transmission(t) => GlassFaces::begun(t.glass_alone().expect("glass alone"), entered_volume(&scene, &v.sp)),
+                                Bsdf::Transmission(t) => GlassFaces::begun(t.glass_alone().expect("glass alone"), scene.materials.entered_volume(v.sp.material, v.sp.front_face)),
                                 _ => unreachable!(),
                             },
                             (Bsdf::Transmission(t), None) => {
-                                GlassFaces::plain(t.glass_alone().expect("glass alone"), scene.materials.glass_back(material).expect("its back"), scene.materials.volume_absorption(material))
+                                GlassFaces::plain(&scene.materials, material, t.glass_alone().expect("glass alone"))
                             }
                             _ => unreachable!(),
                         }),

@@ -321,7 +321,7 @@ impl PathTracer {
         let next = bsdf.sample(wo, u, uc).and_then(|bs| {
             let mut next = continuation(&sp, &bs, beta)?;
             if bs.wi.z < 0.0 {
-                next.sigma_a = entered_volume(scene, &sp);
+                next.sigma_a = scene.materials.entered_volume(sp.material, sp.front_face);
             }
             Some(next)
         });
@@ -429,14 +429,6 @@ impl PathTracer {
         *sampler = path.sampler;
         path.l
     }
-}
-
-/// The absorption coefficient of the medium a path transmitted at `sp` enters: the
-/// material's volume through its front, vacuum (zero) through its back; `None` for
-/// thin-walled surfaces, which have no volume (the path stays in its medium).
-#[inline(always)]
-pub(crate) fn entered_volume(scene: &RenderScene, sp: &SurfacePoint) -> Option<Rgb> {
-    scene.materials.volume_absorption(sp.material).map(|s| if sp.front_face { s } else { Rgb::ZERO })
 }
 
 /// The direction of light sample `ls` in the local frame of `sp`, `None` where it leaves

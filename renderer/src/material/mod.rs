@@ -541,11 +541,14 @@ impl SceneMaterials {
         }
     }
 
-    /// The absorption coefficient σa (1/m) inside `material`'s volume; `None` where its
-    /// surfaces are thin-walled or do not transmit ([`crate::scene::Material::volume`]).
+    /// The absorption coefficient σa (1/m) of the medium a path transmitted through
+    /// `material` from its front (`front_face`) or back enters: the material's volume
+    /// through the front, vacuum (zero) through the back; `None` where its surfaces are
+    /// thin-walled or do not transmit (no volume: the path stays in its medium;
+    /// [`crate::scene::Material::volume`]).
     #[inline]
-    pub fn volume_absorption(&self, material: u32) -> Option<Rgb> {
-        self.materials[material as usize].volume.map(|v| v.sigma_a)
+    pub fn entered_volume(&self, material: u32, front_face: bool) -> Option<Rgb> {
+        self.materials[material as usize].volume.map(|v| if front_face { v.sigma_a } else { Rgb::ZERO })
     }
 
     /// Whether `material` has a clear coat.
