@@ -17,7 +17,7 @@
 
 use crate::dataset::MaterialTable;
 use rand::Rng;
-use renderer::formats::merl::{bin_indices, BIN_COUNT, THETA_D_BINS};
+use renderer::formats::merl::THETA_D_BINS;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::FRAC_PI_2;
 use std::ops::Range;
@@ -118,33 +118,28 @@ impl Recipe {
     pub fn apply(&self, a: &MaterialTable, b: Option<&MaterialTable>) -> MaterialTable {
         let pa = PERMUTATIONS[self.order_a];
         let permute = |v: [f32; 3], p: [usize; 3]| [v[p[0]], v[p[1]], v[p[2]]];
-        let values = match (self.partner, b) {
-            (Some(partner), Some(b)) => {
-                let pb = PERMUTATIONS[partner.order];
-                let weights: Vec<f32> = (0..THETA_D_BINS)
-                    .map(|i| partner.weight((i as f32 + 0.5) / THETA_D_BINS as f32 * FRAC_PI_2))
-                    .collect();
-                (0..BIN_COUNT)
-                    .map(|i| {
-                        let (va, vb) = (permute(a.values[i], pa), permute(b.values[i], pb));
-                        let s = weights[bin_indices(i).1];
-                        [0, 1, 2].map(|c| {
-                            if va[c] < 0.0 || vb[c] < 0.0 {
-                                -1.0
-                            } else {
-                                (1.0 - s) * va[c] + s * vb[c]
-                            }
-                        })
-                    })
-                    .collect()
-            }
-            _ => a.values.iter().map(|&v| permute(v, pa)).collect(),
-        };
         let name = match (self.partner, b) {
             (Some(_), Some(b)) => format!("{}~{}", a.name, b.name),
             _ => format!("{}~{:?}", a.name, pa),
         };
-        MaterialTable { name, values }
+        let a = MaterialTable {
+            name: String::new(),
+            values: a.values.iter().map(|&v| permute(v, pa)).collect(),
+        };
+        match (self.partner, b) {
+            (Some(partner), Some(b)) => {
+                let pb = PERMUTATIONS[partner.order];
+                let b = MaterialTable {
+                    name: String::new(),
+                    values: b.values.iter().map(|&v| permute(v, pb)).collect(),
+                };
+                let weights: Vec<f32> = (0..THETA_D_BINS)
+                    .map(|i| partner.weight((i as f32 + 0.5) / THETA_D_BINS as f32 * FRAC_PI_2))
+                    .collect();
+                a.blend(&b, name, |theta_d| weights[theta_d])
+            }
+            _ => MaterialTable { name, ..a },
+        }
     }
 }
 
@@ -152,6 +147,7 @@ impl Recipe {
 mod tests {
     use super::*;
     use rand::SeedableRng;
+    use renderer::formats::merl::BIN_COUNT;
 
     fn table(name: &str, v: [f32; 3]) -> MaterialTable {
         let mut values = vec![v; BIN_COUNT];

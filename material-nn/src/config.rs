@@ -4,6 +4,7 @@
 //! fields.
 
 use crate::augment::Augmentation;
+use crate::interpolation::Interpolation;
 use crate::dataset::{MaterialTable, Sampler};
 use crate::error::{Error, Result};
 use renderer::neural::mapping::MappingForm;
@@ -192,6 +193,9 @@ pub struct TrainConfig {
     pub validation_samples: usize,
     /// Synthetic variants of the training materials ([`crate::augment`]); none by default.
     pub augment: Augmentation,
+    /// Interpolated frames between training materials ([`crate::interpolation`]); none by
+    /// default.
+    pub interpolation: Interpolation,
 }
 
 impl Default for TrainConfig {
@@ -220,6 +224,7 @@ impl Default for TrainConfig {
             patience: 30,
             validation_samples: 16_384,
             augment: Augmentation::default(),
+            interpolation: Interpolation::default(),
         }
     }
 }
@@ -341,7 +346,8 @@ impl TrainConfig {
                 "fre: lmax, neighbours, splat_sigma and degree_sigma must be positive".to_string(),
             );
         }
-        self.augment.check()
+        self.augment.check()?;
+        self.interpolation.check()
     }
 }
 

@@ -27,7 +27,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use renderer::brdf_coords::{rendered_point, RenderedPoint};
 use renderer::neural::mapping::MappingForm;
-use renderer::formats::merl::{lookup_trilinear_measured, measured_value, MerlReader, MerlTable, BIN_COUNT, SCALE};
+use renderer::formats::merl::{bin_indices, lookup_trilinear_measured, measured_value, MerlReader, MerlTable, BIN_COUNT, SCALE};
 use serde::{Deserialize, Serialize};
 use std::f32::consts::{FRAC_PI_2, TAU};
 use crate::tables::{material_name, median_values, table_path};
@@ -85,6 +85,19 @@ impl MaterialTable {
         })
     }
 
+    /// The linear blend (1 − s) f_self + s f_other, bin by bin, with `s` of each bin's θd
+    /// index ([`blend_value`]); named `name`.
+    pub fn blend(&self, other: &MaterialTable, name: String, s: impl Fn(usize) -> f32) -> MaterialTable {
+        let values = self
+            .values
+            .iter()
+            .zip(&other.values)
+            .enumerate()
+            .map(|(i, (&a, &b))| blend_value(a, b, s(bin_indices(i).1)))
+            .collect();
+        MaterialTable { name, values }
+    }
+
     /// As a MERL table (raw values = f_r / scale), for writing.
     pub fn to_merl(&self) -> Result<MerlTable> {
         let mut raw = vec![0f64; 3 * BIN_COUNT];
@@ -101,6 +114,10 @@ impl MaterialTable {
     }
 }
 
+/// (1 − s) a + s b per channel; unmeasured (−1) where either is.
+pub fn blend_value(a: [f32; 3], b: [f32; 3], s: f32) -> [f32; 3] {
+    [0, 1, 2].map(|c| if a[c] < 0.0 || b[c] < 0.0 { -1.0 } else { (1.0 - s) * a[c] + s * b[c] })
+}
 
 /// The split of the materials by name.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]

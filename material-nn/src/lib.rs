@@ -10,6 +10,7 @@ pub mod error;
 pub mod eval;
 pub mod export;
 pub mod inference;
+pub mod interpolation;
 pub mod loss;
 pub mod model;
 pub mod nbrdf_fit;

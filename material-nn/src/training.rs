@@ -5,7 +5,10 @@
 //! fresh sample set of the rendered domain ([`crate::dataset::Sampler`]: θh partly with MERL's
 //! spacing, φd folded as the renderer folds it, nothing below either horizon), encode its
 //! first `encoder_samples` samples into z, decode z into target-net weights, evaluate the
-//! target net on every sample, and take an Adam step on L_rec (+ η L_fre for FreNBRDF, in the
+//! target net on every sample (with `interpolation`, a share of the steps adds an
+//! interpolated frame between the material and a partner, [`crate::interpolation`]: its code
+//! the blend of the two encoder codes, its samples the blend of the two tables'), and take an
+//! Adam step on L_rec (+ η L_fre for FreNBRDF, in the
 //! configured form: fixed θh slices or the released code's splat) with the global gradient
 //! norm clipped and the learning rate of the configured schedule. With `fre.eta_share`, η is
 //! set before the first step so that η·L_fre is that share of the data term for the initial
@@ -133,22 +136,53 @@ fn clip_global_norm(grads: &mut GradientsParams, model: &HyperBrdf, max_norm: f3
     norm
 }
 
-/// Tensors of a batch of sample sets: (encoder input [B, M, 9], x [B, N, 6], y [B, N, 3],
-/// cos θi [B, N, 1]).
-fn batch_tensors(
-    sets: &[SampleSet],
-    encoder_samples: usize,
-    device: &Device,
-) -> (Tensor<3>, Tensor<3>, Tensor<3>, Tensor<3>) {
+/// The sample sets of a batch and where its materials' latent codes come from.
+struct BatchSets {
+    /// One per material of the loss.
+    sets: Vec<SampleSet>,
+    /// The set encoder sees the first `encoded` of `sets` (each set's first
+    /// `encoder_samples` samples), then `partners`.
+    encoded: usize,
+    /// Encoder sets of interpolation partners (codes used only through `mix`).
+    partners: Vec<SampleSet>,
+    /// Material i's code as weights over the encoder's codes; empty: material i has the code
+    /// of set i.
+    mix: Vec<Vec<f32>>,
+}
+
+impl BatchSets {
+    /// Materials coded by their own sets.
+    fn own(sets: Vec<SampleSet>) -> Self {
+        BatchSets { encoded: sets.len(), sets, partners: Vec::new(), mix: Vec::new() }
+    }
+
+    /// z [B, latent] of the loss's B materials.
+    fn latent(&self, model: &HyperBrdf, encoder_samples: usize, device: &Device) -> Tensor<2> {
+        let encoded: Vec<&SampleSet> = self.sets[..self.encoded].iter().chain(&self.partners).collect();
+        let (b, m) = (encoded.len(), encoder_samples.min(encoded[0].len()));
+        let enc: Vec<f32> = encoded.iter().flat_map(|s| s.encoder_input(m)).collect();
+        let z = model.encode(Tensor::from_data(TensorData::new(enc, [b, m, 9]), device));
+        if self.mix.is_empty() {
+            return z;
+        }
+        let weights: Vec<f32> = self.mix.iter().flatten().copied().collect();
+        Tensor::from_data(TensorData::new(weights, [self.mix.len(), b]), device).matmul(z)
+    }
+}
+
+/// `width` weights, 1 at `i`.
+fn unit_row(width: usize, i: usize) -> Vec<f32> {
+    (0..width).map(|j| if j == i { 1.0 } else { 0.0 }).collect()
+}
+
+/// Tensors of a batch of sample sets: (x [B, N, 6], y [B, N, 3], cos θi [B, N, 1]).
+fn batch_tensors(sets: &[SampleSet], device: &Device) -> (Tensor<3>, Tensor<3>, Tensor<3>) {
     let b = sets.len();
     let n = sets[0].len();
-    let m = encoder_samples.min(n);
-    let enc: Vec<f32> = sets.iter().flat_map(|s| s.encoder_input(m)).collect();
     let x: Vec<f32> = sets.iter().flat_map(|s| s.inputs.iter().copied()).collect();
     let y: Vec<f32> = sets.iter().flat_map(|s| s.values.iter().copied()).collect();
     let c: Vec<f32> = sets.iter().flat_map(|s| s.cos_i.iter().copied()).collect();
     (
-        Tensor::from_data(TensorData::new(enc, [b, m, 9]), device),
         Tensor::from_data(TensorData::new(x, [b, n, 6]), device),
         Tensor::from_data(TensorData::new(y, [b, n, 3]), device),
         Tensor::from_data(TensorData::new(c, [b, n, 1]), device),
@@ -208,20 +242,22 @@ fn slice_target(op: &SlicedFre, table: &MaterialTable, sampler: &Sampler, device
     )
 }
 
-/// Forward pass and losses of a batch of materials `tables` with sample sets `sets`:
-/// (total, data term, L_fre) as tensors. `own_targets[i]`, where present, is material i's
-/// slice target (a variant's); the others are looked up by name in `fre`.
+/// Forward pass and losses of a batch of materials `tables` with sample sets and codes from
+/// `sets`: (total, data term, L_fre) as tensors. `own_targets[i]`, where
+/// present, is material i's slice target (a variant's or an interpolated frame's); the
+/// others are looked up by name in `fre`.
 fn batch_loss(
     model: &HyperBrdf,
     tables: &[&MaterialTable],
     own_targets: &[Option<SliceTarget>],
-    sets: &[SampleSet],
+    batch: &BatchSets,
     config: &TrainConfig,
     fre: Option<&FreLoss>,
     device: &Device,
 ) -> Result<(Tensor<1>, Tensor<1>, Option<Tensor<1>>)> {
-    let (enc, x, y, cos) = batch_tensors(sets, config.encoder_samples, device);
-    let z = model.encode(enc);
+    let sets = &batch.sets;
+    let (x, y, cos) = batch_tensors(sets, device);
+    let z = batch.latent(model, config.encoder_samples, device);
     let params = model.decode(z.clone());
     let pred = model.target_forward(&params, x);
     let b = sets.len();
@@ -287,7 +323,7 @@ fn mean_losses(
             &model,
             &[table.as_ref()],
             &[],
-            std::slice::from_ref(&set),
+            &BatchSets::own(vec![set]),
             config,
             fre,
             device,
@@ -501,6 +537,7 @@ pub fn train(
         let mut sets = Vec::with_capacity(end - state.position);
         let mut tables = Vec::with_capacity(end - state.position);
         let mut own_targets = Vec::with_capacity(end - state.position);
+        let mut frames = Vec::new();
         for &i in &state.order[state.position..end] {
             let mut table = setup.train.table(i)?;
             let mut own_target = None;
@@ -510,12 +547,35 @@ pub fn train(
                 own_target = fre.as_ref().and_then(|f| f.target_of(&table, &setup.sampler, &device));
             }
             sets.push(setup.sampler.draw(&table, config.samples_per_step, &mut state.rng)?);
+            if let Some(frame) = config.interpolation.draw(i, n_train, &mut state.rng) {
+                frames.push((sets.len() - 1, Arc::clone(&table), frame));
+            }
             tables.push(table);
             own_targets.push(own_target);
         }
+        // Interpolated frames: one more material each, coded by the blend of its two ends'
+        // encoder codes (the partner's encoder set drawn here).
+        let mut batch = BatchSets::own(sets);
+        let width = batch.encoded + frames.len();
+        for (k, (a, table_a, frame)) in frames.into_iter().enumerate() {
+            let table_b = setup.train.table(frame.partner)?;
+            batch.partners.push(setup.sampler.draw(&table_b, config.encoder_samples, &mut state.rng)?);
+            let name = format!("{}~{}@{:.3}", table_a.name, table_b.name, frame.t);
+            let blend = Arc::new(table_a.blend(&table_b, name, |_| frame.t));
+            batch.sets.push(setup.sampler.draw(&blend, config.samples_per_step, &mut state.rng)?);
+            own_targets.push(fre.as_ref().and_then(|f| f.target_of(&blend, &setup.sampler, &device)));
+            tables.push(blend);
+            if batch.mix.is_empty() {
+                batch.mix = (0..batch.encoded).map(|i| unit_row(width, i)).collect();
+            }
+            let mut row = unit_row(width, a);
+            row[a] = 1.0 - frame.t;
+            row[batch.encoded + k] = frame.t;
+            batch.mix.push(row);
+        }
         let tables: Vec<&MaterialTable> = tables.iter().map(Arc::as_ref).collect();
         let (total, data, l_fre) =
-            batch_loss(&model, &tables, &own_targets, &sets, &config, fre.as_ref(), &device)?;
+            batch_loss(&model, &tables, &own_targets, &batch, &config, fre.as_ref(), &device)?;
         let grads = total.backward();
         let mut grads = GradientsParams::from_grads(grads, &model);
         if let Some(max) = config.grad_clip_norm {
@@ -597,4 +657,46 @@ pub fn train(
         }
     }
     Ok(Outcome::Completed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::ModelConfig;
+    use rand::Rng;
+
+    #[test]
+    fn an_interpolated_frame_is_coded_by_the_blend_of_its_ends_codes() {
+        let device = Device::flex();
+        let config = ModelConfig { latent_dim: 5, encoder_hidden: vec![16], ..ModelConfig::default() };
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let model = HyperBrdf::init(&config, &mut rng, &device);
+        let set = |seed: u64| {
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+            let mut set = SampleSet::default();
+            for _ in 0..40 {
+                let input: [f32; 6] = std::array::from_fn(|_| rng.random());
+                set.push(input, [rng.random(), 0.5, -1.0], 0.7);
+            }
+            set
+        };
+        let (a, b) = (set(1), set(2));
+        let own = BatchSets::own(vec![a.clone(), b.clone()]).latent(&model, 32, &device);
+        let own = crate::model::to_vec(own);
+        // A's code, then a frame at t = 0.25 between A and partner B.
+        let t = 0.25;
+        let frame = BatchSets {
+            sets: vec![a, set(9)],
+            encoded: 1,
+            partners: vec![b],
+            mix: vec![unit_row(2, 0), vec![1.0 - t, t]],
+        };
+        let z = crate::model::to_vec(frame.latent(&model, 32, &device));
+        assert_eq!(z.len(), 10);
+        for k in 0..5 {
+            assert_eq!(z[k], own[k], "A keeps its own code");
+            let blend = (1.0 - t) * own[k] + t * own[5 + k];
+            assert!((z[5 + k] - blend).abs() <= 1e-6 * (1.0 + blend.abs()), "{} against {blend}", z[5 + k]);
+        }
+    }
 }

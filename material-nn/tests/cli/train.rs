@@ -478,6 +478,27 @@ fn augmented_runs_see_variants_and_resume_to_the_same_weights() {
 }
 
 #[test]
+fn interpolating_runs_train_frames_and_resume_to_the_same_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = make_data(dir.path());
+    let stop = AtomicBool::new(false);
+    let mut config = small_config(2);
+    let plain_run = dir.path().join("plain");
+    train(&request(&data, &plain_run, Some(config.clone()), false, None), &stop, &mut |_| {}).unwrap();
+    config.interpolation = material_nn::interpolation::Interpolation { share: 1.0 };
+    let whole = dir.path().join("whole");
+    train(&request(&data, &whole, Some(config.clone()), false, None), &stop, &mut |_| {}).unwrap();
+    let parts = dir.path().join("parts");
+    let o = train(&request(&data, &parts, Some(config), false, Some(1)), &stop, &mut |_| {}).unwrap();
+    assert_eq!(o, Outcome::Interrupted { step: 1 });
+    train(&request(&data, &parts, None, true, None), &stop, &mut |_| {}).unwrap();
+    let read = |run: &Path| Checkpoint::read(&RunDir(run.to_path_buf()).checkpoint()).unwrap();
+    assert!(model_weights(&read(&whole)) == model_weights(&read(&parts)), "an interpolating run resumed to other weights");
+    assert!(model_weights(&read(&whole)) != model_weights(&read(&plain_run)), "the frames changed nothing");
+    assert!(read(&whole).state.history.iter().all(|r| r.train_loss.is_finite()));
+}
+
+#[test]
 fn bad_input_gives_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
     let data = make_data(dir.path());
