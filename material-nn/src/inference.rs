@@ -96,6 +96,11 @@ pub struct RefineSettings {
     /// bright in red. The default 0 weights every sample alike (the samples are already
     /// confined to the rendered domain); docs/training.md measures 1, 0.5, 0.25 and 0.
     pub cos_power: f32,
+    /// Fit the residual after the latent code: `steps` steps on z and δ with no residual
+    /// (z + δ becomes the latent space's own fit, what `--no-residual` gives), then `steps`
+    /// on the residual (and δ) with z frozen, so that the residual is a correction of that
+    /// fit rather than a share of it. False: all together in one stage of `steps`.
+    pub residual_after_latent: bool,
 }
 
 /// Default refinement steps on a sparse sample set, one smaller than
@@ -124,6 +129,7 @@ impl Default for RefineSettings {
             fit_residual: true,
             residual_step: 0.3,
             cos_power: 0.0,
+            residual_after_latent: false,
         }
     }
 }
@@ -343,15 +349,28 @@ impl Codec {
                 .collect(),
         };
         let initial_loss = objective(&code).1.into_scalar::<f32>() as f64;
-        let mut optim = optimizer();
-        for step in 0..settings.steps {
-            let t = step as f64 / settings.steps as f64;
-            let lr = crate::config::half_cosine_decay(settings.learning_rate, 0.05, t);
-            let (total, data) = objective(&code);
-            let grads = GradientsParams::from_grads(total.backward(), &code);
-            code = optim.step(lr, code, grads);
-            code.z = code.z.map(|z| z.clamp_min(0.0).detach().require_grad());
-            progress(step + 1, data.into_scalar::<f32>() as f64);
+        // Stages: which of z and the residual each fits (δ as `fit_offset` says, in every one).
+        let stages: &[(bool, bool)] = match (fit_residual, settings.residual_after_latent) {
+            (true, true) => &[(true, false), (false, true)],
+            _ => &[(true, true)],
+        };
+        let mut done = 0;
+        for &(fit_z, fit_residual) in stages {
+            code.z = code.z.map(|z| z.detach().set_require_grad(fit_z));
+            code.residual = code.residual.into_iter().map(|r| r.map(|r| r.detach().set_require_grad(fit_residual))).collect();
+            let mut optim = optimizer();
+            for step in 0..settings.steps {
+                let t = step as f64 / settings.steps as f64;
+                let lr = crate::config::half_cosine_decay(settings.learning_rate, 0.05, t);
+                let (total, data) = objective(&code);
+                let grads = GradientsParams::from_grads(total.backward(), &code);
+                code = optim.step(lr, code, grads);
+                if fit_z {
+                    code.z = code.z.map(|z| z.clamp_min(0.0).detach().require_grad());
+                }
+                done += 1;
+                progress(done, data.into_scalar::<f32>() as f64);
+            }
         }
         let final_loss = objective(&code).1.into_scalar::<f32>() as f64;
         let z = to_vec(code.z.val());
@@ -581,6 +600,14 @@ mod tests {
         let y = codec.predict(&corrected.z, corrected.offset, &corrected.residual, &set.inputs[..6]);
         let plain = codec.predict(&corrected.z, corrected.offset, &[], &set.inputs[..6]);
         assert_ne!(y, plain);
+        // Staged: z is the fit without residual (the same steps, bit for bit), the residual a
+        // correction on top of it that fits further still.
+        let staged = codec
+            .refine(&z, &set, &RefineSettings { residual_after_latent: true, ..full.clone() }, &mut |_, _| {})
+            .unwrap();
+        assert_eq!(staged.z, tinted.z, "z of the staged fit is the latent space's own");
+        assert!(staged.residual.iter().any(|r| *r != 0.0) && staged.offset != tinted.offset);
+        assert!(staged.final_loss < 0.9 * tinted.final_loss, "{} vs {}", staged.final_loss, tinted.final_loss);
         let unrefined = RefineSettings { steps: 0, ..full };
         assert!(codec.refine(&z, &set, &unrefined, &mut |_, _| {}).unwrap().residual.is_empty(), "nothing fitted");
         let none = RefineSettings { steps: 0, ..settings };

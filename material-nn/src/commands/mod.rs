@@ -38,6 +38,10 @@ pub struct RefineArgs {
     /// lower gives grazing light more say).
     #[arg(long, default_value_t = RefineSettings::default().cos_power, value_parser = parse_non_negative)]
     pub cos_power: f32,
+    /// Fit the residual after z and the offset (two stages of the steps each), so that z
+    /// and the offset alone are the latent space's fit and the residual corrects it.
+    #[arg(long, conflicts_with = "no_residual")]
+    pub residual_after_latent: bool,
 }
 
 impl RefineArgs {
@@ -50,6 +54,7 @@ impl RefineArgs {
             fit_residual: !self.no_residual,
             residual_step: self.residual_step,
             cos_power: self.cos_power,
+            residual_after_latent: self.residual_after_latent,
             ..default
         }
     }
