@@ -19,7 +19,7 @@
 //! three columns measure the same quantity for both models.
 //!
 //! Editing: `pairs` random pairs (a, b) of the materials and t ~ U(0, 1); the network of
-//! z(t) = (1 − t) z_a + t z_b (offsets and residuals interpolated alike,
+//! z(t) = (1 − t) z_a + t z_b (offsets interpolated, residuals faded out near their ends,
 //! [`LatentCode::lerp`]) is compared with the linear blend (1 − t) f_a + t f_b of the
 //! tables, with the same metrics (BRDF space only; NBRDF has no latent space to edit in).
 //!

@@ -5,7 +5,8 @@
 //!
 //! - `z`: the codes' z alone interpolated (offsets δ and residuals ΔΘ dropped);
 //! - `z+δ`: z and the offsets;
-//! - `full`: z, δ and ΔΘ interpolated together, as `render --sweep` does;
+//! - `full`: the sweep of `render --sweep` ([`LatentCode::lerp`]: z and δ interpolated,
+//!   each end's residual ΔΘ faded out within 0.25 of its end);
 //! - `encoder`: the set encoder's own z of both ends (from samples of the ends' NBRDF
 //!   networks, unrefined: points of the encoder's output manifold), interpolated;
 //! - `encoder(blend)`: at each t the encoder's z of the blended table (1 − t) f_A + t f_B,
@@ -13,10 +14,7 @@
 //! - `log-blend`: no decoder: the two tables blended in the mapped space, f + ε =
 //!   (f_A + ε)^(1−t) (f_B + ε)^t, which is what interpolating the mapped values y (or a
 //!   decoder linear in z) gives;
-//! - `faded`: z and δ interpolated, each end's residual faded out within τ = 0.25 of its end
-//!   (weight clamp(1 − distance/τ, 0, 1)²) instead of interpolated across: the interior
-//!   frames are points of the latent space with interpolated offsets;
-//! - `proposal`: issue 49's step-3 proposal (docs/training.md): `faded`, and the offsets'
+//! - `proposal`: issue 49's step-3 proposal (docs/training.md): `full`, and the offsets'
 //!   interpolation plus a per-channel
 //!   correction ln(ρ_target / ρ) (two iterations) that makes the frame's albedo, averaged
 //!   over the θo of `--theta-o`, the linear blend of its ends' (capped so that no θo exceeds
@@ -90,22 +88,6 @@ pub const DEFAULT_PAIRS: &[(&str, &str)] = &[
     ("paper_blue_rgb", "nickel"),
 ];
 
-/// The proposal's fade: an end's residual weighs clamp(1 − distance / this, 0, 1)².
-const PROPOSAL_FADE: f32 = 0.25;
-
-/// The code at t of the proposal's sweep before its energy gain: z and the offsets
-/// interpolated, each end's residual faded out within [`PROPOSAL_FADE`] of its end.
-fn faded(ca: &LatentCode, cb: &LatentCode, t: f32) -> Result<LatentCode> {
-    let fade = |distance: f32| (1.0 - distance / PROPOSAL_FADE).clamp(0.0, 1.0).powi(2);
-    let (wa, wb) = (fade(t), fade(1.0 - t));
-    let len = ca.residual.len().max(cb.residual.len());
-    let at = |r: &[f32], i: usize| r.get(i).copied().unwrap_or(0.0);
-    let mut code = Study::code(&ca.z).lerp(&Study::code(&cb.z), t)?;
-    code.offset = [0, 1, 2].map(|c| (1.0 - t) * ca.offset[c] + t * cb.offset[c]);
-    code.residual = (0..len).map(|i| wa * at(&ca.residual, i) + wb * at(&cb.residual, i)).collect();
-    Ok(code)
-}
-
 /// `render energy`.
 #[derive(Parser, Debug)]
 #[command(
@@ -171,20 +153,18 @@ enum Variant {
     Encoder,
     EncoderOfBlend,
     LogBlend,
-    Faded,
     Proposal,
     Table,
 }
 
 impl Variant {
-    const ALL: [Variant; 9] = [
+    const ALL: [Variant; 8] = [
         Variant::Z,
         Variant::ZOffset,
         Variant::Full,
         Variant::Encoder,
         Variant::EncoderOfBlend,
         Variant::LogBlend,
-        Variant::Faded,
         Variant::Proposal,
         Variant::Table,
     ];
@@ -197,14 +177,13 @@ impl Variant {
             Variant::Encoder => "encoder",
             Variant::EncoderOfBlend => "encoder(blend)",
             Variant::LogBlend => "log-blend",
-            Variant::Faded => "faded",
             Variant::Proposal => "proposal",
             Variant::Table => "table",
         }
     }
 
     fn needs_code(self) -> bool {
-        matches!(self, Variant::Z | Variant::ZOffset | Variant::Full | Variant::Faded | Variant::Proposal)
+        matches!(self, Variant::Z | Variant::ZOffset | Variant::Full | Variant::Proposal)
     }
 }
 
@@ -386,13 +365,9 @@ impl Study<'_> {
                     })
                     .collect()
             }
-            Variant::Faded => {
-                let (ca, cb) = (a.code.as_ref().context("no code")?, b.code.as_ref().context("no code")?);
-                self.albedos_of(&self.decoded(&faded(ca, cb, t)?, &label)?)
-            }
             Variant::Proposal => {
                 let (ca, cb) = (a.code.as_ref().context("no code")?, b.code.as_ref().context("no code")?);
-                let mut code = faded(ca, cb, t)?;
+                let mut code = ca.lerp(cb, t)?;
                 let mut albedo = self.albedos_of(&self.decoded(&code, &label)?);
                 if t > 0.0 && t < 1.0 {
                     let ends = [ca, cb].map(|c| self.decoded(c, &label).map(|d| self.albedos_of(&d)));
@@ -708,28 +683,4 @@ pub fn run(args: EnergyArgs) -> Result<()> {
 
 fn write(path: &Path, text: &str) -> Result<()> {
     renderer::support::write_bytes_atomically(path, text.as_bytes()).with_context(|| format!("{}: cannot write", path.display()))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn faded_sweeps_keep_their_ends_and_drop_residuals_inside() {
-        let code = |z: f32, offset: f32, residual: f32| LatentCode {
-            file: 0,
-            z: vec![z; 4],
-            offset: [offset; 3],
-            residual: vec![residual; 6],
-        };
-        let (a, b) = (code(1.0, 0.2, 0.5), code(3.0, -0.2, -1.0));
-        let at = |t| faded(&a, &b, t).unwrap();
-        assert_eq!((at(0.0).z, at(0.0).residual), (a.z.clone(), a.residual.clone()));
-        assert_eq!((at(1.0).z, at(1.0).residual), (b.z.clone(), b.residual.clone()));
-        let mid = at(0.5);
-        assert_eq!((mid.z[0], mid.offset[0]), (2.0, 0.0));
-        assert!(mid.residual.iter().all(|&r| r == 0.0), "no residual inside the fade");
-        // Within τ of an end, that end's residual weighs (1 − d/τ)².
-        assert_eq!(at(0.125).residual[0], 0.5 * 0.25);
-    }
 }

@@ -200,7 +200,8 @@ pub unsafe extern "C" fn nb_material_open_latent_vector(path: *const c_char, z: 
 }
 
 /// Opens a latent file and decodes the blend of its codes `a` and `b` at `t` into `*out`:
-/// the latent interpolation (1 − t) A + t B of z, output offsets and residuals, decoded
+/// the latent interpolation (1 − t) A + t B of z and output offsets, each end's residual
+/// faded out within t = 0.25 of its end, decoded
 /// exactly as `render --sweep` decodes its frames (t = 0 gives A, t = 1 gives B). `t` must be
 /// in [0, 1]: NaN or a value outside is NB_STATUS_INVALID_ARGUMENT (not clamped); an unknown
 /// code is NB_STATUS_UNKNOWN_NAME. `*out` is set only on success; free it with

@@ -110,7 +110,8 @@ impl Material {
     }
 
     /// Opens a latent file and decodes the blend of its codes `a` and `b` at `t`: the latent
-    /// interpolation (1 − t) A + t B (z, offsets and residuals), decoded exactly as
+    /// interpolation (1 − t) A + t B of z and offsets, each end's residual faded out within
+    /// t = 0.25 of its end, decoded exactly as
     /// `render --sweep` decodes its frames (t = 0 is A, t = 1 is B). `t` must be in [0, 1]
     /// (`ValueError` otherwise, NaN included: not clamped); an unknown code raises
     /// `UnknownNameError`.

@@ -94,7 +94,8 @@ impl MaterialBsdf {
 
     /// Opens a latent file and decodes the blend of its codes `a` and `b` at `t`: the latent
     /// interpolation [`LatentCode::lerp`](crate::neural::latent_library::LatentCode::lerp)(A,
-    /// B, t) of z, offsets and residuals, decoded exactly as `render --sweep` decodes its
+    /// B, t) (z and offsets interpolated, each end's residual faded out near its end),
+    /// decoded exactly as `render --sweep` decodes its
     /// frames (t = 0 is A, t = 1 is B, bit for bit). `t` must be finite and in [0, 1]: an
     /// error otherwise (not clamped). Errors name the file, an unknown code (listing the
     /// available ones) or `t`.

@@ -330,7 +330,7 @@ mod tests {
     /// against the 90 × 64 default is in the report of `render energy`). The sweeps: the 100
     /// codes in file order paired i ↔ i + 50 (50 pairs, each code in one), and the issue's
     /// alum-bronze → chrome, blue-fabric → nickel, red-plastic → gold-paint, each at t = 0.25,
-    /// 0.5, 0.75 with z, offsets and residuals interpolated as the renderer's sweeps do
+    /// 0.5, 0.75 as the renderer's sweeps decode them
     /// ([`LatentCode::lerp`]): 100 + 159 decoded nets.
     #[test]
     fn shipped_codes_and_sweeps_reflect_at_most_what_they_receive() {
