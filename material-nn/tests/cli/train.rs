@@ -457,45 +457,33 @@ fn a_resumed_run_ends_with_the_same_weights() {
     assert!(reference(&streamed) == reference(&dir.path().join("whole")), "f_ref differs");
 }
 
+/// Runs with synthetic variants (`augment`) or interpolated frames (`interpolation`) in every
+/// step: each changes the weights a plain run ends with, and resumed from a checkpoint after
+/// its first step ends with the weights of an uninterrupted run.
 #[test]
-fn augmented_runs_see_variants_and_resume_to_the_same_weights() {
+fn augmented_and_interpolating_runs_resume_to_the_same_weights() {
     let dir = tempfile::tempdir().unwrap();
     let data = make_data(dir.path());
     let stop = AtomicBool::new(false);
-    let mut config = small_config(2);
+    let plain = small_config(2);
     let plain_run = dir.path().join("plain");
-    train(&request(&data, &plain_run, Some(config.clone()), false, None), &stop, &mut |_| {}).unwrap();
-    config.augment = material_nn::augment::Augmentation { share: 1.0, blend: 0.5 };
-    let whole = dir.path().join("whole");
-    train(&request(&data, &whole, Some(config.clone()), false, None), &stop, &mut |_| {}).unwrap();
-    let parts = dir.path().join("parts");
-    let o = train(&request(&data, &parts, Some(config), false, Some(1)), &stop, &mut |_| {}).unwrap();
-    assert_eq!(o, Outcome::Interrupted { step: 1 });
-    train(&request(&data, &parts, None, true, None), &stop, &mut |_| {}).unwrap();
-    let weights = |run: &Path| model_weights(&Checkpoint::read(&RunDir(run.to_path_buf()).checkpoint()).unwrap());
-    assert!(weights(&whole) == weights(&parts), "an augmented run resumed to other weights");
-    assert!(weights(&whole) != weights(&plain_run), "the variants changed nothing");
-}
-
-#[test]
-fn interpolating_runs_train_frames_and_resume_to_the_same_weights() {
-    let dir = tempfile::tempdir().unwrap();
-    let data = make_data(dir.path());
-    let stop = AtomicBool::new(false);
-    let mut config = small_config(2);
-    let plain_run = dir.path().join("plain");
-    train(&request(&data, &plain_run, Some(config.clone()), false, None), &stop, &mut |_| {}).unwrap();
-    config.interpolation = material_nn::interpolation::Interpolation { share: 1.0 };
-    let whole = dir.path().join("whole");
-    train(&request(&data, &whole, Some(config.clone()), false, None), &stop, &mut |_| {}).unwrap();
-    let parts = dir.path().join("parts");
-    let o = train(&request(&data, &parts, Some(config), false, Some(1)), &stop, &mut |_| {}).unwrap();
-    assert_eq!(o, Outcome::Interrupted { step: 1 });
-    train(&request(&data, &parts, None, true, None), &stop, &mut |_| {}).unwrap();
+    train(&request(&data, &plain_run, Some(plain.clone()), false, None), &stop, &mut |_| {}).unwrap();
     let read = |run: &Path| Checkpoint::read(&RunDir(run.to_path_buf()).checkpoint()).unwrap();
-    assert!(model_weights(&read(&whole)) == model_weights(&read(&parts)), "an interpolating run resumed to other weights");
-    assert!(model_weights(&read(&whole)) != model_weights(&read(&plain_run)), "the frames changed nothing");
-    assert!(read(&whole).state.history.iter().all(|r| r.train_loss.is_finite()));
+    let variants = [
+        ("augmented", TrainConfig { augment: material_nn::augment::Augmentation { share: 1.0, blend: 0.5 }, ..plain.clone() }),
+        ("interpolating", TrainConfig { interpolation: material_nn::interpolation::Interpolation { share: 1.0 }, ..plain }),
+    ];
+    for (name, config) in variants {
+        let whole = dir.path().join(format!("{name}-whole"));
+        train(&request(&data, &whole, Some(config.clone()), false, None), &stop, &mut |_| {}).unwrap();
+        let parts = dir.path().join(format!("{name}-parts"));
+        let o = train(&request(&data, &parts, Some(config), false, Some(1)), &stop, &mut |_| {}).unwrap();
+        assert_eq!(o, Outcome::Interrupted { step: 1 });
+        train(&request(&data, &parts, None, true, None), &stop, &mut |_| {}).unwrap();
+        assert!(model_weights(&read(&whole)) == model_weights(&read(&parts)), "an {name} run resumed to other weights");
+        assert!(model_weights(&read(&whole)) != model_weights(&read(&plain_run)), "the {name} run changed nothing");
+        assert!(read(&whole).state.history.iter().all(|r| r.train_loss.is_finite()), "{name}");
+    }
 }
 
 #[test]
