@@ -11,7 +11,7 @@ use half::f16;
 use rayon::prelude::*;
 use renderer::formats::latent_file::{LatentFile, NamedLatent, WeightType};
 use renderer::neural::mlp::{Encoder, Mlp};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The decoder part of a latent file (no latent codes yet).
 pub fn latent_file(run: &TrainedRun, weight_type: WeightType) -> LatentFile {
@@ -57,57 +57,115 @@ pub fn latent_file(run: &TrainedRun, weight_type: WeightType) -> LatentFile {
     }
 }
 
-/// Encodes the tables `names` of `data_dir` (`NAME.binary`) as `settings` say, the seed
-/// offset by the material's position; `progress(name)` after each.
-pub fn encode_materials(
-    codec: &Codec,
-    data_dir: &Path,
-    names: &[String],
-    settings: &EncodeSettings,
-    progress: &mut dyn FnMut(&str),
-) -> Result<Vec<NamedLatent>> {
-    names
-        .iter()
-        .enumerate()
-        .map(|(i, name)| {
-            let path = crate::tables::table_path(data_dir, name);
-            if !path.exists() {
-                return Err(Error::invalid_file(
-                    &path,
-                    format!("no table for material '{name}'"),
-                ));
-            }
-            let table = MaterialTable::read(&path)?;
-            let settings = EncodeSettings {
-                seed: settings.seed.wrapping_add(i as u64),
-                ..settings.clone()
-            };
-            let refined = codec.encode(&table, &settings)?;
-            progress(name);
-            Ok(refined.into_named(name))
-        })
-        .collect()
+/// What [`export`] did.
+#[derive(Debug)]
+pub enum Exported {
+    /// Every code made (`resumed` of them taken from an interrupted export's
+    /// [`partial_dir`]) and the file written.
+    Written { file: LatentFile, resumed: usize },
+    /// Stopped before code `done` of `total`: the codes made are kept in [`partial_dir`], and
+    /// the same export (same materials, data and settings) continues from them.
+    Interrupted { done: usize, total: usize },
+}
+
+/// Where an export to `out` keeps the codes it has made until it writes `out`:
+/// `OUT.partial/`, holding `codes.bin` (a latent file: the decoder and the codes so far,
+/// rewritten after each) and `settings.txt` (the materials, data directory and encoding
+/// settings they were made with). Removed once `out` is written.
+pub fn partial_dir(out: &Path) -> PathBuf {
+    let mut name = out.as_os_str().to_owned();
+    name.push(".partial");
+    PathBuf::from(name)
+}
+
+/// Which codes an [`export`] makes and where it writes them.
+#[derive(Clone, Copy, Debug)]
+pub struct ExportRequest<'a> {
+    /// Directory of the tables (`NAME.binary`).
+    pub data_dir: &'a Path,
+    /// The materials, in the file's order.
+    pub names: &'a [String],
+    /// How each is encoded (the seed is offset by the material's position).
+    pub settings: &'a EncodeSettings,
+    /// The latent file written.
+    pub out: &'a Path,
 }
 
 /// Writes `decoder` (a latent file's decoder part: [`latent_file`] of a run, or a latent file
-/// read back) to `out` with the materials `names` encoded by `codec` from `data_dir` with
-/// `settings` as its codes (any codes `decoder` held are replaced). Nothing is written when a
-/// material fails.
+/// read back) to `out` with the materials `names` encoded by `codec` from `data_dir`
+/// with `settings` as its codes (any codes `decoder` held are replaced), the
+/// seed offset by the material's position, so that a code does not depend on which codes were
+/// made before it in this process. `progress(name)` after each code; `stop(done)` is asked
+/// before each code and ends the export as [`Exported::Interrupted`]. Codes are kept in
+/// [`partial_dir`] as they are made, and an export with the same materials, data and settings
+/// takes them from there rather than making them again. Nothing is written to `out` unless
+/// every code was made.
 pub fn export(
     codec: &Codec,
     decoder: LatentFile,
-    data_dir: &Path,
-    names: &[String],
-    settings: &EncodeSettings,
-    out: &Path,
+    request: &ExportRequest,
+    stop: &dyn Fn(usize) -> bool,
     progress: &mut dyn FnMut(&str),
-) -> Result<LatentFile> {
-    let file = LatentFile {
-        latents: encode_materials(codec, data_dir, names, settings, progress)?,
+) -> Result<Exported> {
+    let ExportRequest { data_dir, names, settings, out } = *request;
+    let tables: Vec<PathBuf> = names.iter().map(|name| crate::tables::table_path(data_dir, name)).collect();
+    if let Some((path, name)) = tables.iter().zip(names).find(|(path, _)| !path.exists()) {
+        return Err(Error::invalid_file(path, format!("no table for material '{name}'")));
+    }
+    let partial = partial_dir(out);
+    let key = format!("materials {}\ndata {}\n{settings:?}\n", names.join(","), data_dir.display());
+    let mut file = LatentFile {
+        latents: resumed_codes(&partial, &key, &decoder, names),
         ..decoder
     };
+    let resumed = file.latents.len();
+    if resumed == 0 {
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+        }
+        std::fs::create_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+        let settings_path = partial.join("settings.txt");
+        std::fs::write(&settings_path, &key).map_err(|e| Error::io(&settings_path, e))?;
+    }
+    for name in &names[..resumed] {
+        progress(name);
+    }
+    for (i, (name, table)) in names.iter().zip(&tables).enumerate().skip(resumed) {
+        if stop(i) {
+            return Ok(Exported::Interrupted { done: i, total: names.len() });
+        }
+        let table = MaterialTable::read(table)?;
+        let settings = EncodeSettings {
+            seed: settings.seed.wrapping_add(i as u64),
+            ..settings.clone()
+        };
+        file.latents.push(codec.encode(&table, &settings)?.into_named(name));
+        file.write(partial.join("codes.bin"))?;
+        progress(name);
+    }
     file.write(out)?;
-    Ok(file)
+    std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+    Ok(Exported::Written { file, resumed })
+}
+
+/// The codes an interrupted export left in `partial` (the first of `names`, in order) when
+/// it was made with the same materials, data and settings (`key`) and for `decoder`; none
+/// otherwise (also when the files are missing or unreadable: the export starts afresh).
+fn resumed_codes(partial: &Path, key: &str, decoder: &LatentFile, names: &[String]) -> Vec<NamedLatent> {
+    if std::fs::read_to_string(partial.join("settings.txt")).ok().as_deref() != Some(key) {
+        return Vec::new();
+    }
+    let codes = partial.join("codes.bin");
+    match LatentFile::read(&codes) {
+        Ok(file) if check_same_decoder(&file, decoder, &codes).is_ok() => file
+            .latents
+            .into_iter()
+            .zip(names)
+            .take_while(|(code, name)| &code.name == *name)
+            .map(|(code, _)| code)
+            .collect(),
+        _ => Vec::new(),
+    }
 }
 
 /// Checks that `library` holds the decoder of `model` (same networks, mapping and f_ref up to

@@ -1,13 +1,17 @@
 //! `material-nn export`: a model's decoder, f_ref, set encoder and latent codes as one
 //! `latent.bin` — from a run directory, or from a latent file whose codes are made again
-//! (e.g. the shipped model's codes with the current encoding settings).
+//! (e.g. the shipped model's codes with the current encoding settings). Ctrl-C stops before
+//! the next code; the codes made are kept and the same command continues from them.
 
 use clap::{ArgGroup, Args};
 use material_nn::inference::EncodeSettings;
 use renderer::formats::latent_file::WeightType;
 use std::path::PathBuf;
 use std::time::Instant;
-use super::progress_bar;
+use super::{progress_bar, STOP};
+use anyhow::Context;
+use material_nn::export::{ExportRequest, Exported};
+use std::sync::atomic::Ordering;
 
 #[derive(Args)]
 #[command(group(ArgGroup::new("source").required(true).args(["run", "model"])))]
@@ -35,6 +39,10 @@ pub struct ExportArgs {
     pub half_weights: bool,
     #[command(flatten)]
     pub refine: super::RefineArgs,
+    /// Stop after this many codes (as Ctrl-C would): the codes made are kept in
+    /// OUT.partial/ and the same command continues from them.
+    #[arg(long, value_name = "N")]
+    pub stop_after: Option<usize>,
 }
 
 pub fn run(args: ExportArgs) -> anyhow::Result<()> {
@@ -57,16 +65,27 @@ pub fn run(args: ExportArgs) -> anyhow::Result<()> {
         refine,
         ..EncodeSettings::default()
     };
+    ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst))
+        .context("cannot install the Ctrl-C handler")?;
+    let stop = |done: usize| STOP.load(Ordering::SeqCst) || args.stop_after.is_some_and(|n| done >= n);
     let bar = progress_bar(names.len(), "encode");
-    let file = material_nn::export::export(&codec, decoder, &data, &names, &settings, &args.out, &mut |name| {
+    let exported = material_nn::export::export(&codec, decoder, &ExportRequest { data_dir: &data, names: &names, settings: &settings, out: &args.out }, &stop, &mut |name| {
         bar.set_message(name.to_string());
         bar.inc(1);
     });
     bar.finish_and_clear();
-    let file = file?;
+    let (file, resumed) = match exported? {
+        Exported::Written { file, resumed } => (file, resumed),
+        Exported::Interrupted { done, total } => anyhow::bail!(
+            "{}: stopped after {done} of {total} codes, kept in {}; the same command continues from them",
+            args.out.display(),
+            material_nn::export::partial_dir(&args.out).display()
+        ),
+    };
     let size = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
+    let resumed = if resumed > 0 { format!(" ({resumed} of them from an interrupted export)") } else { String::new() };
     println!(
-        "{}: {} latent codes, {:.1} MB, in {:.1} s",
+        "{}: {} latent codes{resumed}, {:.1} MB, in {:.1} s",
         args.out.display(),
         file.latents.len(),
         size as f64 / 1e6,

@@ -135,5 +135,5 @@ pub fn load_model(model: Option<&Path>, run: Option<&Path>) -> anyhow::Result<Mo
     }
 }
 
-/// Set by Ctrl-C; the training loop stops after the current step.
+/// Set by Ctrl-C: training stops after the current step, an export before its next code.
 pub static STOP: AtomicBool = AtomicBool::new(false);

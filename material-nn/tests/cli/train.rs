@@ -122,6 +122,38 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     assert!(reexported.latents.iter().all(|l| l.offset == [0.0; 3] && l.residual.is_empty()));
     assert!(file.latents.iter().any(|l| l.offset != [0.0; 3]), "the first export fitted offsets");
 
+    // An interrupted export keeps its codes in OUT.partial/ and writes no OUT; the same
+    // command continues from them (the kept code is marked here to show it is taken, not
+    // made again) and ends with the uninterrupted export's codes; other settings start afresh.
+    let resumed = dir.path().join("resumed.bin");
+    let partial = material_nn::export::partial_dir(&resumed);
+    let export_again = |steps: &str, extra: &[&str]| {
+        let args = [&["export", "--model", path_str(&latent), "--data", path_str(&data), "--out", path_str(&resumed), "--refine-steps", steps, "--no-offset", "--no-residual"], extra].concat();
+        material_nn(&args)
+    };
+    let out = export_again("5", &["--stop-after", "1"]);
+    assert!(!out.status.success(), "an interrupted export fails: {out:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("stopped after 1 of 2 codes") && stderr.lines().count() == 1, "{stderr}");
+    assert!(!resumed.exists(), "no output before every code is made");
+    let mut kept = LatentFile::read(partial.join("codes.bin")).unwrap();
+    assert_eq!(kept.latents, reexported.latents[..1]);
+    kept.latents[0].z[0] += 0.125;
+    kept.write(partial.join("codes.bin")).unwrap();
+    let out = export_again("5", &[]);
+    assert!(out.status.success(), "{out:?}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("1 of them from an interrupted export"), "{out:?}");
+    let continued = LatentFile::read(&resumed).unwrap();
+    assert_eq!(continued.latents[0], kept.latents[0], "the kept code is taken");
+    assert_eq!(continued.latents[1..], reexported.latents[1..], "the rest as without the interruption");
+    assert!(!partial.exists(), "the partial codes go once the file is written");
+    assert!(!export_again("5", &["--stop-after", "1"]).status.success());
+    let mut kept = LatentFile::read(partial.join("codes.bin")).unwrap();
+    kept.latents[0].z[0] += 0.125;
+    kept.write(partial.join("codes.bin")).unwrap();
+    assert!(export_again("6", &[]).status.success());
+    assert_ne!(LatentFile::read(&resumed).unwrap().latents[0], kept.latents[0], "codes of other settings are not taken");
+
     // Evaluation beside a briefly fitted NBRDF baseline, with tiny preview renders.
     let nbrdf = dir.path().join("nbrdf");
     let out = material_nn(&[
