@@ -21,7 +21,10 @@
 //! Editing: `pairs` random pairs (a, b) of the materials and t ~ U(0, 1); the network of
 //! z(t) = (1 − t) z_a + t z_b (offsets interpolated, residuals faded out near their ends,
 //! [`LatentCode::lerp`]) is compared with the linear blend (1 − t) f_a + t f_b of the
-//! tables, with the same metrics (BRDF space only; NBRDF has no latent space to edit in).
+//! tables, with the same metrics. NBRDF has no latent space: its edit is the naive one, every
+//! weight of the two materials' networks blended with t ([`NbrdfNetwork::lerp`]). The first
+//! `editing_images` pairs are rendered too (the blended table is the reference), which gives
+//! the editing rows PSNR and SSIM (the talk's Table 2).
 //!
 //! # Images
 //! Unless turned off, each material is also rendered in the material-preview scene
@@ -43,7 +46,7 @@ use renderer::brdf_coords::rendered_point;
 use crate::dataset::draw_angles;
 use renderer::bsdf::neural::{NeuralBsdf, ReferenceValues};
 use renderer::neural::reference::ReferenceTable;
-use renderer::bsdf::merl::MerlBsdf;
+use renderer::bsdf::merl::{Interpolation, MerlBsdf};
 use renderer::bsdf::nbrdf::NbrdfBsdf;
 use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use renderer::bsdf::Bxdf;
@@ -154,6 +157,9 @@ pub struct EvalSettings {
     pub encode: EncodeSettings,
     /// Directions per directional-albedo estimate.
     pub albedo_samples: usize,
+    /// Editing pairs (the first ones) also rendered: the blended table, the model's z(t) and
+    /// the NBRDF networks' weight blend, PSNR / SSIM against the blended table's render.
+    pub editing_images: usize,
 }
 
 /// The run's model name as rows and summaries show it (`frenbrdf`, `hyperbrdf`).
@@ -464,7 +470,7 @@ pub fn evaluate(
     }
     let file = crate::export::latent_file(run, WeightType::F32);
     // f_ref as the file carries it (f16), as a render of the file looks it up.
-    let reference: ReferenceValues = Arc::new(ReferenceTable::new(&file.f_ref));
+    let reference_values: ReferenceValues = Arc::new(ReferenceTable::new(&file.f_ref));
     let mut preview = match &settings.images {
         Some(images) => {
             if let Some(dir) = &images.out_dir {
@@ -478,12 +484,13 @@ pub fn evaluate(
         None => None,
     };
     let mut reconstruction = Vec::new();
+    let mut nbrdf_nets = Vec::new();
     for (i, ((name, table), code)) in names.iter().zip(&tables).zip(&codes).enumerate() {
         progress(&format!("reconstruction {name}"));
         let truth = |a, b, c| table.lookup(a, b, c);
         let mut latent = compare(run, &Candidate::Latent(code), &truth, settings, &fre, &mut splats)?;
         let table_bsdf = MerlBsdf::load(table_path(name))?;
-        let neural = neural_bsdf(run, &file, &reference, name, code)?;
+        let neural = neural_bsdf(run, &file, &reference_values, name, code)?;
         latent.albedo_ratio = Some(albedo_ratios(&neural, &table_bsdf, settings.albedo_samples));
         let (mut nbrdf, nbrdf_bsdf) = match &nbrdf_prefixes {
             Some(prefixes) => {
@@ -496,8 +503,9 @@ pub fn evaluate(
                     &fre,
                     &mut splats,
                 )?;
-                let bsdf = NbrdfBsdf::load(prefixes[i].as_path())?;
+                let bsdf = NbrdfBsdf::new(net.clone(), &TabulatedSamplerConfig::default());
                 m.albedo_ratio = Some(albedo_ratios(&bsdf, &table_bsdf, settings.albedo_samples));
+                nbrdf_nets.push(net);
                 (Some(m), Some(bsdf))
             }
             None => (None, None),
@@ -548,13 +556,28 @@ pub fn evaluate(
                 let (fa, fb) = (ta.lookup(h, d, p)?, tb.lookup(h, d, p)?);
                 Some([0, 1, 2].map(|c| (1.0 - t) * fa[c] + t * fb[c]))
             };
-            let metrics = compare(run, &Candidate::Latent(&code), &blend, settings, &fre, &mut splats)?;
-            editing.push(Row {
-                model: model.clone(),
-                name: format!("{}|{}", names[a], names[b]),
-                t,
-                metrics,
-            });
+            let name = format!("{}|{}", names[a], names[b]);
+            let mut latent = compare(run, &Candidate::Latent(&code), &blend, settings, &fre, &mut splats)?;
+            let net = (!nbrdf_nets.is_empty()).then(|| nbrdf_nets[a].lerp(&nbrdf_nets[b], t));
+            let mut nbrdf = net.as_ref().map(|net| compare(run, &Candidate::Nbrdf(net), &blend, settings, &fre, &mut splats)).transpose()?;
+            if let Some((scene, dir)) = preview.as_mut().filter(|_| k < settings.editing_images) {
+                let dir = dir.as_deref();
+                let blended = ta.blend(tb, name.clone(), |_| t).to_merl()?;
+                let reference = scene.render(SharedBsdf::Merl(MerlBsdf::new(&blended, Interpolation::default(), &TabulatedSamplerConfig::default())));
+                scene.write_png(dir, &format!("edit-{k:04}-table.png"), &reference)?;
+                let image = scene.render(SharedBsdf::Neural(neural_bsdf(run, &file, &reference_values, &name, &code)?));
+                scene.write_png(dir, &format!("edit-{k:04}-{model}.png"), &image)?;
+                latent.image = Some(scene.error(&image, &reference));
+                if let (Some(m), Some(net)) = (&mut nbrdf, net) {
+                    let image = scene.render(SharedBsdf::Nbrdf(NbrdfBsdf::new(net, &TabulatedSamplerConfig::default())));
+                    scene.write_png(dir, &format!("edit-{k:04}-{NBRDF_MODEL}.png"), &image)?;
+                    m.image = Some(scene.error(&image, &reference));
+                }
+            }
+            editing.push(Row { model: model.clone(), name: name.clone(), t, metrics: latent });
+            if let Some(metrics) = nbrdf {
+                editing.push(Row { model: NBRDF_MODEL.to_string(), name, t, metrics });
+            }
         }
     }
     Ok((reconstruction, editing))

@@ -38,6 +38,10 @@ pub struct EvalArgs {
     /// Random editing pairs (the talk used 2,000).
     #[arg(long, default_value_t = 50)]
     pub pairs: usize,
+    /// Render the first N editing pairs too (blended table, the model's z(t), the NBRDF
+    /// networks' weight blend with --nbrdf): PSNR / SSIM of editing against the blended table
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub editing_images: usize,
     /// Seed of points, pairs, t and the preview renders.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
@@ -115,6 +119,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             ..EncodeSettings::default()
         },
         albedo_samples: args.albedo_samples,
+        editing_images: if args.no_images { 0 } else { args.editing_images.min(args.pairs) },
     };
     std::fs::create_dir_all(&out).with_context(|| out.display().to_string())?;
     let bar = progress_bar(2 * names.len() + args.pairs, "eval");
@@ -128,12 +133,14 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         format!(
             "PSNR and SSIM: previews of {} ({width}x{height}, {} spp, seed {}, path depth {}) \
              against the tabulated table's, 8-bit clamp-tone-mapped values (SSIM window {}); \
-             images in eval/images/.",
+             images in eval/images/. Editing PSNR and SSIM: the first {} pairs, against the \
+             blended table's render.",
             args.scene.display(),
             args.spp,
             args.seed,
             eval::PREVIEW_MAX_DEPTH,
-            renderer::metrics::SSIM_WINDOW
+            renderer::metrics::SSIM_WINDOW,
+            settings.editing_images
         )
     });
     let summary = eval::to_markdown(&reconstruction, &editing, note.as_deref());

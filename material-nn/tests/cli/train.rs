@@ -186,10 +186,24 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         "16x16",
         "--spp",
         "2",
+        "--editing-images",
+        "1",
     ]);
     assert!(out.status.success(), "{out:?}");
+    // Editing rows of both models (NBRDF: its two networks' weights blended), the first pair
+    // rendered against the blended table.
     let csv = std::fs::read_to_string(run.join("eval/editing.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 4, "{csv}");
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.iter().map(|r| r[0]).collect::<Vec<_>>(), ["frenbrdf", "nbrdf"].repeat(3), "{csv}");
+    for (k, row) in rows.iter().enumerate() {
+        let rendered = row[6].parse::<f64>().is_ok_and(f64::is_finite);
+        assert_eq!(rendered, k < 2, "PSNR of the first pair only: {csv}");
+    }
+    assert_eq!(rows[0][1], rows[1][1], "the same pair for both models");
+    assert_ne!(rows[0][3], rows[1][3], "{csv}");
+    for model in ["table", "frenbrdf", "nbrdf"] {
+        assert!(run.join(format!("eval/images/edit-0000-{model}.png")).is_file(), "{model}");
+    }
     let csv = std::fs::read_to_string(run.join("eval/reconstruction.csv")).unwrap();
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
     let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
@@ -218,7 +232,7 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         }
     }
     let summary = std::fs::read_to_string(run.join("eval/summary.md")).unwrap();
-    assert!(summary.contains("| frenbrdf | editing | 3 |"), "{summary}");
+    assert!(summary.contains("| frenbrdf | editing | 3 |") && summary.contains("| nbrdf | editing | 3 |"), "{summary}");
     assert!(
         summary.contains("| nbrdf | reconstruction | 2 |"),
         "{summary}"

@@ -169,6 +169,24 @@ impl NbrdfNetwork {
         net
     }
 
+    /// The network whose every weight and bias is (1 − t)·self + t·other: the only edit two
+    /// NBRDF networks allow (each is fitted to one material on its own, so there is no
+    /// latent space between them); the naive baseline of material editing.
+    pub fn lerp(&self, other: &NbrdfNetwork, t: f32) -> NbrdfNetwork {
+        fn mix<const N: usize>(a: &[f32; N], b: &[f32; N], t: f32) -> [f32; N] {
+            std::array::from_fn(|i| (1.0 - t) * a[i] + t * b[i])
+        }
+        NbrdfNetwork {
+            w1: std::array::from_fn(|i| mix(&self.w1[i], &other.w1[i], t)),
+            b1: mix(&self.b1, &other.b1, t),
+            w2: std::array::from_fn(|i| mix(&self.w2[i], &other.w2[i], t)),
+            b2: mix(&self.b2, &other.b2, t),
+            w3: std::array::from_fn(|i| mix(&self.w3[i], &other.w3[i], t)),
+            b3: mix(&self.b3, &other.b3, t),
+            fma: self.fma,
+        }
+    }
+
     /// The raw network output y (before the exp) for a 6D input.
     #[inline]
     pub fn forward(&self, x: [f32; INPUTS]) -> [f32; OUTPUTS] {
@@ -422,6 +440,23 @@ mod tests {
                 assert!((a[c] - b[c]).abs() <= 1e-5 * (1.0 + b[c].abs()));
             }
         }
+    }
+
+    /// The ends of a weight blend are its two networks bit for bit; inside, every weight is
+    /// blended (the middle network's first-layer pre-activations are the mean of the ends').
+    #[test]
+    fn weight_blends_keep_their_ends() {
+        let (a, b) = (merl_network("alum-bronze"), merl_network("blue-fabric"));
+        let x = crate::brdf_coords::network_input_from_angles(0.4, 0.7, 1.2);
+        assert_eq!(a.lerp(&b, 0.0).forward(x), a.forward(x));
+        assert_eq!(b.lerp(&a, 1.0).forward(x), a.forward(x));
+        let mid = a.lerp(&b, 0.5);
+        let first = |n: &NbrdfNetwork, j: usize| n.b1[j] + (0..INPUTS).map(|i| n.w1[i][j] * x[i]).sum::<f32>();
+        for j in 0..HIDDEN {
+            let want = 0.5 * (first(&a, j) + first(&b, j));
+            assert!((first(&mid, j) - want).abs() <= 1e-5 * (1.0 + want.abs()), "unit {j}");
+        }
+        assert_ne!(mid.forward(x), a.forward(x));
     }
 
     #[test]
