@@ -45,6 +45,7 @@ use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use rand::SeedableRng;
 use renderer::formats::latent_file::{LatentFile, NamedLatent};
+use renderer::neural::energy::AlbedoQuadrature;
 use renderer::neural::latent_library::LatentCode;
 use std::path::Path;
 use std::sync::Arc;
@@ -98,10 +99,24 @@ pub struct RefineSettings {
     pub cos_power: f32,
     /// Fit the residual after the latent code: `steps` steps on z and δ with no residual
     /// (z + δ becomes the latent space's own fit, what `--no-residual` gives), then `steps`
-    /// on the residual (and δ) with z frozen, so that the residual is a correction of that
+    /// on the residual alone with z and δ frozen, so that the residual is a correction of that
     /// fit rather than a share of it. False: all together in one stage of `steps`.
     pub residual_after_latent: bool,
+    /// When encoding a table: once the latent fit (z and δ, no residual) is made — the whole
+    /// refinement without a residual, the first stage with `residual_after_latent` — scale
+    /// its colour (δ, per channel) so that its directional albedo, summed over
+    /// [`ALBEDO_MATCH_THETAS`], is the table's ([`Codec::match_albedo`]). A residual fitted
+    /// after it corrects the shape alone, and a sweep's interior — z and δ interpolated —
+    /// starts and ends with each material's own energy. No effect on a refinement that fits
+    /// the residual together with z.
+    pub match_albedo: bool,
 }
+
+/// δ of a latent fit, given its z and δ as refined (see [`Codec::refine_staged`]).
+type StageOffset<'a> = dyn Fn(&[f32], [f32; 3]) -> [f32; 3] + 'a;
+
+/// Viewing angles θo (degrees) of [`RefineSettings::match_albedo`].
+pub const ALBEDO_MATCH_THETAS: [f32; 3] = [0.0, 45.0, 75.0];
 
 /// Default refinement steps on a sparse sample set, one smaller than
 /// [`RefineSettings::samples`] (100 samples over-fit with more: docs/training.md).
@@ -130,6 +145,7 @@ impl Default for RefineSettings {
             residual_step: 0.3,
             cos_power: 0.0,
             residual_after_latent: false,
+            match_albedo: false,
         }
     }
 }
@@ -293,7 +309,61 @@ impl Codec {
     /// then refinement.
     pub fn encode(&self, table: &MaterialTable, settings: &EncodeSettings) -> Result<Refined> {
         let set = self.draw(table, settings.samples, settings.seed)?;
-        self.encode_and_refine(&set, &settings.refine)
+        let z = self.encode_samples(&set)?;
+        let matched = |z: &[f32], offset: [f32; 3]| match settings.refine.match_albedo {
+            true => self.match_albedo(table, z, offset),
+            false => offset,
+        };
+        self.refine_staged(&z, &set, &settings.refine, &matched, &mut |_, _| {})
+    }
+
+    /// The offset δ' that gives the code (z, δ') without residual the directional albedo of
+    /// `table` per channel, summed over [`ALBEDO_MATCH_THETAS`] (a 45 × 32 quadrature over the
+    /// half vector, [`AlbedoQuadrature`]), to 10⁻⁵ in ln ρ or after eight Newton steps.
+    /// Channels where either albedo is 0 keep their δ.
+    pub fn match_albedo(&self, table: &MaterialTable, z: &[f32], offset: [f32; 3]) -> [f32; 3] {
+        let quadrature = AlbedoQuadrature { theta_h_steps: 45, phi_h_steps: 32 };
+        let (mapping, epsilon) = (self.sampler.mapping, self.sampler.epsilon);
+        let reference = &self.sampler.reference;
+        let mut points = Vec::new();
+        for theta in ALBEDO_MATCH_THETAS {
+            let wo = renderer::neural::energy::view_direction(theta.to_radians());
+            for (wi, weight) in quadrature.points(wo) {
+                let (input, [h, d, p]) = renderer::brdf_coords::network_input_and_angles(wi, wo);
+                if let (Some(f), Some(r)) = (table.lookup(h, d, p), reference.lookup(h, d, p)) {
+                    points.push((input, f, r, weight));
+                }
+            }
+        }
+        let inputs: Vec<f32> = points.iter().flat_map(|p| p.0).collect();
+        let table_albedo = [0, 1, 2].map(|c| points.iter().map(|p| p.1[c].max(0.0) as f64 * p.3).sum::<f64>());
+        let code_albedo = |offset: [f32; 3]| {
+            let y = self.predict(z, offset, &[], &inputs);
+            [0, 1, 2].map(|c| {
+                points.iter().enumerate().map(|(k, p)| mapping.inverse(y[3 * k + c], p.2[c].max(0.0), epsilon).max(0.0) as f64 * p.3).sum::<f64>()
+            })
+        };
+        // Newton's method on ln ρ_code(δ_c) − ln ρ_table per channel (a channel's δ moves its
+        // own albedo only), the slope by a forward difference: ln ρ grows with δ at a rate of
+        // 1 under the talk's mapping and faster under the code's.
+        const H: f32 = 1e-2;
+        let mut offset = offset;
+        let active = |a: &[f64; 3], c: usize| table_albedo[c] > 0.0 && a[c] > 0.0;
+        for _ in 0..8 {
+            let now = code_albedo(offset);
+            let error = [0, 1, 2].map(|c| if active(&now, c) { (now[c] / table_albedo[c]).ln() } else { 0.0 });
+            if error.iter().all(|e| e.abs() < 1e-5) {
+                break;
+            }
+            let ahead = code_albedo(offset.map(|o| o + H));
+            for c in 0..3 {
+                if active(&now, c) && ahead[c] > 0.0 {
+                    let slope = ((ahead[c] / now[c]).ln() / H as f64).max(0.1);
+                    offset[c] -= (error[c] / slope).clamp(-2.0, 2.0) as f32;
+                }
+            }
+        }
+        offset
     }
 
     /// Refines `z` on the first `settings.samples` samples of `set` (see the module
@@ -303,6 +373,20 @@ impl Codec {
         z: &[f32],
         set: &SampleSet,
         settings: &RefineSettings,
+        progress: &mut dyn FnMut(usize, f64),
+    ) -> Result<Refined> {
+        self.refine_staged(z, set, settings, &|_, offset| offset, progress)
+    }
+
+    /// [`Self::refine`], with `after_latent(z, δ)` giving δ of the latent fit once it is made
+    /// (a residual stage after it keeps that δ); not called when z and the residual are
+    /// fitted together.
+    fn refine_staged(
+        &self,
+        z: &[f32],
+        set: &SampleSet,
+        settings: &RefineSettings,
+        after_latent: &StageOffset<'_>,
         progress: &mut dyn FnMut(usize, f64),
     ) -> Result<Refined> {
         if z.len() != self.latent_dim() {
@@ -349,14 +433,18 @@ impl Codec {
                 .collect(),
         };
         let initial_loss = objective(&code).1.into_scalar::<f32>() as f64;
-        // Stages: which of z and the residual each fits (δ as `fit_offset` says, in every one).
-        let stages: &[(bool, bool)] = match (fit_residual, settings.residual_after_latent) {
-            (true, true) => &[(true, false), (false, true)],
-            _ => &[(true, true)],
+        // Stages: which of z, δ (as `fit_offset` says) and the residual each fits. Staged, the
+        // residual comes last with z and δ frozen, so that z and δ stay the latent space's own
+        // fit (what a sweep's interior decodes) and the residual corrects it alone.
+        let fit_offset = settings.fit_offset;
+        let stages: &[(bool, bool, bool)] = match (fit_residual, settings.residual_after_latent) {
+            (true, true) => &[(true, fit_offset, false), (false, false, true)],
+            _ => &[(true, fit_offset, fit_residual)],
         };
         let mut done = 0;
-        for &(fit_z, fit_residual) in stages {
+        for &(fit_z, fit_offset, fit_residual) in stages {
             code.z = code.z.map(|z| z.detach().set_require_grad(fit_z));
+            code.offset = code.offset.map(|o| o.detach().set_require_grad(fit_offset));
             code.residual = code.residual.into_iter().map(|r| r.map(|r| r.detach().set_require_grad(fit_residual))).collect();
             let mut optim = optimizer();
             for step in 0..settings.steps {
@@ -370,6 +458,11 @@ impl Codec {
                 }
                 done += 1;
                 progress(done, data.into_scalar::<f32>() as f64);
+            }
+            if fit_z && !fit_residual {
+                // The latent fit is made.
+                let offset = after_latent(&to_vec(code.z.val()), to_vec(code.offset.val()).try_into().expect("offset of 3 channels"));
+                code.offset = Param::from_tensor(Tensor::from_data(TensorData::new(offset.to_vec(), [1, 3]), &device));
             }
         }
         let final_loss = objective(&code).1.into_scalar::<f32>() as f64;
@@ -534,15 +627,20 @@ mod tests {
         Codec::new(model, sampler, ReconstructionLoss { form: crate::config::RecForm::Code, lambda_weights: 0.1, lambda_latent: 0.1 })
     }
 
-    /// The small codec, 2,048 samples of a glossy orange material and the encoder's z of them.
-    fn glossy_encoded() -> (Codec, SampleSet, Vec<f32>) {
-        let codec = small_codec();
+    /// A glossy orange material's table.
+    fn glossy_table() -> MaterialTable {
         let brdf = AnalyticBrdf::LambertGgx {
             albedo: Rgb::new(0.5, 0.2, 0.1),
             specular: Rgb::splat(0.5),
             alpha: 0.1,
         };
-        let table = MaterialTable::from_merl("ggx", &MerlTable::from_fn(|h, d, p| brdf.eval_angles(h, d, p)));
+        MaterialTable::from_merl("ggx", &MerlTable::from_fn(|h, d, p| brdf.eval_angles(h, d, p)))
+    }
+
+    /// The small codec, 2,048 samples of a glossy orange material and the encoder's z of them.
+    fn glossy_encoded() -> (Codec, SampleSet, Vec<f32>) {
+        let codec = small_codec();
+        let table = glossy_table();
         let set = codec.draw(&table, 2048, 1).unwrap();
         let z = codec.encode_samples(&set).unwrap();
         (codec, set, z)
@@ -605,8 +703,8 @@ mod tests {
         let staged = codec
             .refine(&z, &set, &RefineSettings { residual_after_latent: true, ..full.clone() }, &mut |_, _| {})
             .unwrap();
-        assert_eq!(staged.z, tinted.z, "z of the staged fit is the latent space's own");
-        assert!(staged.residual.iter().any(|r| *r != 0.0) && staged.offset != tinted.offset);
+        assert_eq!((&staged.z, staged.offset), (&tinted.z, tinted.offset), "z and δ of the staged fit are the latent space's own");
+        assert!(staged.residual.iter().any(|r| *r != 0.0));
         assert!(staged.final_loss < 0.9 * tinted.final_loss, "{} vs {}", staged.final_loss, tinted.final_loss);
         let unrefined = RefineSettings { steps: 0, ..full };
         assert!(codec.refine(&z, &set, &unrefined, &mut |_, _| {}).unwrap().residual.is_empty(), "nothing fitted");
@@ -615,6 +713,38 @@ mod tests {
         assert_eq!((same.z, same.final_loss), (z.clone(), same.initial_loss));
         let e = codec.refine(&z[..3], &set, &none, &mut |_, _| {}).unwrap_err();
         assert!(e.to_string().contains("size 3"), "{e}");
+    }
+
+    /// Matching albedo: the matched latent fit reflects what its table reflects (matching it
+    /// again moves δ by less than 0.5 %), where the plain fit of the same z did not; a
+    /// residual fitted after it keeps that z and δ.
+    #[test]
+    fn a_matched_latent_fit_reflects_what_its_table_reflects() {
+        let codec = small_codec();
+        let table = glossy_table();
+        let encode = |match_albedo: bool, residual: bool| {
+            let refine = RefineSettings {
+                steps: 40,
+                samples: 2048,
+                learning_rate: 0.1,
+                fit_residual: residual,
+                residual_after_latent: residual,
+                match_albedo,
+                ..RefineSettings::default()
+            };
+            codec.encode(&table, &EncodeSettings { samples: 2048, seed: 1, refine }).unwrap()
+        };
+        let (plain, matched) = (encode(false, false), encode(true, false));
+        assert_eq!(plain.z, matched.z, "matching changes δ only");
+        let moved = |r: &Refined| {
+            let again = codec.match_albedo(&table, &r.z, r.offset);
+            (0..3).map(|c| (again[c] - r.offset[c]).abs()).fold(0.0, f32::max)
+        };
+        assert!(moved(&plain) > 0.02, "the plain fit's albedo is off: {}", moved(&plain));
+        assert!(moved(&matched) < 5e-3, "{}", moved(&matched));
+        let staged = encode(true, true);
+        assert_eq!((&staged.z, staged.offset), (&matched.z, matched.offset));
+        assert!(staged.residual.iter().any(|r| *r != 0.0));
     }
 
     /// The cos θi power of the refinement's data term decides how much grazing light counts:

@@ -19,6 +19,8 @@ pub mod train;
 
 /// How a material's code is refined after the set encoder (`encode`, `export`, `eval`).
 #[derive(clap::Args, Debug, Clone)]
+#[group(id = "refine")]
+#[command(group(clap::ArgGroup::new("latent_fit").args(["no_residual", "residual_after_latent"])))]
 pub struct RefineArgs {
     /// Refinement steps of each code, decoder frozen (0: the set encoder's code as it is);
     /// default 600, or 100 on a sparse set (fewer than 16,384 samples).
@@ -42,6 +44,11 @@ pub struct RefineArgs {
     /// and the offset alone are the latent space's fit and the residual corrects it.
     #[arg(long, conflicts_with = "no_residual")]
     pub residual_after_latent: bool,
+    /// From a table, with --no-residual or --residual-after-latent: scale the latent fit's
+    /// colour (z and the offset, before any residual) so that its directional albedo
+    /// (θo = 0°, 45°, 75°) is the table's.
+    #[arg(long, requires = "latent_fit", conflicts_with = "no_offset")]
+    pub match_albedo: bool,
 }
 
 impl RefineArgs {
@@ -55,6 +62,7 @@ impl RefineArgs {
             residual_step: self.residual_step,
             cos_power: self.cos_power,
             residual_after_latent: self.residual_after_latent,
+            match_albedo: self.match_albedo,
             ..default
         }
     }
