@@ -299,22 +299,28 @@ impl Codec {
     }
 
     /// Encodes a sample set and refines the code on its first `settings.refine.samples`
-    /// samples (see the module documentation).
-    pub fn encode_and_refine(&self, set: &SampleSet, settings: &RefineSettings) -> Result<Refined> {
+    /// samples (see the module documentation); `table` is the table the set was drawn from,
+    /// if any, which [`RefineSettings::match_albedo`] needs (a sparse set has no albedo to
+    /// match: an error).
+    pub fn encode_and_refine(&self, set: &SampleSet, table: Option<&MaterialTable>, settings: &RefineSettings) -> Result<Refined> {
         let z = self.encode_samples(set)?;
-        self.refine(&z, set, settings, &mut |_, _| {})
+        match (settings.match_albedo, table) {
+            (false, _) => self.refine(&z, set, settings, &mut |_, _| {}),
+            (true, Some(table)) => {
+                let matched = |z: &[f32], offset: [f32; 3]| self.match_albedo(table, z, offset);
+                self.refine_staged(&z, set, settings, &matched, &mut |_, _| {})
+            }
+            (true, None) => Err(Error::Invalid(
+                "matching albedo needs the material's table (sparse samples have no albedo to match)".to_string(),
+            )),
+        }
     }
 
     /// Encodes a table as `settings` say: the amortised encoder on `settings.samples` samples,
     /// then refinement.
     pub fn encode(&self, table: &MaterialTable, settings: &EncodeSettings) -> Result<Refined> {
         let set = self.draw(table, settings.samples, settings.seed)?;
-        let z = self.encode_samples(&set)?;
-        let matched = |z: &[f32], offset: [f32; 3]| match settings.refine.match_albedo {
-            true => self.match_albedo(table, z, offset),
-            false => offset,
-        };
-        self.refine_staged(&z, &set, &settings.refine, &matched, &mut |_, _| {})
+        self.encode_and_refine(&set, Some(table), &settings.refine)
     }
 
     /// The offset δ' that gives the code (z, δ') without residual the directional albedo of

@@ -46,12 +46,12 @@ pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     // The codec and the decoder file a new --add-to library starts from.
     let super::Model { codec, file: model_file, .. } = super::load_model(args.model.as_deref(), args.run.as_deref())?;
-    let (input, set) = match (&args.table, &args.samples) {
-        (Some(table), _) => {
-            let t = MaterialTable::read(table)?;
-            (table, codec.draw(&t, args.count, args.seed)?)
+    let (input, set, table) = match (&args.table, &args.samples) {
+        (Some(path), _) => {
+            let table = MaterialTable::read(path)?;
+            (path, codec.draw(&table, args.count, args.seed)?, Some(table))
         }
-        (None, Some(csv)) => (csv, material_nn::inference::read_sample_csv(csv, &codec.sampler)?),
+        (None, Some(csv)) => (csv, material_nn::inference::read_sample_csv(csv, &codec.sampler)?, None),
         (None, None) => bail!("encode needs --table or --samples"),
     };
     let name = match args.name {
@@ -74,7 +74,7 @@ pub fn run(args: EncodeArgs) -> anyhow::Result<()> {
         None => None,
     };
     let refine = args.refine.settings(set.len());
-    let refined = codec.encode_and_refine(&set, &refine)?;
+    let refined = codec.encode_and_refine(&set, table.as_ref(), &refine)?;
     if let Some((path, mut file)) = library {
         file.latents.retain(|l| l.name != name);
         file.latents.push(refined.clone().into_named(&name));

@@ -368,6 +368,21 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
     assert_eq!(json["offset"], serde_json::json!([0.0, 0.0, 0.0]), "no refinement, no offset");
     assert_eq!(json["residual_values"], serde_json::json!(0), "no refinement, no residual");
     assert_eq!(LatentFile::read(&lib).unwrap().latent_names(), vec!["clay2", "sparse2"]);
+    // Matching the latent fit's albedo needs a table: from one it moves the offset of the same
+    // z; sparse samples are a one-line error.
+    let clay = data.join("grey-clay.binary");
+    let encode_clay = |extra: &[&str]| {
+        let args = [&["encode", "--model", path_str(&latent), "--table", path_str(&clay), "--count", "4096", "--refine-steps", "10", "--no-residual"], extra].concat();
+        let out = material_nn(&args);
+        assert!(out.status.success(), "{out:?}");
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let (plain, matched) = (encode_clay(&[]), encode_clay(&["--match-albedo"]));
+    assert_eq!(plain["z"], matched["z"], "{plain} {matched}");
+    assert_ne!(plain["offset"], matched["offset"], "{plain} {matched}");
+    let out = material_nn(&["encode", "--model", path_str(&latent), "--samples", path_str(&csv), "--no-residual", "--match-albedo"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("needs the material's table") && stderr.lines().count() == 1, "{stderr}");
 
     // Bad input to encode: one line naming the file, exit 2, the library untouched.
     let lib_bytes = std::fs::read(&lib).unwrap();
