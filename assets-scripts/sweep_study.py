@@ -9,9 +9,10 @@ mean radiance (the pixels whose centre ray passes within 0.95 of the sphere's ra
 centre, compare_preview_mitsuba.sphere_mask) of each frame against the darker end's: an
 energy dip shows as a ratio below 1.
 
-Pairs default to the MERL pairs of `render energy` (docs/training.md, "Editing": metal <->
-metal, metal <-> fabric, paint <-> plastic and others). Resumable: a pair whose sweep.csv
-exists is not rendered again (delete its directory to redo it).
+Pairs default to those of `render energy --list-pairs` (docs/training.md, "Editing": metal <->
+metal, metal <-> fabric, paint <-> plastic and others) whose two tables are in --tables (with
+the MERL tables: the 25 MERL pairs). Resumable: a pair whose sweep.csv exists is not rendered
+again (delete its directory to redo it).
 
 Usage:
     python3 assets-scripts/sweep_study.py --material scenes/materials/latent.bin \\
@@ -32,19 +33,6 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from compare_cycles import read_exr  # noqa: E402
 from compare_preview_mitsuba import sphere_mask  # noqa: E402
 
-# The MERL pairs of render-cli/src/energy.rs DEFAULT_PAIRS (its RGL pairs need codes that the
-# shipped file does not hold).
-DEFAULT_PAIRS = [
-    "alum-bronze:chrome", "blue-fabric:nickel", "red-plastic:gold-paint", "nickel:brass",
-    "aluminium:tungsten-carbide", "steel:two-layer-gold", "chrome-steel:alum-bronze",
-    "ss440:hematite", "chrome:nickel", "beige-fabric:chrome", "red-fabric:brass",
-    "white-fabric:chrome", "green-fabric:steel", "pink-felt:aluminium",
-    "orange-paint:yellow-plastic", "light-red-paint:red-specular-plastic",
-    "blue-metallic-paint:green-plastic", "pearl-paint:black-phenolic", "white-paint:gray-plastic",
-    "black-obsidian:white-diffuse-bball", "pure-rubber:specular-white-phenolic",
-    "green-acrylic:color-changing-paint1", "colonial-maple-223:gold-metallic-paint3",
-    "red-phenolic:violet-rubber", "white-marble:black-soft-plastic",
-]
 FRAMES = 5
 SCENE = "scenes/material-preview/scene.gltf"
 
@@ -81,7 +69,7 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--material", default="scenes/materials/latent.bin")
     p.add_argument("--tables", default="data/merl-fitted")
-    p.add_argument("--pairs", default=",".join(DEFAULT_PAIRS), help="A:B,C:D,...")
+    p.add_argument("--pairs", help="A:B,C:D,... (default: render energy's pairs with both tables)")
     p.add_argument("--spp", type=int, default=1024)
     p.add_argument("--size", type=int, default=128, help="image width and height")
     p.add_argument("--seed", type=int, default=0)
@@ -90,7 +78,13 @@ def main():
     args = p.parse_args()
     mask = sphere_mask(args.size, args.size)
     rows = []
-    pairs = [q for q in args.pairs.split(",") if q]
+    if args.pairs:
+        pairs = [q for q in args.pairs.split(",") if q]
+    else:
+        listed = subprocess.run([args.render, "energy", "--list-pairs"], check=True, capture_output=True,
+                                text=True).stdout.split()
+        pairs = [q for q in listed
+                 if all(os.path.exists(os.path.join(args.tables, f"{m}.binary")) for m in q.split(":"))]
     for i, pair in enumerate(pairs):
         out = os.path.join(args.out, pair.replace(":", "--"))
         print(f"[{i + 1}/{len(pairs)}] {pair}", file=sys.stderr, flush=True)

@@ -125,6 +125,9 @@ pub struct EnergyArgs {
     /// Output directory.
     #[arg(long, default_value = "data/energy")]
     out: PathBuf,
+    /// Print the default pairs (A:B, one per line; the MERL pairs, then the RGL ones) and exit.
+    #[arg(long)]
+    list_pairs: bool,
 }
 
 fn parse_pair(s: &str) -> std::result::Result<(String, String), String> {
@@ -438,6 +441,12 @@ fn dip(rows: &[&Row], table: &[&Row], thetas: &[f32]) -> Option<Dip> {
 
 /// Runs the study (see the module documentation).
 pub fn run(args: EnergyArgs) -> Result<()> {
+    if args.list_pairs {
+        for (a, b) in DEFAULT_PAIRS {
+            println!("{a}:{b}");
+        }
+        return Ok(());
+    }
     if !args.times.contains(&0.0) || !args.times.contains(&1.0) {
         bail!("invalid value for --times: the ends 0 and 1 must be included");
     }

@@ -195,4 +195,13 @@ fn energy_refuses_bad_input_cleanly() {
         args.extend(flags);
         assert_clean_failure(&render(&args, dir.path()), &needles, dir.path());
     }
+    // The default pairs, for scripts (assets-scripts/sweep_study.py): A:B per line, nothing
+    // written.
+    let out = render(&["energy", "--list-pairs"], dir.path());
+    assert!(out.status.success(), "{out:?}");
+    let listed = String::from_utf8_lossy(&out.stdout);
+    let pairs: Vec<&str> = listed.lines().collect();
+    assert!(pairs.len() >= 25 && pairs.iter().all(|p| p.split(':').filter(|m| !m.is_empty()).count() == 2), "{listed}");
+    assert_eq!(pairs[0], "alum-bronze:chrome");
+    assert!(!dir.path().join("study").exists());
 }
