@@ -9,7 +9,6 @@ use renderer::formats::latent_file::WeightType;
 use std::path::PathBuf;
 use std::time::Instant;
 use super::{progress_bar, STOP};
-use anyhow::Context;
 use material_nn::export::{ExportRequest, Exported};
 use std::sync::atomic::Ordering;
 
@@ -65,8 +64,7 @@ pub fn run(args: ExportArgs) -> anyhow::Result<()> {
         refine,
         ..EncodeSettings::default()
     };
-    ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst))
-        .context("cannot install the Ctrl-C handler")?;
+    super::catch_ctrl_c()?;
     let stop = |done: usize| STOP.load(Ordering::SeqCst) || args.stop_after.is_some_and(|n| done >= n);
     let bar = progress_bar(names.len(), "encode");
     let exported = material_nn::export::export(&codec, decoder, &ExportRequest { data_dir: &data, names: &names, settings: &settings, out: &args.out }, &stop, &mut |name| {

@@ -1,6 +1,7 @@
 //! The subcommands of `material-nn`, one module each (its arguments and what it runs), and what
 //! they share: argument parsers, the progress bar and the stop flag Ctrl-C sets.
 
+use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressStyle};
 use material_nn::inference::{Codec, RefineSettings, TrainedRun};
 use material_nn::run::RunInfo;
@@ -143,5 +144,12 @@ pub fn load_model(model: Option<&Path>, run: Option<&Path>) -> anyhow::Result<Mo
     }
 }
 
-/// Set by Ctrl-C: training stops after the current step, an export before its next code.
+/// Set by Ctrl-C once [`catch_ctrl_c`] is called: training stops after the current step, an
+/// export before its next code.
 pub static STOP: AtomicBool = AtomicBool::new(false);
+
+/// Makes Ctrl-C set [`STOP`] instead of ending the process, for commands that stop cleanly.
+pub fn catch_ctrl_c() -> anyhow::Result<()> {
+    ctrlc::set_handler(|| STOP.store(true, std::sync::atomic::Ordering::SeqCst))
+        .context("cannot install the Ctrl-C handler")
+}

@@ -1,10 +1,8 @@
 //! `material-nn nbrdf-fit`: the per-material NBRDF baseline fitted to each table.
 
-use anyhow::Context;
 use clap::Args;
 use material_nn::nbrdf_fit::{self, FitConfig, FitEvent, FitOutcome};
 use std::path::PathBuf;
-use std::sync::atomic::Ordering;
 use std::time::Instant;
 use super::{progress_bar, STOP};
 
@@ -47,8 +45,7 @@ pub fn run(args: NbrdfFitArgs) -> anyhow::Result<()> {
     };
     config.check()?;
     let tables = nbrdf_fit::select_tables(&args.data, args.materials.as_deref())?;
-    ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst))
-        .context("cannot install the Ctrl-C handler")?;
+    super::catch_ctrl_c()?;
     let start = Instant::now();
     let epochs = config.epochs as u64;
     let steps_per_epoch = config.steps_per_epoch as u64;

@@ -1,10 +1,8 @@
 //! `material-nn search`: the learning-rate search of the talk.
 
-use anyhow::Context;
 use clap::Args;
 use material_nn::config::TrainConfig;
 use std::path::PathBuf;
-use std::sync::atomic::Ordering;
 use super::STOP;
 
 #[derive(Args)]
@@ -32,8 +30,7 @@ pub fn run(args: SearchArgs) -> anyhow::Result<()> {
         None => TrainConfig::default(),
     };
     base.epochs = args.epochs.max(1);
-    ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst))
-        .context("cannot install the Ctrl-C handler")?;
+    super::catch_ctrl_c()?;
     let trials =
         material_nn::search::search(&args.data, &args.out, &base, args.trials, &STOP, &mut |t| {
             let how = t

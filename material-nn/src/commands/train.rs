@@ -1,12 +1,10 @@
 //! `material-nn train`: trains (or resumes) a HyperBRDF / FreNBRDF run with a progress bar;
 //! Ctrl-C stops with a checkpoint.
 
-use anyhow::Context;
 use clap::Args;
 use material_nn::config::TrainConfig;
 use material_nn::training::{self, Event, Outcome, TrainRequest};
 use std::path::PathBuf;
-use std::sync::atomic::Ordering;
 use std::time::Instant;
 use super::{progress_bar, STOP};
 
@@ -35,8 +33,7 @@ pub struct TrainArgs {
 
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let config = args.config.as_deref().map(TrainConfig::read).transpose()?;
-    ctrlc::set_handler(|| STOP.store(true, Ordering::SeqCst))
-        .context("cannot install the Ctrl-C handler")?;
+    super::catch_ctrl_c()?;
     let request = TrainRequest {
         data_dir: args.data,
         run_dir: args.out.clone(),
