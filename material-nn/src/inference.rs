@@ -45,7 +45,7 @@ use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use rand::SeedableRng;
 use renderer::formats::latent_file::{LatentFile, NamedLatent};
-use renderer::neural::energy::AlbedoQuadrature;
+use renderer::neural::energy::{MATCH_QUADRATURE, MATCH_THETAS_DEG};
 use renderer::neural::latent_library::LatentCode;
 use std::path::Path;
 use std::sync::Arc;
@@ -105,7 +105,7 @@ pub struct RefineSettings {
     /// When encoding a table: once the latent fit (z and δ, no residual) is made — the whole
     /// refinement without a residual, the first stage with `residual_after_latent` — scale
     /// its colour (δ, per channel) so that its directional albedo, summed over
-    /// [`ALBEDO_MATCH_THETAS`], is the table's ([`Codec::match_albedo`]). A residual fitted
+    /// [`MATCH_THETAS_DEG`], is the table's ([`Codec::match_albedo`]). A residual fitted
     /// after it corrects the shape alone, and a sweep's interior — z and δ interpolated —
     /// starts and ends with each material's own energy. No effect on a refinement that fits
     /// the residual together with z.
@@ -114,9 +114,6 @@ pub struct RefineSettings {
 
 /// δ of a latent fit, given its z and δ as refined (see [`Codec::refine_staged`]).
 type StageOffset<'a> = dyn Fn(&[f32], [f32; 3]) -> [f32; 3] + 'a;
-
-/// Viewing angles θo (degrees) of [`RefineSettings::match_albedo`].
-pub const ALBEDO_MATCH_THETAS: [f32; 3] = [0.0, 45.0, 75.0];
 
 /// Default refinement steps on a sparse sample set, one smaller than
 /// [`RefineSettings::samples`] (100 samples over-fit with more: docs/training.md).
@@ -324,17 +321,16 @@ impl Codec {
     }
 
     /// The offset δ' that gives the code (z, δ') without residual the directional albedo of
-    /// `table` per channel, summed over [`ALBEDO_MATCH_THETAS`] (a 45 × 32 quadrature over the
-    /// half vector, [`AlbedoQuadrature`]), to 10⁻⁵ in ln ρ or after eight Newton steps.
+    /// `table` per channel, summed over [`MATCH_THETAS_DEG`] (the quadrature
+    /// [`MATCH_QUADRATURE`] over the half vector), to 10⁻⁵ in ln ρ or after eight Newton steps.
     /// Channels where either albedo is 0 keep their δ.
     pub fn match_albedo(&self, table: &MaterialTable, z: &[f32], offset: [f32; 3]) -> [f32; 3] {
-        let quadrature = AlbedoQuadrature { theta_h_steps: 45, phi_h_steps: 32 };
         let (mapping, epsilon) = (self.sampler.mapping, self.sampler.epsilon);
         let reference = &self.sampler.reference;
         let mut points = Vec::new();
-        for theta in ALBEDO_MATCH_THETAS {
+        for theta in MATCH_THETAS_DEG {
             let wo = renderer::neural::energy::view_direction(theta.to_radians());
-            for (wi, weight) in quadrature.points(wo) {
+            for (wi, weight) in MATCH_QUADRATURE.points(wo) {
                 let (input, [h, d, p]) = renderer::brdf_coords::network_input_and_angles(wi, wo);
                 if let (Some(f), Some(r)) = (table.lookup(h, d, p), reference.lookup(h, d, p)) {
                     points.push((input, f, r, weight));

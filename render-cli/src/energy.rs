@@ -5,8 +5,10 @@
 //!
 //! - `z`: the codes' z alone interpolated (offsets δ and residuals ΔΘ dropped);
 //! - `z+δ`: z and the offsets;
-//! - `full`: the sweep of `render --sweep` ([`LatentCode::lerp`]: z and δ interpolated,
-//!   each end's residual ΔΘ faded out within 0.25 of its end);
+//! - `full`: the sweep of `render --sweep` ([`LatentLibrary::sweep_code`]: z and δ
+//!   interpolated, each end's residual ΔΘ faded out within 0.25 of its end, δ balanced so
+//!   that the frame's albedo summed over θo = 0°, 45°, 75° is the blend of the ends');
+//! - `unbalanced`: the same without the balance ([`LatentCode::lerp`]);
 //! - `encoder`: the set encoder's own z of both ends (from samples of the ends' NBRDF
 //!   networks, unrefined: points of the encoder's output manifold), interpolated;
 //! - `encoder(blend)`: at each t the encoder's z of the blended table (1 − t) f_A + t f_B,
@@ -14,11 +16,6 @@
 //! - `log-blend`: no decoder: the two tables blended in the mapped space, f + ε =
 //!   (f_A + ε)^(1−t) (f_B + ε)^t, which is what interpolating the mapped values y (or a
 //!   decoder linear in z) gives;
-//! - `proposal`: issue 49's step-3 proposal (docs/training.md): `full`, and the offsets'
-//!   interpolation plus a per-channel
-//!   correction ln(ρ_target / ρ) (two iterations) that makes the frame's albedo, averaged
-//!   over the θo of `--theta-o`, the linear blend of its ends' (capped so that no θo exceeds
-//!   1): one decoded net per frame;
 //! - `table`: the linear blend of the two tables (the NBRDF networks of `--nbrdf`), whose
 //!   albedo is the blend of the ends' albedos.
 //!
@@ -37,15 +34,15 @@ use renderer::bsdf::nbrdf::NbrdfBsdf;
 use renderer::bsdf::neural::NeuralBsdf;
 use renderer::formats::latent_file::LatentFile;
 use renderer::formats::merl::TrilinearAxes;
-use renderer::neural::energy::{self, AlbedoQuadrature, EVAL_ONLY_SAMPLING};
-use renderer::neural::latent_library::LatentCode;
+use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
+use renderer::neural::energy::{self, AlbedoQuadrature};
+use renderer::neural::latent_library::{LatentCode, LatentLibrary};
 use renderer::neural::mlp::Encoder;
 use renderer::neural::nbrdf::NbrdfNetwork;
 use renderer::neural::reference::ReferenceTable;
 use renderer::Rgb;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// The pairs of the issue-49 study (see docs/training.md): metal ↔ metal, metal ↔ fabric,
 /// paint ↔ plastic and others, training and held-out MERL materials, and RGL materials.
@@ -156,7 +153,7 @@ enum Variant {
     Encoder,
     EncoderOfBlend,
     LogBlend,
-    Proposal,
+    Unbalanced,
     Table,
 }
 
@@ -168,7 +165,7 @@ impl Variant {
         Variant::Encoder,
         Variant::EncoderOfBlend,
         Variant::LogBlend,
-        Variant::Proposal,
+        Variant::Unbalanced,
         Variant::Table,
     ];
 
@@ -180,13 +177,13 @@ impl Variant {
             Variant::Encoder => "encoder",
             Variant::EncoderOfBlend => "encoder(blend)",
             Variant::LogBlend => "log-blend",
-            Variant::Proposal => "proposal",
+            Variant::Unbalanced => "unbalanced",
             Variant::Table => "table",
         }
     }
 
     fn needs_code(self) -> bool {
-        matches!(self, Variant::Z | Variant::ZOffset | Variant::Full | Variant::Proposal)
+        matches!(self, Variant::Z | Variant::ZOffset | Variant::Full | Variant::Unbalanced)
     }
 }
 
@@ -277,8 +274,8 @@ impl SamplePoints {
 /// Everything the sweeps share.
 struct Study<'a> {
     args: &'a EnergyArgs,
-    file: LatentFile,
-    reference: Arc<ReferenceTable>,
+    /// `--material`, one file.
+    library: LatentLibrary,
     points: SamplePoints,
     wos: Vec<Vec3>,
 }
@@ -288,8 +285,12 @@ impl Study<'_> {
         LatentCode { file: 0, z: z.to_vec(), offset: [0.0; 3], residual: Vec::new() }
     }
 
+    fn file(&self) -> &LatentFile {
+        self.library.latent_file(0).expect("one file")
+    }
+
     fn decoded(&self, code: &LatentCode, label: &str) -> Result<NeuralBsdf> {
-        Ok(energy::decode_for_evaluation(&self.file, &self.reference, code, label)?)
+        Ok(self.library.decode_for_evaluation(code, label)?)
     }
 
     fn albedos_of(&self, bsdf: &NeuralBsdf) -> Vec<DVec3> {
@@ -303,16 +304,16 @@ impl Study<'_> {
             .with_context(|| format!("no NBRDF network '{name}' in {}/{{merl,rgl-isotropic,nielsen}}", self.args.nbrdf.display()))?;
         let network = NbrdfNetwork::load(self.args.nbrdf.join(set).join(name))?;
         let values: Vec<[f32; 3]> = self.points.inputs.par_iter().map(|&x| network.eval_input(x).to_array()).collect();
-        let table = NbrdfBsdf::new(network, &EVAL_ONLY_SAMPLING);
-        let encoder = self.file.encoder.as_ref().context("the latent file has no encoder")?;
-        let encoder_z = self.points.encode(&self.file, encoder, |i| values[i]);
+        let table = NbrdfBsdf::new(network, &TabulatedSamplerConfig::EVAL_ONLY);
+        let encoder = self.file().encoder.as_ref().context("the latent file has no encoder")?;
+        let encoder_z = self.points.encode(self.file(), encoder, |i| values[i]);
         let albedo = self.wos.iter().map(|&wo| self.args.quadrature.albedo(&table, wo)).collect();
         Ok(Material {
             name: name.to_string(),
-            role: role(&self.file, name, set),
+            role: role(self.file(), name, set),
             table,
             values,
-            code: energy::file_code(&self.file, name),
+            code: self.library.latent(name).ok(),
             encoder_z,
             albedo,
         })
@@ -331,7 +332,10 @@ impl Study<'_> {
                 &lerp_code(|c| LatentCode { offset: c.offset, ..Study::code(&c.z) })?,
                 &label,
             )?),
-            Variant::Full => self.albedos_of(&self.decoded(&lerp_code(|c| c.clone())?, &label)?),
+            Variant::Full => {
+                let (ca, cb) = (a.code.as_ref().context("no code")?, b.code.as_ref().context("no code")?);
+                self.albedos_of(&self.decoded(&self.library.sweep_code(ca, cb, t)?, &label)?)
+            }
             Variant::Encoder => {
                 let z = Study::code(&a.encoder_z).lerp(&Study::code(&b.encoder_z), t)?;
                 self.albedos_of(&self.decoded(&z, &label)?)
@@ -342,8 +346,8 @@ impl Study<'_> {
                 } else if t == 1.0 {
                     b.encoder_z.clone()
                 } else {
-                    let encoder = self.file.encoder.as_ref().context("no encoder")?;
-                    self.points.encode(&self.file, encoder, |i| {
+                    let encoder = self.file().encoder.as_ref().context("no encoder")?;
+                    self.points.encode(self.file(), encoder, |i| {
                         let (x, y) = (a.values[i], b.values[i]);
                         [0, 1, 2].map(|c| (1.0 - t) * x[c] + t * y[c])
                     })
@@ -351,7 +355,7 @@ impl Study<'_> {
                 self.albedos_of(&self.decoded(&Study::code(&z), &label)?)
             }
             Variant::LogBlend => {
-                let eps = self.file.epsilon;
+                let eps = self.file().epsilon;
                 self.wos
                     .iter()
                     .map(|&wo| {
@@ -368,27 +372,7 @@ impl Study<'_> {
                     })
                     .collect()
             }
-            Variant::Proposal => {
-                let (ca, cb) = (a.code.as_ref().context("no code")?, b.code.as_ref().context("no code")?);
-                let mut code = ca.lerp(cb, t)?;
-                let mut albedo = self.albedos_of(&self.decoded(&code, &label)?);
-                if t > 0.0 && t < 1.0 {
-                    let ends = [ca, cb].map(|c| self.decoded(c, &label).map(|d| self.albedos_of(&d)));
-                    let [ea, eb] = ends;
-                    let (ea, eb) = (ea?, eb?);
-                    for _ in 0..2 {
-                        for c in 0..3 {
-                            let target: f64 = ea.iter().zip(&eb).map(|(x, y)| (1.0 - f64::from(t)) * x[c] + f64::from(t) * y[c]).sum();
-                            let now: f64 = albedo.iter().map(|x| x[c]).sum();
-                            let top = albedo.iter().map(|x| x[c]).fold(0.0, f64::max);
-                            let gain = (target / now.max(1e-12)).min(1.0 / top.max(1e-12));
-                            code.offset[c] += gain.ln() as f32;
-                        }
-                        albedo = self.albedos_of(&self.decoded(&code, &label)?);
-                    }
-                }
-                albedo
-            }
+            Variant::Unbalanced => self.albedos_of(&self.decoded(&lerp_code(|c| c.clone())?, &label)?),
             Variant::Table => a.albedo.iter().zip(&b.albedo).map(|(x, y)| (1.0 - f64::from(t)) * *x + f64::from(t) * *y).collect(),
         })
     }
@@ -455,12 +439,12 @@ pub fn run(args: EnergyArgs) -> Result<()> {
     } else {
         args.pairs.clone()
     };
-    let file = LatentFile::read(&args.material)?;
+    let library = LatentLibrary::load(&[&args.material])?;
+    let file = library.latent_file(0)?;
     let encoder = file.encoder.as_ref().with_context(|| format!("{}: no set encoder in the file", args.material.display()))?;
-    let reference = Arc::new(ReferenceTable::new(&file.f_ref));
-    let points = SamplePoints::draw(args.encoder_samples, encoder.peak_share, &reference, args.seed);
+    let points = SamplePoints::draw(args.encoder_samples, encoder.peak_share, &*library.reference(0)?, args.seed);
     let wos = args.theta_o.iter().map(|d| energy::view_direction(d.to_radians())).collect();
-    let study = Study { args: &args, file, reference, points, wos };
+    let study = Study { args: &args, library, points, wos };
 
     let mut names: Vec<String> = pairs.iter().flat_map(|(a, b)| [a.clone(), b.clone()]).collect();
     names.sort();
@@ -648,13 +632,13 @@ pub fn run(args: EnergyArgs) -> Result<()> {
 
     // Reciprocity of every code of the file.
     if args.reciprocity > 0 {
-        let names = study.file.latent_names();
+        let names = study.file().latent_names();
         let bar = ProgressBar::new(names.len() as u64).with_style(style);
         bar.set_message("reciprocity");
         let results: Vec<Result<(String, energy::Reciprocity)>> = names
             .par_iter()
             .map(|n| {
-                let code = energy::file_code(&study.file, n).expect("a code of the file");
+                let code = study.library.latent(n)?;
                 // The default sampler is not needed: f is what is compared.
                 let bsdf = study.decoded(&code, n)?;
                 let r = energy::reciprocity(&bsdf, args.reciprocity, args.seed);

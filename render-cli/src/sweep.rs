@@ -69,7 +69,7 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
     }
     for k in resume.map_or(frames.first, |(k, _)| k)..=frames.last {
         let t = times[k];
-        let code = a.lerp(&b, t)?;
+        let code = latents.sweep_code(&a, &b, t)?;
         let label = format!("{}>{}@{t:.2}", spec.from, spec.to);
         for &slot in &slots {
             scene.materials.set_shared(slot, SharedBsdf::Neural(latents.decode_code(&code, &label)?));

@@ -63,11 +63,11 @@ fn blend(t: f32) -> (RenderScene, renderer::scene::Camera) {
     preview(SurfaceModel::Varying(Varying { form, tint: None }), Some(vec![Rgb::new(t, 0.0, 0.0)]))
 }
 
-/// The preview bound to the exact decode of the latent interpolation at t (as
-/// `render --sweep` decodes its frames).
+/// The preview bound to the exact decode of the sweep's frame at t (as `render --sweep`
+/// decodes its frames).
 fn exact(t: f32) -> (RenderScene, renderer::scene::Camera) {
     let (mut scene, camera) = preview(SurfaceModel::Bound(Binding::Neural(A.into())), None);
-    let code = latents().latent(A).unwrap().lerp(&latents().latent(B).unwrap(), t).unwrap();
+    let code = latents().sweep_code(&latents().latent(A).unwrap(), &latents().latent(B).unwrap(), t).unwrap();
     for slot in scene.materials.neural_slots() {
         scene.materials.set_shared(slot, SharedBsdf::Neural(latents().decode_code(&code, "exact").unwrap()));
     }

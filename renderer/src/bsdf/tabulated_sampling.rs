@@ -85,6 +85,18 @@ pub struct TabulatedSamplerConfig {
     pub cosine_fraction: f32,
 }
 
+impl TabulatedSamplerConfig {
+    /// The smallest sampler a BSDF made from data accepts (a few evaluations to fit): for
+    /// BSDFs that are only evaluated (quadratures need no sampling). Rendering with it works
+    /// but samples little better than a cosine lobe.
+    pub const EVAL_ONLY: TabulatedSamplerConfig = TabulatedSamplerConfig {
+        theta_o_nodes: 2,
+        theta_h_cells: 1,
+        phi_h_cells: 1,
+        cosine_fraction: 1.0,
+    };
+}
+
 impl Default for TabulatedSamplerConfig {
     /// 24 θo nodes, 64 × 32 cells (≈ 0.1 M BRDF evaluations per fit), a 10% cosine lobe.
     fn default() -> Self {

@@ -238,8 +238,8 @@ impl Opener<'_> {
     }
 
     /// The slots of the palette from `ends[0]` to `ends[1]` ([`PALETTE_SIZE`] codes along
-    /// [`LatentCode::lerp`](crate::neural::latent_library::LatentCode::lerp), as
-    /// `render --sweep` decodes them), decoded now if it was not.
+    /// the editing sweep [`LatentLibrary::sweep_code`](crate::neural::latent_library::LatentLibrary::sweep_code),
+    /// as `render --sweep` decodes them), decoded now if it was not.
     fn palette(&mut self, ends: &[String; 2]) -> Result<Range<usize>> {
         if let Some(range) = self.palettes.get(ends) {
             return Ok(range.clone());
@@ -255,7 +255,7 @@ impl Opener<'_> {
         for k in 0..PALETTE_SIZE {
             let t = k as f32 / (PALETTE_SIZE - 1) as f32;
             let label = format!("{}>{}@{t:.3}", ends[0], ends[1]);
-            let bsdf = self.latents.decode_code(&a.lerp(&b, t)?, &label)?;
+            let bsdf = self.latents.decode_code(&self.latents.sweep_code(&a, &b, t)?, &label)?;
             self.stats.palette_bytes += bsdf.heap_bytes();
             self.shared.push(SharedBsdf::Neural(bsdf));
         }

@@ -41,15 +41,15 @@ use std::f64::consts::{FRAC_PI_2, PI};
 /// Points evaluated per call of the batch evaluator.
 const BATCH: usize = 4096;
 
-/// The smallest importance sampler a [`NeuralBsdf`] accepts (a few evaluations to fit): for
-/// BSDFs that are only evaluated (the quadrature needs no sampling). Rendering with it works
-/// but samples little better than a cosine lobe.
-pub const EVAL_ONLY_SAMPLING: TabulatedSamplerConfig = TabulatedSamplerConfig {
-    theta_o_nodes: 2,
-    theta_h_cells: 1,
-    phi_h_cells: 1,
-    cosine_fraction: 1.0,
-};
+
+/// The viewing angles θo (degrees) at which a code's directional albedo is matched: to its
+/// table's when a code is encoded (`material-nn --match-albedo`), to the blend of the ends'
+/// along an editing sweep ([`crate::neural::sweep`]).
+pub const MATCH_THETAS_DEG: [f32; 3] = [0.0, 45.0, 75.0];
+
+/// The quadrature of those matches: 45 × 32 points (within 0.5 % of 90 × 64 up to θo = 85°,
+/// chrome's sub-degree peak included).
+pub const MATCH_QUADRATURE: AlbedoQuadrature = AlbedoQuadrature { theta_h_steps: 45, phi_h_steps: 32 };
 
 /// Directional albedo by quadrature over the half vector (see the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -130,7 +130,7 @@ impl AlbedoQuadrature {
     }
 }
 
-/// A code of `file` decoded for evaluation only (the sampler [`EVAL_ONLY_SAMPLING`]; the
+/// A code of `file` decoded for evaluation only (the sampler [`TabulatedSamplerConfig::EVAL_ONLY`]; the
 /// same values as [`crate::neural::latent_library::LatentLibrary::decode_code`]).
 /// `reference` is the file's f_ref ([`ReferenceTable::new`] of `file.f_ref`).
 pub fn decode_for_evaluation(
@@ -145,7 +145,7 @@ pub fn decode_for_evaluation(
         reference.clone(),
         file.mapping,
         file.epsilon,
-        &EVAL_ONLY_SAMPLING,
+        &TabulatedSamplerConfig::EVAL_ONLY,
     )
 }
 
@@ -264,6 +264,7 @@ pub fn reciprocity(bsdf: &NeuralBsdf, n: usize, seed: u64) -> Reciprocity {
 mod tests {
     use super::*;
     use crate::bsdf::Lambert;
+    use crate::neural::latent_library::LatentLibrary;
     use rayon::prelude::*;
 
     #[test]
@@ -331,14 +332,13 @@ mod tests {
     /// codes in file order paired i ↔ i + 50 (50 pairs, each code in one), and the issue's
     /// alum-bronze → chrome, blue-fabric → nickel, red-plastic → gold-paint, each at t = 0.25,
     /// 0.5, 0.75 as the renderer's sweeps decode them
-    /// ([`LatentCode::lerp`]): 100 + 159 decoded nets.
+    /// ([`LatentLibrary::sweep_code`]): 100 + 159 decoded nets.
     #[test]
     fn shipped_codes_and_sweeps_reflect_at_most_what_they_receive() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/materials/latent.bin");
-        let file = LatentFile::read(path).unwrap();
-        let reference = Arc::new(ReferenceTable::new(&file.f_ref));
-        let names = file.latent_names();
-        let code = |name: &str| file_code(&file, name).unwrap();
+        let lib = LatentLibrary::load(&[path]).unwrap();
+        let names = lib.names();
+        let code = |name: &str| lib.latent(name).unwrap();
         let mut jobs: Vec<(String, LatentCode)> = names.iter().map(|n| (n.clone(), code(n))).collect();
         let half = names.len() / 2;
         let mut pairs: Vec<(String, String)> =
@@ -346,16 +346,18 @@ mod tests {
         for (a, b) in [("alum-bronze", "chrome"), ("blue-fabric", "nickel"), ("red-plastic", "gold-paint")] {
             pairs.push((a.to_string(), b.to_string()));
         }
-        for (a, b) in &pairs {
-            for t in SWEEP_TIMES {
-                jobs.push((format!("{a}→{b}@{t}"), code(a).lerp(&code(b), t).unwrap()));
-            }
-        }
-        let q = AlbedoQuadrature { theta_h_steps: 45, phi_h_steps: 32 };
+        let sweeps: Vec<(String, LatentCode)> = pairs
+            .par_iter()
+            .flat_map_iter(|(a, b)| {
+                SWEEP_TIMES.map(|t| (format!("{a}→{b}@{t}"), lib.sweep_code(&code(a), &code(b), t).unwrap()))
+            })
+            .collect();
+        jobs.extend(sweeps);
+        let q = MATCH_QUADRATURE;
         let results: Vec<(String, f32, DVec3)> = jobs
             .par_iter()
             .flat_map_iter(|(label, c)| {
-                let bsdf = decode_for_evaluation(&file, &reference, c, label).unwrap();
+                let bsdf = lib.decode_for_evaluation(c, label).unwrap();
                 ENERGY_THETAS
                     .iter()
                     .map(|&deg| (label.clone(), deg, q.albedo_at(&bsdf, deg.to_radians())))

@@ -201,6 +201,18 @@ impl LatentLibrary {
         })
     }
 
+    /// The contents of file `index` (its decoder, encoder, f_ref and codes).
+    pub fn latent_file(&self, index: usize) -> Result<&LatentFile> {
+        Ok(&self.file(index)?.file)
+    }
+
+    /// The f_ref table of file `index`, converted on first use and shared by every code
+    /// decoded from the file.
+    pub fn reference(&self, index: usize) -> Result<Arc<ReferenceTable>> {
+        let f = self.file(index)?;
+        Ok(f.reference.get_or_init(|| Arc::new(ReferenceTable::new(&f.file.f_ref))).clone())
+    }
+
     fn file(&self, index: usize) -> Result<&LibraryFile> {
         self.files.get(index).ok_or_else(|| Error::InvalidArgument {
             flag: "latent code".to_string(),
@@ -212,6 +224,16 @@ impl LatentLibrary {
     /// names the result. Errors name the file when the code has the wrong size or a
     /// non-finite value.
     pub fn decode_code(&self, code: &LatentCode, label: &str) -> Result<NeuralBsdf> {
+        self.decode_with(code, label, &TabulatedSamplerConfig::default())
+    }
+
+    /// [`LatentLibrary::decode_code`] for evaluation only (the sampler
+    /// [`TabulatedSamplerConfig::EVAL_ONLY`], fitted in a few evaluations): the same values, for quadratures.
+    pub fn decode_for_evaluation(&self, code: &LatentCode, label: &str) -> Result<NeuralBsdf> {
+        self.decode_with(code, label, &TabulatedSamplerConfig::EVAL_ONLY)
+    }
+
+    fn decode_with(&self, code: &LatentCode, label: &str, sampling: &TabulatedSamplerConfig) -> Result<NeuralBsdf> {
         let f = self.file(code.file)?;
         let file = &f.file;
         let residual_ok = code.residual.is_empty() || code.residual.len() == file.residual_len();
@@ -228,11 +250,8 @@ impl LatentLibrary {
                 ),
             ));
         }
-        let reference = f
-            .reference
-            .get_or_init(|| Arc::new(ReferenceTable::new(&file.f_ref)))
-            .clone();
-        NeuralBsdf::new(label, file.decode(&code.z, code.offset, &code.residual), reference, file.mapping, file.epsilon, &TabulatedSamplerConfig::default())
+        let reference = self.reference(code.file)?;
+        NeuralBsdf::new(label, file.decode(&code.z, code.offset, &code.residual), reference, file.mapping, file.epsilon, sampling)
             .map_err(|e| Error::invalid_file(&f.path, format!("decoding '{label}': {e}")))
     }
 }
