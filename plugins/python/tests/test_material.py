@@ -126,8 +126,11 @@ def test_blends_decode_the_interpolated_vector_and_end_at_their_codes(latent_pat
     ends = [neural_brdf.Material.blend(latent_path, "alum-bronze", "chrome", t) for t in (0.0, 1.0)]
     np.testing.assert_array_equal(ends[0].eval(wo, wi), bronze.eval(wo, wi))
     np.testing.assert_array_equal(ends[1].eval(wo, wi), chrome.eval(wo, wi))
-    # The blend at t is the decode of the interpolated latent vector: z and offsets
-    # interpolated, each end's residual faded out within t = 0.25 of its end (none at 0.3).
+    # The blend at t is the decode of the interpolated latent vector (z and offsets
+    # interpolated, each end's residual faded out within t = 0.25 of its end: none at 0.3)
+    # with the offsets then balanced to the blend of the ends' albedo: under the shipped
+    # file's log-relative mapping, f + eps = (f_ref + eps) exp(y), a changed offset scales
+    # each channel's f + eps by one factor at every direction.
     codes = neural_brdf.latent_codes(latent_path)
     t = np.float32(0.3)
     vector = (np.float32(1) - t) * codes["alum-bronze"] + t * codes["chrome"]
@@ -137,7 +140,12 @@ def test_blends_decode_the_interpolated_vector_and_end_at_their_codes(latent_pat
     assert blend.kind == "neural" and blend.layers is not None and blend.weights is None
     f = blend.eval(wo, wi)
     assert not np.array_equal(f, bronze.eval(wo, wi))
-    np.testing.assert_allclose(f, neural_brdf.Material.from_latent_vector(latent_path, vector).eval(wo, wi), rtol=1e-4, atol=1e-6)
+    g = neural_brdf.Material.from_latent_vector(latent_path, vector).eval(wo, wi)
+    eps = 0.002
+    kept = (f > 1e-5).all(axis=1) & (g > 1e-5).all(axis=1)
+    assert kept.sum() > 100
+    ratio = (f[kept] + eps) / (g[kept] + eps)
+    np.testing.assert_allclose(ratio, np.broadcast_to(np.median(ratio, axis=0), ratio.shape), rtol=1e-3)
 
 
 def test_mixtures_weigh_their_parts_and_sample_by_weight(latent_path, table_path, bronze):

@@ -24,13 +24,8 @@
 //! is a seam of the folded BRDF. [`reciprocity`] measures both.
 
 use crate::bsdf::neural::NeuralBsdf;
-use crate::bsdf::tabulated_sampling::TabulatedSamplerConfig;
 use crate::bsdf::{BatchEval, Bxdf};
-use crate::formats::latent_file::LatentFile;
 use crate::formats::merl::TrilinearAxes;
-use crate::neural::latent_library::LatentCode;
-use crate::neural::reference::ReferenceTable;
-use std::sync::Arc;
 use crate::neural::mapping::MAX_LOG_VALUE;
 use crate::Rgb;
 use glam::{DVec3, Vec3};
@@ -128,30 +123,6 @@ impl AlbedoQuadrature {
     pub fn albedo_at<B: BatchEval + ?Sized>(&self, bsdf: &B, theta_o: f32) -> DVec3 {
         self.albedo(bsdf, view_direction(theta_o))
     }
-}
-
-/// A code of `file` decoded for evaluation only (the sampler [`TabulatedSamplerConfig::EVAL_ONLY`]; the
-/// same values as [`crate::neural::latent_library::LatentLibrary::decode_code`]).
-/// `reference` is the file's f_ref ([`ReferenceTable::new`] of `file.f_ref`).
-pub fn decode_for_evaluation(
-    file: &LatentFile,
-    reference: &Arc<ReferenceTable>,
-    code: &LatentCode,
-    label: &str,
-) -> crate::Result<NeuralBsdf> {
-    NeuralBsdf::new(
-        label,
-        file.decode(&code.z, code.offset, &code.residual),
-        reference.clone(),
-        file.mapping,
-        file.epsilon,
-        &TabulatedSamplerConfig::EVAL_ONLY,
-    )
-}
-
-/// The code called `name` in `file` as a [`LatentCode`] (file index 0).
-pub fn file_code(file: &LatentFile, name: &str) -> Option<LatentCode> {
-    file.latent(name).map(|l| LatentCode { file: 0, z: l.z.clone(), offset: l.offset, residual: l.residual.clone() })
 }
 
 /// wo at polar angle θo (radians) in the xz plane.
@@ -264,7 +235,7 @@ pub fn reciprocity(bsdf: &NeuralBsdf, n: usize, seed: u64) -> Reciprocity {
 mod tests {
     use super::*;
     use crate::bsdf::Lambert;
-    use crate::neural::latent_library::LatentLibrary;
+    use crate::neural::latent_library::{LatentCode, LatentLibrary};
     use rayon::prelude::*;
 
     #[test]
