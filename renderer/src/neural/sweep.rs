@@ -41,7 +41,8 @@ impl LatentLibrary {
     /// The code at `t` of the editing sweep from `a` (t = 0) to `b` (t = 1): see the module
     /// documentation. Both codes must come from one file; t = 0 and 1 give the codes
     /// themselves, `t` outside [0, 1] or a sweep from a code to itself the plain
-    /// interpolation [`LatentCode::lerp`] (an extrapolation is not balanced). Errors name the file when a code cannot be decoded.
+    /// interpolation [`LatentCode::lerp`] (an extrapolation is not balanced). Errors name
+    /// the file when a code cannot be decoded.
     pub fn sweep_code(&self, a: &LatentCode, b: &LatentCode, t: f32) -> Result<LatentCode> {
         let mut frame = a.lerp(b, t)?;
         if t == 0.0 || t == 1.0 {
