@@ -1,10 +1,12 @@
-//! `material-nn eval`: evaluation of a trained run on held-out materials — the reconstruction
+//! `material-nn eval`: evaluation of a trained model ([`EvalModel`]: a run, or a latent file
+//! that carries its encoder) on held-out materials — the reconstruction
 //! (talk Table 1) and editing (talk Table 2) analogues — optionally beside the per-material
 //! NBRDF baseline of [`crate::nbrdf_fit`].
 //!
 //! # BRDF space
-//! For each material: z = encoder over [`crate::inference::ENCODE_SAMPLES`] samples of its
-//! table, refined as `encode` refines it ([`EvalSettings::encode`]),
+//! For each material: its code in the latent file when the model is a file that has one;
+//! otherwise z = encoder over [`crate::inference::ENCODE_SAMPLES`] samples of its table,
+//! refined as `encode` refines it ([`EvalSettings::encode`]);
 //! then the decoded network is compared with the table at `samples` uniform points (θh, θd,
 //! φd) of the rendered domain ([`renderer::brdf_coords::rendered_point`]: wi and wo above
 //! the horizon, φd folded as the renderer folds it) drawn from a fixed seed (trilinear
@@ -18,9 +20,10 @@
 //! y' = mapping(f', f_ref) with the run's mapping, ε and f_ref give `rec` and `fre`, so all
 //! three columns measure the same quantity for both models.
 //!
-//! Editing: `pairs` random pairs (a, b) of the materials and t ~ U(0, 1); the network of
-//! z(t) = (1 − t) z_a + t z_b (offsets interpolated, residuals faded out near their ends,
-//! [`LatentCode::lerp`]) is compared with the linear blend (1 − t) f_a + t f_b of the
+//! Editing: `pairs` random pairs (a, b) of the materials and t ~ U(0, 1); the frame at t of
+//! the renderer's editing sweep from a to b ([`LatentLibrary::sweep`]: z and offsets
+//! interpolated, residuals faded out near their ends, the offsets balanced to the blend of
+//! the ends' albedo — what `render --sweep` and the plugins' blends decode) is compared with the linear blend (1 − t) f_a + t f_b of the
 //! tables, with the same metrics. NBRDF has no latent space: its edit is the naive one, every
 //! weight of the two materials' networks blended with t ([`NbrdfNetwork::lerp`]). The first
 //! `editing_images` pairs are rendered too (the blended table is the reference), which gives
@@ -33,19 +36,18 @@
 //! pixel and path depth 8. Each model's image is compared with the table's by
 //! [`renderer::metrics::ImageError::between`] on 8-bit display values (clamp tone map,
 //! exposure 0): `psnr` (dB, data range 255), `ssim` (7-pixel window) and `image_rmse` (linear
-//! radiance). The decoded network uses the run's f32 f_ref (a latent file stores it as f16).
+//! radiance). The decoded network uses f_ref as a latent file stores it (f16), as a render of
+//! the file does.
 
 use crate::config::FreConfig;
 use crate::dataset::{MaterialTable, SampleSet};
 use crate::error::{Error, Result};
-use crate::inference::{EncodeSettings, TrainedRun};
+use crate::inference::{Codec, EncodeSettings, TrainedRun};
 use crate::loss::FreOperator;
 use crate::splat::SplatMap;
 use rand::{Rng, SeedableRng};
 use renderer::brdf_coords::rendered_point;
 use crate::dataset::draw_angles;
-use renderer::bsdf::neural::{NeuralBsdf, ReferenceValues};
-use renderer::neural::reference::ReferenceTable;
 use renderer::bsdf::merl::{Interpolation, MerlBsdf};
 use renderer::bsdf::nbrdf::NbrdfBsdf;
 use renderer::bsdf::tabulated_sampling::TabulatedSamplerConfig;
@@ -56,7 +58,7 @@ use renderer::formats::image_io::ToneMap;
 use renderer::integrator::PathTracer;
 use renderer::formats::latent_file::{LatentFile, WeightType};
 use renderer::metrics::{display_values, ImageError};
-use renderer::neural::latent_library::LatentCode;
+use renderer::neural::latent_library::{LatentCode, LatentLibrary};
 use renderer::neural::nbrdf::NbrdfNetwork;
 use renderer::render::{Budget, Renderer};
 use renderer::render_scene::RenderScene;
@@ -67,7 +69,6 @@ use renderer::bsdf::albedo::guided_directional_albedo;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 
 /// Name of the NBRDF baseline's rows.
 pub const NBRDF_MODEL: &str = "nbrdf";
@@ -162,9 +163,47 @@ pub struct EvalSettings {
     pub editing_images: usize,
 }
 
-/// The run's model name as rows and summaries show it (`frenbrdf`, `hyperbrdf`).
-pub fn model_name(run: &TrainedRun) -> String {
-    format!("{:?}", run.config.model).to_lowercase()
+/// The model `evaluate` measures: a trained run's best epoch, or a latent file that carries
+/// its set encoder, each as the renderer decodes it (f_ref as the file stores it, f16).
+pub struct EvalModel {
+    /// Encodes the materials that have no code, and predicts mapped values.
+    pub codec: Codec,
+    /// The decoder as one latent file: a run's (no codes) or the file given, whose codes are
+    /// evaluated as they are.
+    pub library: LatentLibrary,
+    /// L_fre's settings, for the `fre` column.
+    pub fre: FreConfig,
+    /// The model's name in rows, summaries and image names (`frenbrdf`, `hyperbrdf`, or the
+    /// file's stem).
+    pub name: String,
+}
+
+impl EvalModel {
+    /// A run's best epoch (its decoder exported in f32, without codes).
+    pub fn of_run(run: TrainedRun, dir: &Path) -> Self {
+        let file = crate::export::latent_file(&run, WeightType::F32);
+        EvalModel {
+            name: format!("{:?}", run.config.model).to_lowercase(),
+            fre: run.config.fre,
+            library: LatentLibrary::from_file(dir, file),
+            codec: run.codec,
+        }
+    }
+
+    /// A latent file that carries its set encoder (`export`'s); the `fre` column uses the
+    /// default L_fre settings (the file does not record the run's: they are the talk's
+    /// slices, which every shipped recipe keeps).
+    pub fn of_file(path: &Path) -> Result<Self> {
+        let file = LatentFile::read(path)?;
+        let codec = Codec::from_latent_file(&file, path)?;
+        let name = path.file_stem().map_or_else(|| "latent".to_string(), |s| s.to_string_lossy().into_owned());
+        Ok(EvalModel { codec, library: LatentLibrary::from_file(path, file), fre: FreConfig::default(), name })
+    }
+
+    /// The code the file carries for `name`, if any.
+    pub fn stored_code(&self, name: &str) -> Option<LatentCode> {
+        self.library.latent(name).ok()
+    }
 }
 
 /// What is compared with a reference BRDF.
@@ -177,7 +216,7 @@ enum Candidate<'a> {
 
 /// Compares a candidate with a reference BRDF `truth(θh, θd, φd)` (1/sr).
 fn compare(
-    run: &TrainedRun,
+    model: &EvalModel,
     candidate: &Candidate<'_>,
     truth: &dyn Fn(f32, f32, f32) -> Option<[f32; 3]>,
     settings: &EvalSettings,
@@ -197,11 +236,11 @@ fn compare(
             continue;
         };
         let [th, td, pd] = point.angles;
-        let (Some(f), Some(r)) = (truth(th, td, pd), run.codec.sampler.reference.lookup(th, td, pd))
+        let (Some(f), Some(r)) = (truth(th, td, pd), model.codec.sampler.reference.lookup(th, td, pd))
         else {
             continue;
         };
-        if let Some((x, y, c)) = run.codec.sampler.sample_of(&point, f) {
+        if let Some((x, y, c)) = model.codec.sampler.sample_of(&point, f) {
             set.push(x, y, c);
             f_true.push(f);
             f_ref.push(r);
@@ -212,11 +251,11 @@ fn compare(
         return Err(Error::Invalid("no measured points to evaluate".to_string()));
     }
     let n = set.len();
-    let (mapping, epsilon) = (run.codec.sampler.mapping, run.codec.sampler.epsilon);
+    let (mapping, epsilon) = (model.codec.sampler.mapping, model.codec.sampler.epsilon);
     // (y', f') per point and channel.
     let predicted: Vec<(f32, f32)> = match candidate {
         Candidate::Latent(code) => {
-            let y = run.codec.predict(&code.z, code.offset, &code.residual, &set.inputs);
+            let y = model.codec.predict(&code.z, code.offset, &code.residual, &set.inputs);
             (0..3 * n)
                 .map(|k| {
                     let r = f_ref[k / 3][k % 3].max(0.0);
@@ -428,7 +467,7 @@ impl SplatCache {
 /// Reconstruction and editing rows for the materials `names` of `data_dir`; `progress` is
 /// called with a description of each step as it starts.
 pub fn evaluate(
-    run: &TrainedRun,
+    model: &EvalModel,
     data_dir: &Path,
     names: &[String],
     settings: &EvalSettings,
@@ -439,11 +478,8 @@ pub fn evaluate(
             "no materials to evaluate (the split is empty)".to_string(),
         ));
     }
-    let device = run.codec.device.clone();
-    let fre_config: FreConfig = run.config.fre.clone();
-    let fre = FreOperator::new(&fre_config, &device);
+    let fre = FreOperator::new(&model.fre, &model.codec.device);
     let mut splats = SplatCache::default();
-    let model = model_name(run);
     let table_path =
         |name: &str| crate::tables::table_path(data_dir, name);
     let nbrdf_prefixes = match &settings.nbrdf_dir {
@@ -458,19 +494,21 @@ pub fn evaluate(
     let mut tables = Vec::new();
     let mut codes = Vec::new();
     for (i, name) in names.iter().enumerate() {
-        progress(&format!("encoding {name}"));
         let table = MaterialTable::read(&table_path(name))?;
-        let encode = EncodeSettings {
-            seed: settings.seed.wrapping_add(i as u64),
-            ..settings.encode.clone()
+        let code = match model.stored_code(name) {
+            Some(code) => code,
+            None => {
+                progress(&format!("encoding {name}"));
+                let encode = EncodeSettings {
+                    seed: settings.seed.wrapping_add(i as u64),
+                    ..settings.encode.clone()
+                };
+                model.codec.encode(&table, &encode)?.into_code(0)
+            }
         };
-        let refined = run.codec.encode(&table, &encode)?;
-        codes.push(refined.into_code(0));
+        codes.push(code);
         tables.push(table);
     }
-    let file = crate::export::latent_file(run, WeightType::F32);
-    // f_ref as the file carries it (f16), as a render of the file looks it up.
-    let reference_values: ReferenceValues = Arc::new(ReferenceTable::new(&file.f_ref));
     let mut preview = match &settings.images {
         Some(images) => {
             if let Some(dir) = &images.out_dir {
@@ -488,15 +526,15 @@ pub fn evaluate(
     for (i, ((name, table), code)) in names.iter().zip(&tables).zip(&codes).enumerate() {
         progress(&format!("reconstruction {name}"));
         let truth = |a, b, c| table.lookup(a, b, c);
-        let mut latent = compare(run, &Candidate::Latent(code), &truth, settings, &fre, &mut splats)?;
+        let mut latent = compare(model, &Candidate::Latent(code), &truth, settings, &fre, &mut splats)?;
         let table_bsdf = MerlBsdf::load(table_path(name))?;
-        let neural = neural_bsdf(run, &file, &reference_values, name, code)?;
+        let neural = model.library.decode_code(code, name)?;
         latent.albedo_ratio = Some(albedo_ratios(&neural, &table_bsdf, settings.albedo_samples));
         let (mut nbrdf, nbrdf_bsdf) = match &nbrdf_prefixes {
             Some(prefixes) => {
                 let net = NbrdfNetwork::load(&prefixes[i])?;
                 let mut m = compare(
-                    run,
+                    model,
                     &Candidate::Nbrdf(&net),
                     &truth,
                     settings,
@@ -516,7 +554,7 @@ pub fn evaluate(
             let table_image = scene.render_table(&table_path(name), table_bsdf, cache)?;
             scene.write_png(dir, &format!("{name}-table.png"), &table_image)?;
             let image = scene.render(SharedBsdf::Neural(neural));
-            scene.write_png(dir, &format!("{name}-{model}.png"), &image)?;
+            scene.write_png(dir, &format!("{name}-{}.png", model.name), &image)?;
             latent.image = Some(scene.error(&image, &table_image));
             if let (Some(m), Some(bsdf)) = (&mut nbrdf, nbrdf_bsdf) {
                 let image = scene.render(SharedBsdf::Nbrdf(bsdf));
@@ -525,7 +563,7 @@ pub fn evaluate(
             }
         }
         reconstruction.push(Row {
-            model: model.clone(),
+            model: model.name.clone(),
             name: name.clone(),
             t: 0.0,
             metrics: latent,
@@ -550,23 +588,23 @@ pub fn evaluate(
                 b += 1;
             }
             let t: f32 = rng.random();
-            let code = codes[a].lerp(&codes[b], t)?;
+            let code = model.library.sweep(&codes[a], &codes[b])?.code(t)?;
             let (ta, tb) = (&tables[a], &tables[b]);
             let blend = |h: f32, d: f32, p: f32| -> Option<[f32; 3]> {
                 let (fa, fb) = (ta.lookup(h, d, p)?, tb.lookup(h, d, p)?);
                 Some([0, 1, 2].map(|c| (1.0 - t) * fa[c] + t * fb[c]))
             };
             let name = format!("{}|{}", names[a], names[b]);
-            let mut latent = compare(run, &Candidate::Latent(&code), &blend, settings, &fre, &mut splats)?;
+            let mut latent = compare(model, &Candidate::Latent(&code), &blend, settings, &fre, &mut splats)?;
             let net = (!nbrdf_nets.is_empty()).then(|| nbrdf_nets[a].lerp(&nbrdf_nets[b], t));
-            let mut nbrdf = net.as_ref().map(|net| compare(run, &Candidate::Nbrdf(net), &blend, settings, &fre, &mut splats)).transpose()?;
+            let mut nbrdf = net.as_ref().map(|net| compare(model, &Candidate::Nbrdf(net), &blend, settings, &fre, &mut splats)).transpose()?;
             if let Some((scene, dir)) = preview.as_mut().filter(|_| k < settings.editing_images) {
                 let dir = dir.as_deref();
                 let blended = ta.blend(tb, name.clone(), |_| t).to_merl()?;
                 let reference = scene.render(SharedBsdf::Merl(MerlBsdf::new(&blended, Interpolation::default(), &TabulatedSamplerConfig::default())));
                 scene.write_png(dir, &format!("edit-{k:04}-table.png"), &reference)?;
-                let image = scene.render(SharedBsdf::Neural(neural_bsdf(run, &file, &reference_values, &name, &code)?));
-                scene.write_png(dir, &format!("edit-{k:04}-{model}.png"), &image)?;
+                let image = scene.render(SharedBsdf::Neural(model.library.decode_code(&code, &name)?));
+                scene.write_png(dir, &format!("edit-{k:04}-{}.png", model.name), &image)?;
                 latent.image = Some(scene.error(&image, &reference));
                 if let (Some(m), Some(net)) = (&mut nbrdf, net) {
                     let image = scene.render(SharedBsdf::Nbrdf(NbrdfBsdf::new(net, &TabulatedSamplerConfig::default())));
@@ -574,31 +612,13 @@ pub fn evaluate(
                     m.image = Some(scene.error(&image, &reference));
                 }
             }
-            editing.push(Row { model: model.clone(), name: name.clone(), t, metrics: latent });
+            editing.push(Row { model: model.name.clone(), name: name.clone(), t, metrics: latent });
             if let Some(metrics) = nbrdf {
                 editing.push(Row { model: NBRDF_MODEL.to_string(), name, t, metrics });
             }
         }
     }
     Ok((reconstruction, editing))
-}
-
-/// The renderer's BSDF of the run's decoder at a code (the path a latent file takes).
-fn neural_bsdf(
-    run: &TrainedRun,
-    file: &LatentFile,
-    reference: &ReferenceValues,
-    name: &str,
-    code: &LatentCode,
-) -> Result<NeuralBsdf> {
-    Ok(NeuralBsdf::new(
-        name,
-        file.decode(&code.z, code.offset, &code.residual),
-        reference.clone(),
-        run.codec.sampler.mapping,
-        run.codec.sampler.epsilon,
-        &TabulatedSamplerConfig::default(),
-    )?)
 }
 
 /// Mean metrics of rows; the image metrics are the means over the rows that have them.

@@ -45,7 +45,8 @@ use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use rand::SeedableRng;
 use renderer::formats::latent_file::{LatentFile, NamedLatent};
-use renderer::neural::energy::{MATCH_QUADRATURE, MATCH_THETAS_DEG};
+use renderer::neural::energy::{balance_offsets, MATCH_QUADRATURE, MATCH_THETAS_DEG};
+use glam::DVec3;
 use renderer::neural::latent_library::LatentCode;
 use std::path::Path;
 use std::sync::Arc;
@@ -322,7 +323,8 @@ impl Codec {
 
     /// The offset δ' that gives the code (z, δ') without residual the directional albedo of
     /// `table` per channel, summed over [`MATCH_THETAS_DEG`] (the quadrature
-    /// [`MATCH_QUADRATURE`] over the half vector), to 10⁻⁵ in ln ρ or after eight Newton steps.
+    /// [`MATCH_QUADRATURE`] over the half vector), to 10⁻⁵ in ln ρ or after eight steps of
+    /// the renderer's offset solver ([`renderer::neural::energy::balance_offsets`]).
     /// Channels where either albedo is 0 keep their δ.
     pub fn match_albedo(&self, table: &MaterialTable, z: &[f32], offset: [f32; 3]) -> [f32; 3] {
         let (mapping, epsilon) = (self.sampler.mapping, self.sampler.epsilon);
@@ -338,33 +340,14 @@ impl Codec {
             }
         }
         let inputs: Vec<f32> = points.iter().flat_map(|p| p.0).collect();
-        let table_albedo = [0, 1, 2].map(|c| points.iter().map(|p| p.1[c].max(0.0) as f64 * p.3).sum::<f64>());
+        let table_albedo = DVec3::from_array([0, 1, 2].map(|c| points.iter().map(|p| p.1[c].max(0.0) as f64 * p.3).sum::<f64>()));
         let code_albedo = |offset: [f32; 3]| {
             let y = self.predict(z, offset, &[], &inputs);
-            [0, 1, 2].map(|c| {
+            Ok::<_, std::convert::Infallible>(DVec3::from_array([0, 1, 2].map(|c| {
                 points.iter().enumerate().map(|(k, p)| mapping.inverse(y[3 * k + c], p.2[c].max(0.0), epsilon).max(0.0) as f64 * p.3).sum::<f64>()
-            })
+            })))
         };
-        // Newton's method on ln ρ_code(δ_c) − ln ρ_table per channel (a channel's δ moves its
-        // own albedo only), the slope by a forward difference: ln ρ grows with δ at a rate of
-        // 1 under the talk's mapping and faster under the code's.
-        const H: f32 = 1e-2;
-        let mut offset = offset;
-        let active = |a: &[f64; 3], c: usize| table_albedo[c] > 0.0 && a[c] > 0.0;
-        for _ in 0..8 {
-            let now = code_albedo(offset);
-            let error = [0, 1, 2].map(|c| if active(&now, c) { (now[c] / table_albedo[c]).ln() } else { 0.0 });
-            if error.iter().all(|e| e.abs() < 1e-5) {
-                break;
-            }
-            let ahead = code_albedo(offset.map(|o| o + H));
-            for c in 0..3 {
-                if active(&now, c) && ahead[c] > 0.0 {
-                    let slope = ((ahead[c] / now[c]).ln() / H as f64).max(0.1);
-                    offset[c] -= (error[c] / slope).clamp(-2.0, 2.0) as f32;
-                }
-            }
-        }
+        let Ok(offset) = balance_offsets(offset, table_albedo, 8, 1e-5, code_albedo);
         offset
     }
 

@@ -51,11 +51,13 @@ enum Command {
     ///   material-nn encode --run runs/frenbrdf --table gold.binary [--refine-steps 0]
     #[command(verbatim_doc_comment)]
     Encode(encode::EncodeArgs),
-    /// Evaluation of a run on its test split: reconstruction and editing (RMSE of cos-weighted
-    /// f_r, L_rec data term, L_fre) and PSNR / SSIM of material-preview renders against the
-    /// tables', optionally beside NBRDF networks; writes RUN/eval/*.csv, summary.md, images/.
+    /// Evaluation of a run on its test split, or of a latent file (its codes, the rest
+    /// encoded): reconstruction and editing (RMSE of cos-weighted f_r, L_rec data term, L_fre)
+    /// and PSNR / SSIM of material-preview renders against the tables', optionally beside
+    /// NBRDF networks; writes RUN/eval/ (or --out) *.csv, summary.md, images/.
     ///
     ///   material-nn eval --run runs/frenbrdf [--pairs 200] [--nbrdf runs/nbrdf] [--no-images]
+    ///   material-nn eval --model scenes/materials/latent.bin --data data/rgl-fitted --split all --out data/eval/rgl
     #[command(verbatim_doc_comment)]
     Eval(eval::EvalArgs),
     /// Learning-rate search as in the talk: grid 1e-1, 1e-3, 1e-5, then random trials within a

@@ -5,7 +5,7 @@
 //!
 //! - `z`: the codes' z alone interpolated (offsets δ and residuals ΔΘ dropped);
 //! - `z+δ`: z and the offsets;
-//! - `full`: the sweep of `render --sweep` ([`LatentLibrary::sweep_code`]: z and δ
+//! - `full`: the sweep of `render --sweep` ([`LatentLibrary::sweep`]: z and δ
 //!   interpolated, each end's residual ΔΘ faded out within 0.25 of its end, δ balanced so
 //!   that the frame's albedo summed over θo = 0°, 45°, 75° is the blend of the ends');
 //! - `unbalanced`: the same without the balance ([`LatentCode::lerp`]);
@@ -39,6 +39,7 @@ use renderer::neural::energy::{self, AlbedoQuadrature};
 use renderer::neural::latent_library::{LatentCode, LatentLibrary};
 use renderer::neural::mlp::Encoder;
 use renderer::neural::nbrdf::NbrdfNetwork;
+use renderer::neural::sweep::Sweep;
 use renderer::neural::reference::ReferenceTable;
 use renderer::Rgb;
 use std::fmt::Write as _;
@@ -320,7 +321,7 @@ impl Study<'_> {
     }
 
     /// Albedo per θo of one variant at t.
-    fn albedo(&self, a: &Material, b: &Material, variant: Variant, t: f32) -> Result<Vec<DVec3>> {
+    fn albedo(&self, a: &Material, b: &Material, sweep: Option<&Sweep>, variant: Variant, t: f32) -> Result<Vec<DVec3>> {
         let label = format!("{}→{}@{t}", a.name, b.name);
         let lerp_code = |strip: fn(&LatentCode) -> LatentCode| -> Result<LatentCode> {
             let (ca, cb) = (a.code.as_ref().context("no code")?, b.code.as_ref().context("no code")?);
@@ -332,10 +333,7 @@ impl Study<'_> {
                 &lerp_code(|c| LatentCode { offset: c.offset, ..Study::code(&c.z) })?,
                 &label,
             )?),
-            Variant::Full => {
-                let (ca, cb) = (a.code.as_ref().context("no code")?, b.code.as_ref().context("no code")?);
-                self.albedos_of(&self.decoded(&self.library.sweep_code(ca, cb, t)?, &label)?)
-            }
+            Variant::Full => self.albedos_of(&self.decoded(&sweep.context("no code")?.code(t)?, &label)?),
             Variant::Encoder => {
                 let z = Study::code(&a.encoder_z).lerp(&Study::code(&b.encoder_z), t)?;
                 self.albedos_of(&self.decoded(&z, &label)?)
@@ -467,6 +465,10 @@ pub fn run(args: EnergyArgs) -> Result<()> {
     let mut rows: Vec<Row> = Vec::new();
     for (p, (a, b)) in pairs.iter().enumerate() {
         let (ma, mb) = (material(a), material(b));
+        let sweep = match (&ma.code, &mb.code) {
+            (Some(ca), Some(cb)) => Some(study.library.sweep(ca, cb)?),
+            _ => None,
+        };
         let jobs: Vec<(Variant, f32)> = Variant::ALL
             .iter()
             .filter(|v| !v.needs_code() || (ma.code.is_some() && mb.code.is_some()))
@@ -474,7 +476,7 @@ pub fn run(args: EnergyArgs) -> Result<()> {
             .collect();
         let done: Vec<Result<Row>> = jobs
             .par_iter()
-            .map(|&(variant, t)| Ok(Row { pair: p, variant, t, albedo: study.albedo(ma, mb, variant, t)? }))
+            .map(|&(variant, t)| Ok(Row { pair: p, variant, t, albedo: study.albedo(ma, mb, sweep.as_ref(), variant, t)? }))
             .collect();
         for r in done {
             rows.push(r?);

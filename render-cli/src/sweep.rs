@@ -36,7 +36,7 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
             spec.from
         );
     }
-    let (a, b) = (latents.latent(&spec.from)?, latents.latent(&spec.to)?);
+    let sweep = latents.sweep(&latents.latent(&spec.from)?, &latents.latent(&spec.to)?)?;
     let times = spec.times();
     let frames = job.args.frames.unwrap_or(FrameRange {
         first: 0,
@@ -69,7 +69,7 @@ pub fn run(job: &Job, scene: &mut RenderScene, latents: &LatentLibrary, spec: &S
     }
     for k in resume.map_or(frames.first, |(k, _)| k)..=frames.last {
         let t = times[k];
-        let code = latents.sweep_code(&a, &b, t)?;
+        let code = sweep.code(t)?;
         let label = format!("{}>{}@{t:.2}", spec.from, spec.to);
         for &slot in &slots {
             scene.materials.set_shared(slot, SharedBsdf::Neural(latents.decode_code(&code, &label)?));

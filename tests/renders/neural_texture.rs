@@ -67,7 +67,7 @@ fn blend(t: f32) -> (RenderScene, renderer::scene::Camera) {
 /// decodes its frames).
 fn exact(t: f32) -> (RenderScene, renderer::scene::Camera) {
     let (mut scene, camera) = preview(SurfaceModel::Bound(Binding::Neural(A.into())), None);
-    let code = latents().sweep_code(&latents().latent(A).unwrap(), &latents().latent(B).unwrap(), t).unwrap();
+    let code = latents().sweep(&latents().latent(A).unwrap(), &latents().latent(B).unwrap()).unwrap().code(t).unwrap();
     for slot in scene.materials.neural_slots() {
         scene.materials.set_shared(slot, SharedBsdf::Neural(latents().decode_code(&code, "exact").unwrap()));
     }

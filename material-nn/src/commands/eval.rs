@@ -1,7 +1,9 @@
-//! `material-nn eval`: a run's reconstruction, editing and image errors on a split.
+//! `material-nn eval`: a model's (a run's or a latent file's) reconstruction, editing and
+//! image errors on a split.
 
 use anyhow::Context;
-use clap::{Args, ValueEnum};
+use clap::{ArgGroup, Args, ValueEnum};
+use material_nn::eval::EvalModel;
 use material_nn::inference::{EncodeSettings, TrainedRun};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -18,18 +20,26 @@ pub enum SplitName {
 }
 
 #[derive(Args)]
+#[command(group(ArgGroup::new("source").required(true).args(["run", "model"])))]
 pub struct EvalArgs {
     /// Run directory of `train`.
     #[arg(long, value_name = "RUN")]
-    pub run: PathBuf,
+    pub run: Option<PathBuf>,
+    /// A latent file that carries its set encoder (written by `export`, e.g.
+    /// scenes/materials/latent.bin): its codes are evaluated as they are, materials it has no
+    /// code for are encoded. Needs --data and --out.
+    #[arg(long, value_name = "LATENT_BIN", requires_all = ["data", "out"])]
+    pub model: Option<PathBuf>,
     /// Directory of the tables (default: the run's data directory).
     #[arg(long, value_name = "DIR")]
     pub data: Option<PathBuf>,
     /// The materials evaluated: a split of the run, or `all` tables of the data directory
-    /// (`--data DIR --split all`: materials the model never saw, each encoded first).
+    /// (`--data DIR --split all`: materials the model never saw, each encoded first). With
+    /// --model, `train` is the file's training materials and `all` the only other choice
+    /// (the file does not record the run's validation and test splits).
     #[arg(long, value_enum, default_value = "test")]
     pub split: SplitName,
-    /// Output directory (default RUN/eval).
+    /// Output directory (default RUN/eval; needed with --model).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Comparison points per material.
@@ -84,21 +94,47 @@ fn default_preview_scene() -> PathBuf {
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     use material_nn::eval;
     let start = Instant::now();
-    let run = TrainedRun::load(&args.run)?;
-    let data = args
-        .data
-        .clone()
-        .unwrap_or_else(|| run.info.data_dir.clone());
-    let names = match args.split {
-        SplitName::Train => run.split.train.clone(),
-        SplitName::Validation => run.split.validation.clone(),
-        SplitName::Test => run.split.test.clone(),
-        SplitName::All => material_nn::tables::list_tables(&data, None)?
+    // The model, the tables' directory, the split's names (None: every table) and where
+    // the results go.
+    let (model, data, names, out) = match (&args.run, &args.model) {
+        (Some(dir), _) => {
+            let run = TrainedRun::load(dir)?;
+            let data = args.data.clone().unwrap_or_else(|| run.info.data_dir.clone());
+            let names = match args.split {
+                SplitName::Train => Some(run.split.train.clone()),
+                SplitName::Validation => Some(run.split.validation.clone()),
+                SplitName::Test => Some(run.split.test.clone()),
+                SplitName::All => None,
+            };
+            let out = args.out.clone().unwrap_or_else(|| dir.join("eval"));
+            (EvalModel::of_run(run, dir), data, names, out)
+        }
+        (None, Some(path)) => {
+            let model = EvalModel::of_file(path)?;
+            let names = match args.split {
+                SplitName::Train => Some(model.library.latent_file(0)?.training_materials.clone()),
+                SplitName::All => None,
+                SplitName::Validation | SplitName::Test => anyhow::bail!(
+                    "{}: a latent file records its training materials only, not the run's \
+                     validation and test splits; use --split train or --split all",
+                    path.display()
+                ),
+            };
+            let (Some(data), Some(out)) = (args.data.clone(), args.out.clone()) else {
+                anyhow::bail!("eval --model needs --data DIR and --out DIR");
+            };
+            (model, data, names, out)
+        }
+        (None, None) => anyhow::bail!("give --run or --model"),
+    };
+    let names = match names {
+        Some(names) => names,
+        None => material_nn::tables::list_tables(&data, None)?
             .iter()
             .map(|p| material_nn::tables::material_name(p))
             .collect::<Result<Vec<_>, _>>()?,
     };
-    let out = args.out.clone().unwrap_or_else(|| args.run.join("eval"));
+    let stored = names.iter().filter(|n| model.stored_code(n).is_some()).count();
     let (width, height) = args.resolution;
     let images = (!args.no_images).then(|| eval::ImageSettings {
         scene: args.scene.clone(),
@@ -123,27 +159,36 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     };
     std::fs::create_dir_all(&out).with_context(|| out.display().to_string())?;
     let bar = progress_bar(2 * names.len() + args.pairs, "eval");
-    let result = eval::evaluate(&run, &data, &names, &settings, &mut |what| {
+    let result = eval::evaluate(&model, &data, &names, &settings, &mut |what| {
         bar.set_message(what.to_string());
         bar.inc(1);
     });
     bar.finish_and_clear();
     let (reconstruction, editing) = result?;
-    let note = (!args.no_images).then(|| {
+    let codes = match stored {
+        0 => "Every material encoded for this evaluation.".to_string(),
+        n => format!("{n} of the {} materials evaluated at the codes the latent file carries, the rest encoded.", names.len()),
+    };
+    let image_note = (!args.no_images).then(|| {
         format!(
             "PSNR and SSIM: previews of {} ({width}x{height}, {} spp, seed {}, path depth {}) \
              against the tabulated table's, 8-bit clamp-tone-mapped values (SSIM window {}); \
-             images in eval/images/. Editing PSNR and SSIM: the first {} pairs, against the \
+             images in {}. Editing PSNR and SSIM: the first {} pairs, against the \
              blended table's render.",
             args.scene.display(),
             args.spp,
             args.seed,
             eval::PREVIEW_MAX_DEPTH,
             renderer::metrics::SSIM_WINDOW,
+            out.join("images").display(),
             settings.editing_images
         )
     });
-    let summary = eval::to_markdown(&reconstruction, &editing, note.as_deref());
+    let note = match image_note {
+        Some(images) => format!("{codes} {images}"),
+        None => codes,
+    };
+    let summary = eval::to_markdown(&reconstruction, &editing, Some(&note));
     for (file, text) in [
         ("reconstruction.csv", eval::to_csv(&reconstruction)),
         ("editing.csv", eval::to_csv(&editing)),

@@ -285,6 +285,33 @@ fn training_lowers_the_loss_and_exports_a_latent_file() {
         assert!(fields[9..].iter().all(|f| f.parse::<f64>().is_ok_and(|v| v > 0.0)), "{line}");
     }
 
+    // The exported file evaluated without its run: the codes it carries are taken as they
+    // are (the same rows whatever the refinement settings), the material it has none for
+    // (rough-gold) is encoded with them; a file records no validation split.
+    let eval_model = |steps: &str, out: &str| {
+        let out = dir.path().join(out);
+        let status = material_nn(&[
+            "eval", "--model", path_str(&latent), "--data", path_str(&data), "--split", "all", "--out", path_str(&out),
+            "--refine-steps", steps, "--samples", "500", "--pairs", "1", "--no-images",
+        ]);
+        assert!(status.status.success(), "{status:?}");
+        let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+        assert!(summary.contains("2 of the 3 materials evaluated at the codes the latent file carries"), "{summary}");
+        let csv = std::fs::read_to_string(out.join("reconstruction.csv")).unwrap();
+        csv.lines().skip(1).map(String::from).collect::<Vec<_>>()
+    };
+    let (coarse, fine) = (eval_model("0", "model-eval-0"), eval_model("40", "model-eval-40"));
+    assert_eq!(coarse.len(), 3, "{coarse:?}");
+    for (a, b) in coarse.iter().zip(&fine) {
+        assert!(a.starts_with("latent,"), "rows named for the file: {a}");
+        assert_eq!(a == b, !a.contains("rough-gold"), "stored codes as they are, the rest encoded: {a} / {b}");
+    }
+    let out = material_nn(&[
+        "eval", "--model", path_str(&latent), "--data", path_str(&data), "--split", "test", "--out", path_str(&dir.path().join("x")),
+    ]);
+    let line = error_line(&out);
+    assert!(line.contains("latent.bin") && line.contains("training materials only"), "{line}");
+
     // Encode a sparse sample set and add it to the file.
     let csv = dir.path().join("sparse.csv");
     let mut text = String::from("theta_h,theta_d,phi_d,r,g,b\n");

@@ -238,7 +238,7 @@ impl Opener<'_> {
     }
 
     /// The slots of the palette from `ends[0]` to `ends[1]` ([`PALETTE_SIZE`] codes along
-    /// the editing sweep [`LatentLibrary::sweep_code`](crate::neural::latent_library::LatentLibrary::sweep_code),
+    /// the editing sweep [`LatentLibrary::sweep`](crate::neural::latent_library::LatentLibrary::sweep),
     /// as `render --sweep` decodes them), decoded now if it was not.
     fn palette(&mut self, ends: &[String; 2]) -> Result<Range<usize>> {
         if let Some(range) = self.palettes.get(ends) {
@@ -251,11 +251,12 @@ impl Opener<'_> {
             });
         }
         let (a, b) = (self.latents.latent(&ends[0])?, self.latents.latent(&ends[1])?);
+        let sweep = self.latents.sweep(&a, &b)?;
         let start = self.shared.len();
         for k in 0..PALETTE_SIZE {
             let t = k as f32 / (PALETTE_SIZE - 1) as f32;
             let label = format!("{}>{}@{t:.3}", ends[0], ends[1]);
-            let bsdf = self.latents.decode_code(&self.latents.sweep_code(&a, &b, t)?, &label)?;
+            let bsdf = self.latents.decode_code(&sweep.code(t)?, &label)?;
             self.stats.palette_bytes += bsdf.heap_bytes();
             self.shared.push(SharedBsdf::Neural(bsdf));
         }

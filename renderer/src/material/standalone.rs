@@ -93,7 +93,7 @@ impl MaterialBsdf {
     }
 
     /// Opens a latent file and decodes the blend of its codes `a` and `b` at `t`: the frame
-    /// of the editing sweep [`LatentLibrary::sweep_code`](A, B, t) (z and offsets
+    /// of the editing sweep [`LatentLibrary::sweep`] from A to B at t (z and offsets
     /// interpolated, each end's residual faded out near its end, the offsets balanced to the
     /// blend of the ends' albedo), decoded exactly as `render --sweep` decodes its
     /// frames (t = 0 is A, t = 1 is B, bit for bit). `t` must be finite and in [0, 1]: an
@@ -107,7 +107,7 @@ impl MaterialBsdf {
             });
         }
         let latents = LatentLibrary::load(&[path])?;
-        let code = latents.sweep_code(&latents.latent(a)?, &latents.latent(b)?, t)?;
+        let code = latents.sweep(&latents.latent(a)?, &latents.latent(b)?)?.code(t)?;
         let label = format!("{a}>{b}@{t:.3}");
         Ok(MaterialBsdf {
             inner: Inner::One(Arc::new(SharedBsdf::Neural(latents.decode_code(&code, &label)?))),
@@ -121,11 +121,11 @@ impl MaterialBsdf {
     /// [`MaterialBsdf::open_blend`].
     pub fn open_blend_palette(path: &Path, a: &str, b: &str) -> Result<Vec<Self>> {
         let latents = LatentLibrary::load(&[path])?;
-        let (ca, cb) = (latents.latent(a)?, latents.latent(b)?);
+        let sweep = latents.sweep(&latents.latent(a)?, &latents.latent(b)?)?;
         (0..super::PALETTE_SIZE)
             .map(|k| {
                 let t = k as f32 / (super::PALETTE_SIZE - 1) as f32;
-                let bsdf = latents.decode_code(&latents.sweep_code(&ca, &cb, t)?, &format!("{a}>{b}@{t:.3}"))?;
+                let bsdf = latents.decode_code(&sweep.code(t)?, &format!("{a}>{b}@{t:.3}"))?;
                 Ok(MaterialBsdf { inner: Inner::One(Arc::new(SharedBsdf::Neural(bsdf))) })
             })
             .collect()
@@ -693,7 +693,7 @@ mod tests {
         assert_eq!(at(0.0).eval(wo, wi), MaterialBsdf::open(&shipped(), Some(a)).unwrap().eval(wo, wi));
         assert_eq!(at(1.0).eval(wo, wi), MaterialBsdf::open(&shipped(), Some(b)).unwrap().eval(wo, wi));
         let t = 0.37;
-        let exact = latents.decode_code(&latents.sweep_code(&latents.latent(a).unwrap(), &latents.latent(b).unwrap(), t).unwrap(), "sweep").unwrap();
+        let exact = latents.decode_code(&latents.sweep(&latents.latent(a).unwrap(), &latents.latent(b).unwrap()).unwrap().code(t).unwrap(), "sweep").unwrap();
         let blend = at(t);
         assert!(blend.neural().is_some() && blend.sampler_tables().is_some());
         assert_eq!(blend.eval(wo, wi), exact.eval(Vec3::from(wo), Vec3::from(wi)).to_array());

@@ -46,6 +46,51 @@ pub const MATCH_THETAS_DEG: [f32; 3] = [0.0, 45.0, 75.0];
 /// chrome's sub-degree peak included).
 pub const MATCH_QUADRATURE: AlbedoQuadrature = AlbedoQuadrature { theta_h_steps: 45, phi_h_steps: 32 };
 
+/// Moves each RGB channel's output offset δ until `albedo(δ)` — a code's directional albedo
+/// summed over [`MATCH_THETAS_DEG`] — is `target`: secant steps on ln ρ from slope 1 (under
+/// both mappings ln f grows at least one for one with δ; a channel's δ moves its own albedo
+/// only), each step at most 2 (a factor e² in f), until every channel is within `tolerance`
+/// in ln ρ or after `max_steps` steps. Channels where the target or the albedo is 0 keep
+/// their δ. The last call of `albedo` is at the returned offsets, so a caller can keep what
+/// it computed there. The one solver of `material-nn --match-albedo` (target: the table's
+/// albedo) and of editing sweeps (the blend of the ends', [`crate::neural::sweep`]).
+pub fn balance_offsets<E>(
+    offset: [f32; 3],
+    target: DVec3,
+    max_steps: usize,
+    tolerance: f64,
+    mut albedo: impl FnMut([f32; 3]) -> Result<DVec3, E>,
+) -> Result<[f32; 3], E> {
+    const MAX_STEP: f64 = 2.0;
+    let mut offset = offset;
+    let mut rho = albedo(offset)?;
+    let mut slope = DVec3::ONE;
+    let error = |rho: DVec3| {
+        DVec3::from_array([0, 1, 2].map(|c| match target[c] > 0.0 && rho[c] > 0.0 {
+            true => (rho[c] / target[c]).ln(),
+            false => 0.0,
+        }))
+    };
+    for _ in 0..max_steps {
+        let e = error(rho);
+        if e.abs().max_element() < tolerance {
+            break;
+        }
+        let step = DVec3::from_array([0, 1, 2].map(|c| (-e[c] / slope[c]).clamp(-MAX_STEP, MAX_STEP)));
+        for c in 0..3 {
+            offset[c] += step[c] as f32;
+        }
+        let next = albedo(offset)?;
+        for c in 0..3 {
+            if step[c] != 0.0 && next[c] > 0.0 && rho[c] > 0.0 {
+                slope[c] = ((next[c] / rho[c]).ln() / step[c]).max(0.1);
+            }
+        }
+        rho = next;
+    }
+    Ok(offset)
+}
+
 /// Directional albedo by quadrature over the half vector (see the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AlbedoQuadrature {
@@ -238,6 +283,32 @@ mod tests {
     use crate::neural::latent_library::{LatentCode, LatentLibrary};
     use rayon::prelude::*;
 
+    /// The offset solver reaches its target in every channel whose albedo grows with δ at
+    /// the mappings' rates (1 for the talk's, faster for the code's) or along a curve, keeps
+    /// a channel with nothing to match, and ends with a call at the offsets it returns.
+    #[test]
+    fn offsets_balance_to_their_target() {
+        // ρ_c(δ) = a_c e^{k_c δ} + a small curvature; channel 2 has target 0.
+        let rho = |o: [f32; 3]| {
+            DVec3::new(0.2 * (f64::from(o[0])).exp(), 0.05 * (1.7 * f64::from(o[1])).exp() + 0.01 * f64::from(o[1]).powi(2), 0.3)
+        };
+        let target = DVec3::new(0.9, 0.6, 0.0);
+        let mut last = [f32::NAN; 3];
+        let offset = balance_offsets::<()>([0.1, -0.4, 0.7], target, 8, 1e-5, |o| {
+            last = o;
+            Ok(rho(o))
+        })
+        .unwrap();
+        assert_eq!(last, offset, "the last evaluation is at the result");
+        let got = rho(offset);
+        for c in 0..2 {
+            assert!((got[c] / target[c]).ln().abs() < 1e-5, "channel {c}: {} against {}", got[c], target[c]);
+        }
+        assert_eq!(offset[2], 0.7, "a channel with a zero target keeps its offset");
+        // Errors from the albedo pass through.
+        assert_eq!(balance_offsets([0.0; 3], target, 4, 1e-3, |_| Err("no decode")), Err("no decode"));
+    }
+
     #[test]
     fn lambert_albedo_is_its_reflectance() {
         let reflectance = Rgb::new(0.2, 0.5, 0.9);
@@ -303,7 +374,7 @@ mod tests {
     /// codes in file order paired i ↔ i + 50 (50 pairs, each code in one), and the issue's
     /// alum-bronze → chrome, blue-fabric → nickel, red-plastic → gold-paint, each at t = 0.25,
     /// 0.5, 0.75 as the renderer's sweeps decode them
-    /// ([`LatentLibrary::sweep_code`]): 100 + 159 decoded nets.
+    /// ([`LatentLibrary::sweep`]): 100 + 159 decoded nets.
     #[test]
     fn shipped_codes_and_sweeps_reflect_at_most_what_they_receive() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/materials/latent.bin");
@@ -320,7 +391,8 @@ mod tests {
         let sweeps: Vec<(String, LatentCode)> = pairs
             .par_iter()
             .flat_map_iter(|(a, b)| {
-                SWEEP_TIMES.map(|t| (format!("{a}→{b}@{t}"), lib.sweep_code(&code(a), &code(b), t).unwrap()))
+                let sweep = lib.sweep(&code(a), &code(b)).unwrap();
+                SWEEP_TIMES.map(|t| (format!("{a}→{b}@{t}"), sweep.code(t).unwrap()))
             })
             .collect();
         jobs.extend(sweeps);

@@ -126,6 +126,12 @@ impl LatentLibrary {
         Ok(LatentLibrary { files })
     }
 
+    /// A library of one file already in memory (e.g. a trained run's decoder); `path` names
+    /// it in errors.
+    pub fn from_file(path: impl Into<PathBuf>, file: LatentFile) -> Self {
+        LatentLibrary { files: vec![LibraryFile { path: path.into(), file, reference: OnceLock::new() }] }
+    }
+
     /// True when no file was given.
     pub fn is_empty(&self) -> bool {
         self.files.is_empty()

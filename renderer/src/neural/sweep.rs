@@ -20,10 +20,11 @@
 //! balanced frame reflects more than it receives at those angles.
 //!
 //! **Cost.** The ends' and the frame's albedo on 3 × ≤ 1,440 directions, up to
-//! [`MAX_STEPS`] + 3 decodes of the hypernetwork: about 30,000 evaluations of the small net
-//! per frame, milliseconds beside the frame's render.
+//! [`MAX_STEPS`] + 1 decodes of the hypernetwork a frame (the ends' two once per
+//! [`Sweep`]): about 20,000 evaluations of the small net per frame, milliseconds beside the
+//! frame's render.
 
-use crate::neural::energy::{MATCH_QUADRATURE, MATCH_THETAS_DEG};
+use crate::neural::energy::{balance_offsets, MATCH_QUADRATURE, MATCH_THETAS_DEG};
 use crate::neural::latent_library::{LatentCode, LatentLibrary};
 use crate::Result;
 use glam::DVec3;
@@ -34,57 +35,60 @@ pub const MAX_STEPS: usize = 4;
 /// |ln ρ − ln ρ_target| below which a channel is balanced.
 const TOLERANCE: f64 = 1e-3;
 
-/// The largest change of δ in one step (a factor e² in f).
-const MAX_STEP: f64 = 2.0;
+/// An editing sweep from code `a` (t = 0) to code `b` (t = 1) of one library, with the ends'
+/// albedos computed once: [`Sweep::code`] gives its frames (see the module documentation).
+#[derive(Debug)]
+pub struct Sweep<'a> {
+    library: &'a LatentLibrary,
+    a: LatentCode,
+    b: LatentCode,
+    /// The ends' directional albedo summed over [`MATCH_THETAS_DEG`]; `None` for a sweep
+    /// from a code to itself.
+    ends: Option<(DVec3, DVec3)>,
+}
 
 impl LatentLibrary {
-    /// The code at `t` of the editing sweep from `a` (t = 0) to `b` (t = 1): see the module
-    /// documentation. Both codes must come from one file; t = 0 and 1 give the codes
-    /// themselves, `t` outside [0, 1] or a sweep from a code to itself the plain
-    /// interpolation [`LatentCode::lerp`] (an extrapolation is not balanced). Errors name
-    /// the file when a code cannot be decoded.
-    pub fn sweep_code(&self, a: &LatentCode, b: &LatentCode, t: f32) -> Result<LatentCode> {
-        let mut frame = a.lerp(b, t)?;
-        if t == 0.0 || t == 1.0 {
-            return Ok(if t == 0.0 { a } else { b }.clone());
-        }
-        if !(t > 0.0 && t < 1.0) || a == b {
-            return Ok(frame);
-        }
-        let albedos = |code: &LatentCode| -> Result<[DVec3; 3]> {
-            let bsdf = self.decode_for_evaluation(code, "sweep frame")?;
-            Ok(MATCH_THETAS_DEG.map(|theta| MATCH_QUADRATURE.albedo_at(&bsdf, theta.to_radians())))
+    /// The editing sweep from `a` to `b` (codes of this library); decodes both ends once for
+    /// their albedo. Errors name the file when a code cannot be decoded.
+    pub fn sweep(&self, a: &LatentCode, b: &LatentCode) -> Result<Sweep<'_>> {
+        let ends = match a == b {
+            true => None,
+            false => Some((albedo_sum(&self.albedos(a)?), albedo_sum(&self.albedos(b)?))),
         };
-        let sum = |rho: &[DVec3; 3]| rho.iter().fold(DVec3::ZERO, |s, r| s + *r);
-        let (ends_a, ends_b) = (sum(&albedos(a)?), sum(&albedos(b)?));
-        let target = ends_a * f64::from(1.0 - t) + ends_b * f64::from(t);
-        let mut now = albedos(&frame)?;
-        // Secant steps per channel (a channel's δ moves its own albedo only), from slope 1.
-        let mut slope = DVec3::ONE;
-        for _ in 0..MAX_STEPS {
-            let rho = sum(&now);
-            let error = DVec3::from_array([0, 1, 2].map(|c| match target[c] > 0.0 && rho[c] > 0.0 {
-                true => (rho[c] / target[c]).ln(),
-                false => 0.0,
-            }));
-            if error.abs().max_element() < TOLERANCE {
-                break;
-            }
-            let step = DVec3::from_array([0, 1, 2].map(|c| (-error[c] / slope[c]).clamp(-MAX_STEP, MAX_STEP)));
-            for c in 0..3 {
-                frame.offset[c] += step[c] as f32;
-            }
-            let next = albedos(&frame)?;
-            let (rho_next, rho_now) = (sum(&next), rho);
-            for c in 0..3 {
-                if step[c] != 0.0 && rho_next[c] > 0.0 && rho_now[c] > 0.0 {
-                    slope[c] = ((rho_next[c] / rho_now[c]).ln() / step[c]).max(0.1);
-                }
-            }
-            now = next;
+        Ok(Sweep { library: self, a: a.clone(), b: b.clone(), ends })
+    }
+
+    /// A code's directional albedo at each of [`MATCH_THETAS_DEG`].
+    fn albedos(&self, code: &LatentCode) -> Result<[DVec3; 3]> {
+        let bsdf = self.decode_for_evaluation(code, "sweep frame")?;
+        Ok(MATCH_THETAS_DEG.map(|theta| MATCH_QUADRATURE.albedo_at(&bsdf, theta.to_radians())))
+    }
+}
+
+fn albedo_sum(rho: &[DVec3; 3]) -> DVec3 {
+    rho.iter().fold(DVec3::ZERO, |s, r| s + *r)
+}
+
+impl Sweep<'_> {
+    /// The code at `t`: t = 0 and 1 give the ends themselves, `t` outside [0, 1] or a sweep
+    /// from a code to itself the plain interpolation [`LatentCode::lerp`] (an extrapolation
+    /// is not balanced). Errors name the file when a frame cannot be decoded.
+    pub fn code(&self, t: f32) -> Result<LatentCode> {
+        let mut frame = self.a.lerp(&self.b, t)?;
+        if t == 0.0 || t == 1.0 {
+            return Ok(if t == 0.0 { &self.a } else { &self.b }.clone());
         }
-        // No channel above 1 at any of the angles.
-        let top = now.iter().fold(DVec3::ZERO, |m, r| m.max(*r));
+        let Some((ends_a, ends_b)) = self.ends.filter(|_| t > 0.0 && t < 1.0) else {
+            return Ok(frame);
+        };
+        let target = ends_a * f64::from(1.0 - t) + ends_b * f64::from(t);
+        let mut last = [DVec3::ZERO; 3];
+        frame.offset = balance_offsets(frame.offset, target, MAX_STEPS, TOLERANCE, |offset| {
+            last = self.library.albedos(&LatentCode { offset, ..frame.clone() })?;
+            Ok(albedo_sum(&last))
+        })?;
+        // No channel above 1 at any of the angles (`last` is the albedo at the final offsets).
+        let top = last.iter().fold(DVec3::ZERO, |m, r| m.max(*r));
         for c in 0..3 {
             if top[c] > 1.0 {
                 frame.offset[c] -= top[c].ln() as f32;
@@ -107,9 +111,10 @@ mod tests {
         let (_dir, lib) = library();
         let names = lib.names();
         let (a, b) = (lib.latent(&names[0]).unwrap(), lib.latent(&names[1]).unwrap());
-        assert_eq!(lib.sweep_code(&a, &b, 0.0).unwrap(), a);
-        assert_eq!(lib.sweep_code(&a, &b, 1.0).unwrap(), b);
-        assert_eq!(lib.sweep_code(&a, &a, 0.5).unwrap(), a);
+        let sweep = lib.sweep(&a, &b).unwrap();
+        assert_eq!(sweep.code(0.0).unwrap(), a);
+        assert_eq!(sweep.code(1.0).unwrap(), b);
+        assert_eq!(lib.sweep(&a, &a).unwrap().code(0.5).unwrap(), a);
         let albedo = |code: &LatentCode| {
             let bsdf = lib.decode_for_evaluation(code, "test").unwrap();
             MATCH_THETAS_DEG.map(|theta| MATCH_QUADRATURE.albedo_at(&bsdf, theta.to_radians()))
@@ -117,7 +122,7 @@ mod tests {
         let sum = |r: [DVec3; 3]| r[0] + r[1] + r[2];
         let (ra, rb) = (sum(albedo(&a)), sum(albedo(&b)));
         for t in [0.1, 0.5, 0.8] {
-            let frame = lib.sweep_code(&a, &b, t).unwrap();
+            let frame = sweep.code(t).unwrap();
             let plain = a.lerp(&b, t).unwrap();
             assert_eq!((&frame.z, &frame.residual), (&plain.z, &plain.residual), "t = {t}");
             let per_angle = albedo(&frame);
