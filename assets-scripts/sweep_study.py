@@ -16,9 +16,12 @@ again (delete its directory to redo it).
 
 Usage:
     python3 assets-scripts/sweep_study.py --material scenes/materials/latent.bin \\
-        --tables data/merl-fitted --spp 1024 --out data/sweep-study/shipped
-Writes OUT/PAIR/ (frames, sweep.csv), OUT/frames.csv and OUT/summary.md.
-Needs numpy and OpenEXR (or Mitsuba 3) to read the frames.
+        --tables data/merl-fitted --spp 1024 --out data/sweep-study/shipped \\
+        [--sheet docs/images/editing-sweeps.png]
+Writes OUT/PAIR/ (frames, sweep.csv, contact-sheet.png), OUT/frames.csv and OUT/summary.md;
+with --sheet, the contact sheets of --sheet-pairs (neural row over table-blend row) stacked
+into one PNG (the image in docs/training.md, "Editing").
+Needs numpy and OpenEXR (or Mitsuba 3) to read the frames, Pillow for --sheet.
 """
 
 import argparse
@@ -34,6 +37,8 @@ from compare_cycles import read_exr  # noqa: E402
 from compare_preview_mitsuba import sphere_mask  # noqa: E402
 
 FRAMES = 5
+# The issue's three pairs: metal to held-out chrome, fabric to metal, plastic to paint.
+SHEET_PAIRS = ("alum-bronze:chrome", "blue-fabric:nickel", "red-plastic:gold-paint")
 SCENE = "scenes/material-preview/scene.gltf"
 
 
@@ -75,6 +80,8 @@ def main():
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--render", default="target/release/render")
     p.add_argument("--out", required=True)
+    p.add_argument("--sheet", help="PNG: the contact sheets of --sheet-pairs stacked")
+    p.add_argument("--sheet-pairs", default=",".join(SHEET_PAIRS), help="A:B,C:D,... for --sheet")
     args = p.parse_args()
     mask = sphere_mask(args.size, args.size)
     rows = []
@@ -124,6 +131,24 @@ def main():
     with open(os.path.join(args.out, "summary.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines[4:8]))
+    if args.sheet:
+        stack_sheets(args.out, [q for q in args.sheet_pairs.split(",") if q], args.sheet)
+
+
+def stack_sheets(out, pairs, path):
+    """The pairs' contact sheets (render --sweep's, neural over table) one above the other."""
+    from PIL import Image
+
+    sheets = [Image.open(os.path.join(out, q.replace(":", "--"), "contact-sheet.png")).convert("RGB")
+              for q in pairs]
+    width = max(s.width for s in sheets)
+    stacked = Image.new("RGB", (width, sum(s.height for s in sheets)), (24, 24, 24))
+    y = 0
+    for s in sheets:
+        stacked.paste(s, (0, y))
+        y += s.height
+    stacked.save(path, optimize=True)
+    print(f"{path}: {len(sheets)} contact sheets")
 
 
 if __name__ == "__main__":

@@ -733,7 +733,7 @@ pub fn to_markdown(reconstruction: &[Row], editing: &[Row], images: Option<&str>
     for model in &models {
         for (what, rows) in [("reconstruction", reconstruction), ("editing", editing)] {
             let rows = rows_of(rows, model);
-            if rows.is_empty() && what == "editing" && *model == NBRDF_MODEL {
+            if rows.is_empty() && what == "editing" {
                 continue;
             }
             let m = mean(&rows);

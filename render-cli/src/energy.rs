@@ -22,7 +22,7 @@
 //! Materials are looked up by name in `--nbrdf`'s `merl/`, `rgl-isotropic/` and `nielsen/`;
 //! those without a code in `--material` (e.g. RGL materials not encoded into it) get the
 //! encoder variants only. Writes `albedo.csv` (every albedo), `codes.csv`, `reciprocity.csv`
-//! and `summary.md` (the tables of docs/training.md's "Editing: where the energy goes").
+//! and `summary.md` (the figures of docs/training.md's "Editing: latent sweeps").
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;

@@ -170,18 +170,20 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         n => format!("{n} of the {} materials evaluated at the codes the latent file carries, the rest encoded.", names.len()),
     };
     let image_note = (!args.no_images).then(|| {
+        let editing = match settings.editing_images {
+            0 => String::new(),
+            n => format!(" Editing PSNR and SSIM: the first {n} pairs, against the blended table's render."),
+        };
         format!(
             "PSNR and SSIM: previews of {} ({width}x{height}, {} spp, seed {}, path depth {}) \
              against the tabulated table's, 8-bit clamp-tone-mapped values (SSIM window {}); \
-             images in {}. Editing PSNR and SSIM: the first {} pairs, against the \
-             blended table's render.",
+             images in {}.{editing}",
             args.scene.display(),
             args.spp,
             args.seed,
             eval::PREVIEW_MAX_DEPTH,
             renderer::metrics::SSIM_WINDOW,
             out.join("images").display(),
-            settings.editing_images
         )
     });
     let note = match image_note {
