@@ -158,7 +158,8 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         editing_images: if args.no_images { 0 } else { args.editing_images.min(args.pairs) },
     };
     std::fs::create_dir_all(&out).with_context(|| out.display().to_string())?;
-    let bar = progress_bar(2 * names.len() + args.pairs, "eval");
+    // A step per material encoded, per reconstruction and per editing pair.
+    let bar = progress_bar(2 * names.len() - stored + args.pairs, "eval");
     let result = eval::evaluate(&model, &data, &names, &settings, &mut |what| {
         bar.set_message(what.to_string());
         bar.inc(1);
