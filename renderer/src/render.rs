@@ -14,7 +14,7 @@ use crate::lanes::{Vec2s, LANES};
 use crate::render_scene::RenderScene;
 use crate::sampler::Sampler;
 use crate::Rgb;
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::ops::Range;
@@ -131,6 +131,32 @@ struct TileScratch<'s> {
     radiance: Vec<Rgb>,
     /// Per pixel of the tile, row by row: its random streams' [`Sampler::pixel_key`].
     keys: Vec<u64>,
+    /// The paths of a batch in the order they are traced ([`octant_order`]).
+    order: Vec<u32>,
+}
+
+/// Fills `order` with the indices of `directions` grouped by octant (bit 0: x < 0, bit 1:
+/// y < 0, bit 2: z < 0), a stable counting sort that keeps the batch's order within an
+/// octant. Rays traced in that order share packets with rays that visit a node's children
+/// in the same order, as a pixel block's camera rays do; after a scattering vertex, the rays
+/// of a block point every way. The order changes which rays share a packet, never a hit or
+/// a path's random stream.
+fn octant_order(directions: impl Iterator<Item = Vec3> + Clone, order: &mut Vec<u32>) {
+    let octant = |d: Vec3| usize::from(d.x < 0.0) | usize::from(d.y < 0.0) << 1 | usize::from(d.z < 0.0) << 2;
+    let mut start = [0u32; 9];
+    for d in directions.clone() {
+        start[octant(d) + 1] += 1;
+    }
+    for o in 0..8 {
+        start[o + 1] += start[o];
+    }
+    order.clear();
+    order.resize(start[8] as usize, 0);
+    for (i, d) in directions.enumerate() {
+        let o = octant(d);
+        order[start[o] as usize] = i as u32;
+        start[o] += 1;
+    }
 }
 
 /// The tiles of one pass, rendered but not yet added to the film.
@@ -287,6 +313,7 @@ impl<'a> Renderer<'a> {
             buffers,
             radiance,
             keys,
+            order,
         } = scratch;
         paths.clear();
         owners.clear();
@@ -333,6 +360,13 @@ impl<'a> Renderer<'a> {
         let mut depth = 0;
         while !active.is_empty() {
             counters.rays += active.len() as u64;
+            if depth > 0 {
+                // Camera rays come in pixel blocks already; later rays are grouped.
+                octant_order(active.iter().map(|&i| paths[i as usize].ray.direction), order);
+                std::mem::swap(active, &mut step.next);
+                active.clear();
+                active.extend(order.iter().map(|&k| step.next[k as usize]));
+            }
             rays.clear();
             rays.extend(active.iter().map(|&i| paths[i as usize].ray));
             scene.intersect_all(rays, hits, depth);
