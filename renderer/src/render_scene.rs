@@ -228,9 +228,9 @@ impl RenderScene {
 
     /// How batches of closest-hit and occlusion rays are traced (true: packets, false: one
     /// ray at a time, `None` before the first measurement): one at a time for scenes with
-    /// alpha-tested surfaces or instances, else as the BVH's policies chose.
+    /// instances, else as the BVH's policies chose.
     pub fn trace_modes(&self) -> [(Option<bool>, Option<bool>); DEPTH_CLASSES] {
-        if self.has_alpha || self.instances.is_some() {
+        if self.instances.is_some() {
             [(Some(false), Some(false)); DEPTH_CLASSES]
         } else {
             self.bvh.trace_modes()
@@ -241,9 +241,11 @@ impl RenderScene {
     /// batches of each depth choose their trace mode apart, see [`Bvh::intersect_all`]):
     /// `out[i]` for `rays[i]`.
     pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, depth: usize) {
-        if self.has_alpha || self.instances.is_some() {
+        if self.instances.is_some() {
             out.clear();
             out.extend(rays.iter().map(|r| self.intersect(r)));
+        } else if self.has_alpha {
+            self.bvh.intersect_all_filtered(rays, out, depth, |ray, hit| self.stops(ray, hit));
         } else {
             self.bvh.intersect_all(rays, out, depth);
         }
@@ -252,9 +254,11 @@ impl RenderScene {
     /// [`RenderScene::occluded`] of many rays from vertices at path depth `depth`: `out[i]`
     /// for `rays[i]`.
     pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>, depth: usize) {
-        if self.has_alpha || self.instances.is_some() {
+        if self.instances.is_some() {
             out.clear();
             out.extend(rays.iter().map(|r| self.occluded(r)));
+        } else if self.has_alpha {
+            self.bvh.occluded_all_filtered(rays, out, depth, |ray, hit| self.stops(ray, hit));
         } else {
             self.bvh.occluded_all(rays, out, depth);
         }

@@ -146,9 +146,6 @@ impl<T: Copy> Stack<T> {
     }
 }
 
-/// A packet query: answers for 1 to [`packet::width`] rays (AVX2 and FMA required).
-type PacketFn<T> = unsafe fn(&Bvh, &[Ray], &mut [T]);
-
 /// A closest hit found in traversal: distance, primitive slot, barycentrics.
 type SlotHit = (f32, u32, Vec2);
 
@@ -249,34 +246,43 @@ impl Bvh {
     /// (`packets`; see [`Bvh::packet_width`]) or one ray at a time: for benchmarks comparing
     /// the two.
     pub fn intersect_all_with(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, packets: bool) {
-        #[cfg(target_arch = "x86_64")]
-        let packet = packets.then_some(Self::closest_packet as PacketFn<Option<Hit>>);
-        #[cfg(not(target_arch = "x86_64"))]
-        let packet: Option<PacketFn<Option<Hit>>> = {
-            let _ = packets; // no packet kernels off x86-64
-            None
-        };
-        self.trace_all(rays, out, packet, |r| self.intersect(r));
+        // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
+        self.trace_all(rays, out, packets, |r, o| unsafe { self.closest_packet(r, o, &packet::EveryHit) }, |r| self.intersect(r));
     }
 
-    /// Fills `out[i]` with the answer for `rays[i]`: through `packet` in packets of
-    /// [`packet::width`] where given and the CPU has a packet kernel, else through `single`
-    /// one ray at a time.
+    /// [`Bvh::intersect_filtered`] of many rays at path depth `depth`, `accept(ray, hit)`
+    /// deciding which hits stop a ray: traced in packets or one by one as the closest-hit
+    /// [`TracePolicy`] of the depth's class has found faster.
+    pub fn intersect_all_filtered(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, depth: usize, accept: impl Fn(&Ray, &Hit) -> bool) {
+        let hit = |slot: u32, t: f32, barycentric: Vec2| Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE };
+        self.closest_policies[depth_class(depth)].trace(rays.len(), |packets| {
+            let packet = |r: &[Ray], o: &mut [_]| {
+                let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &hit(slot, t, b)));
+                // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
+                unsafe { self.closest_packet(r, o, &filter) }
+            };
+            self.trace_all(rays, out, packets, packet, |r| self.intersect_filtered(r, |h| accept(r, h)))
+        });
+    }
+
+    /// Fills `out[i]` with the answer for `rays[i]`: through `packet(rays, out)` in packets of
+    /// [`packet::width`] where `packets` is asked for and the CPU has a packet kernel (AVX2
+    /// and FMA, which `packet` may take as given), else through `single` one ray at a time.
+    /// `rays` are given to `packet` in chunks of 1 to [`packet::width`].
     #[inline]
-    fn trace_all<T: Clone + Default>(&self, rays: &[Ray], out: &mut Vec<T>, packet: Option<PacketFn<T>>, single: impl Fn(&Ray) -> T) {
+    fn trace_all<T: Clone + Default>(&self, rays: &[Ray], out: &mut Vec<T>, packets: bool, mut packet: impl FnMut(&[Ray], &mut [T]), single: impl Fn(&Ray) -> T) {
         out.clear();
         out.resize(rays.len(), T::default());
         #[cfg(target_arch = "x86_64")]
-        if let Some(packet) = packet.filter(|_| !self.is_empty() && packets_available()) {
+        if packets && !self.is_empty() && packets_available() {
             let width = packet::width();
             for (r, o) in rays.chunks(width).zip(out.chunks_mut(width)) {
-                // SAFETY: AVX2 and FMA are present; chunks hold 1 to `width` rays.
-                unsafe { packet(self, r, o) };
+                packet(r, o);
             }
             return;
         }
         #[cfg(not(target_arch = "x86_64"))]
-        let _ = packet;
+        let _ = (packets, &mut packet); // no packet kernels off x86-64
         for (r, o) in rays.iter().zip(out.iter_mut()) {
             *o = single(r);
         }
@@ -298,14 +304,23 @@ impl Bvh {
     /// As [`Bvh::occluded_all`], in packets whenever the CPU has a packet kernel (`packets`)
     /// or one ray at a time.
     pub fn occluded_all_with(&self, rays: &[Ray], out: &mut Vec<bool>, packets: bool) {
-        #[cfg(target_arch = "x86_64")]
-        let packet = packets.then_some(Self::occluded_packet as PacketFn<bool>);
-        #[cfg(not(target_arch = "x86_64"))]
-        let packet: Option<PacketFn<bool>> = {
-            let _ = packets; // no packet kernels off x86-64
-            None
-        };
-        self.trace_all(rays, out, packet, |r| self.occluded(r));
+        // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
+        self.trace_all(rays, out, packets, |r, o| unsafe { self.occluded_packet(r, o, &packet::EveryHit) }, |r| self.occluded(r));
+    }
+
+    /// [`Bvh::occluded_filtered`] of many rays at path depth `depth`, `accept(ray, hit)`
+    /// deciding which hits block a ray, traced as the occlusion [`TracePolicy`] of the
+    /// depth's class has found faster.
+    pub fn occluded_all_filtered(&self, rays: &[Ray], out: &mut Vec<bool>, depth: usize, accept: impl Fn(&Ray, &Hit) -> bool) {
+        let hit = |slot: u32, t: f32, barycentric: Vec2| Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE };
+        self.occluded_policies[depth_class(depth)].trace(rays.len(), |packets| {
+            let packet = |r: &[Ray], o: &mut [_]| {
+                let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &hit(slot, t, b)));
+                // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
+                unsafe { self.occluded_packet(r, o, &filter) }
+            };
+            self.trace_all(rays, out, packets, packet, |r| self.occluded_filtered(r, |h| accept(r, h)))
+        });
     }
 
     /// Rays per packet of [`Bvh::intersect_all`] and [`Bvh::occluded_all`] on this CPU:
@@ -352,7 +367,7 @@ impl Bvh {
         #[cfg(target_arch = "x86_64")]
         let found = if has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 and FMA.
-            unsafe { self.closest_filtered_avx2(&bvh_ray, &accept_slot) }
+            unsafe { self.closest_filtered_below_avx2(0, &bvh_ray, &accept_slot) }
         } else {
             self.closest_filtered_portable(&bvh_ray, &accept_slot)
         };
@@ -368,16 +383,30 @@ impl Bvh {
             return false;
         }
         let bvh_ray = to_bvh_ray(ray);
-        let (origin, direction) = (bvh_ray.origin, bvh_ray.direction);
+        let accept_slot = |slot: u32, t: f32, barycentric: Vec2| accept(&Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE });
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2_fma() {
+            // SAFETY: the CPU supports AVX2 and FMA.
+            return unsafe { self.any_filtered_below_avx2(0, &bvh_ray, &accept_slot) };
+        }
         let oct = node::octant_inv4(bvh_ray.direction);
+        self.any_filtered_with(0, &bvh_ray, |n, t_max| node::intersect_portable(n, &bvh_ray, oct, t_max), &accept_slot)
+    }
+
+    /// Whether a hit that `accept` takes blocks the ray below node `root`, with the given node
+    /// kernel (triangles one at a time: each hit is asked about).
+    #[inline(always)]
+    fn any_filtered_with(&self, root: u32, ray: &BvhRay, intersect_node: impl FnMut(&CwBvhNode, f32) -> u32, accept: &impl Fn(u32, f32, Vec2) -> bool) -> bool {
         let mut hit = false;
-        self.traverse(0, oct, bvh_ray.tmax, |n, t_max| node::intersect_portable(n, &bvh_ray, oct, t_max), |index, lanes, _| {
+        self.traverse(root, node::octant_inv4(ray.direction), ray.tmax, intersect_node, |index, lanes, _| {
             let slot_base = self.bvh.nodes[index].primitive_base_idx;
-            for k in (0..24).filter(|k| lanes & (1 << k) != 0) {
-                let slot = slot_base + k;
+            let mut rest = lanes;
+            while rest != 0 {
+                let slot = slot_base + rest.trailing_zeros();
+                rest &= rest - 1;
                 let (pack, lane) = pack_and_lane(slot);
-                if let Some((t, barycentric)) = self.packs[pack].lane_hit(lane, origin, direction, bvh_ray.tmax) {
-                    if accept(&Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE }) {
+                if let Some((t, barycentric)) = self.packs[pack].lane_hit(lane, ray.origin, ray.direction, ray.tmax) {
+                    if accept(slot, t, barycentric) {
                         hit = true;
                         return true;
                     }
@@ -386,6 +415,18 @@ impl Bvh {
             false
         });
         hit
+    }
+
+    /// [`Bvh::occluded_filtered`] below node `root` with AVX2 and FMA.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn any_filtered_below_avx2(&self, root: u32, ray: &BvhRay, accept: &impl Fn(u32, f32, Vec2) -> bool) -> bool {
+        let oct = node::octant_inv4(ray.direction);
+        // SAFETY: this function runs only where AVX2 and FMA exist.
+        self.any_filtered_with(root, ray, |n, t_max| unsafe { node::intersect_avx2(n, ray, oct, t_max) }, accept)
     }
 
     /// Closest accepted hit with the given node and pack kernels: each pack's closest hit
@@ -442,12 +483,16 @@ impl Bvh {
         )
     }
 
+    /// [`Bvh::intersect_filtered`] below node `root` with AVX2 and FMA.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn closest_filtered_avx2(&self, ray: &BvhRay, accept: &impl Fn(u32, f32, Vec2) -> bool) -> Option<SlotHit> {
+    unsafe fn closest_filtered_below_avx2(&self, root: u32, ray: &BvhRay, accept: &impl Fn(u32, f32, Vec2) -> bool) -> Option<SlotHit> {
         let oct = node::octant_inv4(ray.direction);
         self.closest_filtered_with(
-            0,
+            root,
             ray,
             // SAFETY (both kernels): this function runs only where AVX2 and FMA exist.
             |n, t_max| unsafe { node::intersect_avx2(n, ray, oct, t_max) },
@@ -848,7 +893,7 @@ mod tests {
 
     /// A packet kernel under test: name, rays per packet, closest hits, occlusion.
     #[cfg(target_arch = "x86_64")]
-    type Kernel = (&'static str, usize, PacketFn<Option<Hit>>, PacketFn<bool>);
+    type Kernel = (&'static str, usize, unsafe fn(&Bvh, &[Ray], &mut [Option<Hit>]), unsafe fn(&Bvh, &[Ray], &mut [bool]));
 
     /// The packet kernels this CPU runs: the 8-ray AVX2 kernel, the 16-ray AVX-512 one
     /// where the CPU has AVX-512F, and the entry points that choose between them.
@@ -858,11 +903,13 @@ mod tests {
         if !packets_available() {
             return kernels;
         }
-        kernels.push(("8 rays, AVX2", 8, Bvh::closest_packet8, Bvh::occluded_packet8));
+        // SAFETY (each): the caller guarantees what the kernel needs, as the `Kernel` type's
+        // `unsafe fn` says.
+        kernels.push(("8 rays, AVX2", 8, |b, r, o| unsafe { b.closest_packet8(r, o, &packet::EveryHit) }, |b, r, o| unsafe { b.occluded_packet8(r, o, &packet::EveryHit) }));
         if crate::support::cpu::has_avx512f() {
-            kernels.push(("16 rays, AVX-512", 16, Bvh::closest_packet16, Bvh::occluded_packet16));
+            kernels.push(("16 rays, AVX-512", 16, |b, r, o| unsafe { b.closest_packet16(r, o, &packet::EveryHit) }, |b, r, o| unsafe { b.occluded_packet16(r, o, &packet::EveryHit) }));
         }
-        kernels.push(("chosen for this CPU", packet::width(), Bvh::closest_packet, Bvh::occluded_packet));
+        kernels.push(("chosen for this CPU", packet::width(), |b, r, o| unsafe { b.closest_packet(r, o, &packet::EveryHit) }, |b, r, o| unsafe { b.occluded_packet(r, o, &packet::EveryHit) }));
         kernels
     }
 
@@ -925,6 +972,71 @@ mod tests {
                 let context = format!("{kernel}, {scene}, coherent: {coherent}");
                 assert!(hits * 10 > rays_traced, "the rays hit something: {hits} of {rays_traced}, {context}");
                 assert!(blocked_rays < rays_traced, "and some are not blocked: {context}");
+            }
+        }
+    }
+
+    /// Whether `hit` stops `ray` in the filtered tests: passes through about a third of the
+    /// hits, by the ray and the triangle (as a partly covering surface does).
+    fn passes_through(ray: &Ray, hit: &Hit) -> bool {
+        (ray.origin.x.to_bits() ^ hit.triangle.wrapping_mul(0x9e37_79b9)).count_ones().is_multiple_of(3)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn filtered_packets_find_the_single_ray_accepted_hits_bit_for_bit() {
+        if !packets_available() {
+            return;
+        }
+        let bvh = Bvh::build(random_soup(3, 2000, 2.0).into_iter());
+        let bits = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.triangle, h.barycentric.x.to_bits(), h.barycentric.y.to_bits()));
+        let widths = if crate::support::cpu::has_avx512f() { vec![8, 16] } else { vec![8] };
+        for width in widths {
+            let mut s = crate::sampler::Sampler::new(6, 1, 2);
+            let (mut rays_traced, mut changed, mut hits) = (0, 0, 0);
+            for chunk in 0..200 {
+                let n = if chunk % 5 == 0 { 1 + chunk % width } else { width };
+                let rays = packet_rays(&mut s, n, 24.0, chunk % 2 == 0);
+                let filter = packet::Accepted(|i: usize, slot, t, barycentric| !passes_through(&rays[i], &Hit { t, triangle: bvh.scene_triangle(slot), barycentric, instance: NO_INSTANCE }));
+                let (mut closest, mut blocked) = (vec![None; n], vec![false; n]);
+                // SAFETY: AVX2 and FMA are present (and AVX-512F where width is 16); 1 to
+                // `width` rays.
+                unsafe {
+                    if width == 16 {
+                        bvh.closest_packet16(&rays, &mut closest, &filter);
+                        bvh.occluded_packet16(&rays, &mut blocked, &filter);
+                    } else {
+                        bvh.closest_packet8(&rays, &mut closest, &filter);
+                        bvh.occluded_packet8(&rays, &mut blocked, &filter);
+                    }
+                }
+                for (i, ray) in rays.iter().enumerate() {
+                    let single = bvh.intersect_filtered(ray, |h| !passes_through(ray, h));
+                    assert_eq!(bits(closest[i]), bits(single), "{width} rays, chunk {chunk}, ray {i}");
+                    assert_eq!(blocked[i], bvh.occluded_filtered(ray, |h| !passes_through(ray, h)), "{width} rays, chunk {chunk}, ray {i}");
+                    changed += (bits(single) != bits(bvh.intersect(ray))) as u32;
+                    hits += single.is_some() as u32;
+                }
+                rays_traced += n as u32;
+            }
+            assert!(changed * 20 > rays_traced && hits * 10 > rays_traced, "the filter decides some hits: {changed} changed, {hits} hits of {rays_traced}");
+        }
+    }
+
+    #[test]
+    fn filtered_batches_match_single_rays() {
+        // The policy traces its first batches both ways (the later of the two answers is
+        // kept, alternating): packets' answers are checked in about half of them.
+        let bvh = Bvh::build(random_soup(5, 1500, 2.0).into_iter());
+        let mut s = crate::sampler::Sampler::new(3, 7, 1);
+        let (mut hits, mut blocked) = (Vec::new(), Vec::new());
+        for (batch, n) in [1, 7, 9, 17, 203, 64, 33, 100].into_iter().enumerate() {
+            let rays = packet_rays(&mut s, n, 24.0, batch % 2 == 1);
+            bvh.intersect_all_filtered(&rays, &mut hits, 1, |r, h| !passes_through(r, h));
+            bvh.occluded_all_filtered(&rays, &mut blocked, 1, |r, h| !passes_through(r, h));
+            for (i, ray) in rays.iter().enumerate() {
+                assert_eq!(hits[i], bvh.intersect_filtered(ray, |h| !passes_through(ray, h)), "batch of {n}, ray {i}");
+                assert_eq!(blocked[i], bvh.occluded_filtered(ray, |h| !passes_through(ray, h)), "batch of {n}, ray {i}");
             }
         }
     }

@@ -14,7 +14,7 @@
 
 use super::node::ChildBoxes;
 use super::{to_bvh_ray, Bvh, Hit, Ray, Stack, LANES};
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 use crate::support::cpu::has_avx512f;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::Ray as BvhRay;
@@ -483,6 +483,60 @@ fn triangle_hits<S: Simd>(s: S, bvh: &Bvh, triangle: LeafTriangle, rays: &Rays<S
 /// rays from inside the scenes but about 40% slower on rays scattered from surfaces.
 const SINGLE_BELOW: u32 = 2;
 
+/// Which hits stop a packet's rays (surfaces rays pass through: alpha cut-outs).
+pub(super) trait HitFilter {
+    /// Whether every hit stops its ray, so that no hit is asked about.
+    const EVERY_HIT: bool = false;
+
+    /// Whether the hit of the packet's ray `ray` (its index in the packet's rays) on obvhs
+    /// primitive slot `slot` at distance `t` with barycentrics `barycentric` stops it: a pure
+    /// function of these.
+    fn accept(&self, ray: usize, slot: u32, t: f32, barycentric: Vec2) -> bool;
+}
+
+/// Every hit stops its ray.
+pub(super) struct EveryHit;
+
+impl HitFilter for EveryHit {
+    const EVERY_HIT: bool = true;
+
+    #[inline(always)]
+    fn accept(&self, _ray: usize, _slot: u32, _t: f32, _barycentric: Vec2) -> bool {
+        true
+    }
+}
+
+/// The hits `.0(ray, slot, t, barycentric)` accepts stop their rays.
+pub(super) struct Accepted<F>(pub F);
+
+impl<F: Fn(usize, u32, f32, Vec2) -> bool> HitFilter for Accepted<F> {
+    #[inline(always)]
+    fn accept(&self, ray: usize, slot: u32, t: f32, barycentric: Vec2) -> bool {
+        (self.0)(ray, slot, t, barycentric)
+    }
+}
+
+/// The lanes of `hits` whose hit (`t`, `b1`, `b2` per lane, on slot `slot`) `filter` accepts.
+#[inline(always)]
+fn accepted<S: Simd, H: HitFilter>(s: S, filter: &H, hits: u32, slot: u32, t: S::F, b1: S::F, b2: S::F) -> u32 {
+    if H::EVERY_HIT || hits == 0 {
+        return hits;
+    }
+    let [mut ts, mut b1s, mut b2s] = [[0.0f32; MAX_WIDTH]; 3];
+    s.store(t, &mut ts);
+    s.store(b1, &mut b1s);
+    s.store(b2, &mut b2s);
+    let (mut kept, mut rest) = (hits, hits);
+    while rest != 0 {
+        let lane = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        if !filter.accept(lane, slot, ts[lane], Vec2::new(b1s[lane], b2s[lane])) {
+            kept &= !(1 << lane);
+        }
+    }
+    kept
+}
+
 /// A leaf triangle: lane `lane` of pack `pack`, obvhs primitive slot `slot`.
 #[derive(Clone, Copy)]
 struct LeafTriangle {
@@ -628,16 +682,19 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
     }
 }
 
-/// Closest hits: the per-lane best so far, and the packet's rays (for single-ray subtrees).
-struct ClosestQuery<'r, S: Simd> {
+/// Closest accepted hits: the per-lane best so far, the packet's rays (for single-ray
+/// subtrees) and the filter.
+struct ClosestQuery<'r, S: Simd, H> {
     best: Closest<S>,
     rays: &'r [Ray],
+    filter: &'r H,
 }
 
-impl<S: Simd> PacketQuery<S> for ClosestQuery<'_, S> {
+impl<S: Simd, H: HitFilter> PacketQuery<S> for ClosestQuery<'_, S, H> {
     #[inline(always)]
     fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32 {
         let (t, b1, b2, hit) = triangle_hits(s, bvh, triangle, rays, *t_max, lanes);
+        let hit = accepted(s, self.filter, hit, triangle.slot, t, b1, b2);
         if hit != 0 {
             self.best.take(s, hit, t, b1, b2, triangle.slot);
             *t_max = self.best.t;
@@ -650,8 +707,13 @@ impl<S: Simd> PacketQuery<S> for ClosestQuery<'_, S> {
         let mut bounds = [0.0f32; MAX_WIDTH];
         s.store(*t_max, &mut bounds);
         let ray = BvhRay { tmax: bounds[lane], ..single(self.rays, lane) };
-        // SAFETY: the token `s` exists only where AVX2 and FMA exist (see `Simd`).
-        if let Some((t, slot, b)) = unsafe { bvh.closest_below_avx2(node, &ray) } {
+        // SAFETY (both): the token `s` exists only where AVX2 and FMA exist (see `Simd`).
+        let found = if H::EVERY_HIT {
+            unsafe { bvh.closest_below_avx2(node, &ray) }
+        } else {
+            unsafe { bvh.closest_filtered_below_avx2(node, &ray, &|slot, t, b| self.filter.accept(lane, slot, t, b)) }
+        };
+        if let Some((t, slot, b)) = found {
             self.best.take(s, 1 << lane, s.splat(t), s.splat(b.x), s.splat(b.y), slot);
             *t_max = self.best.t;
         }
@@ -671,24 +733,32 @@ impl<S: Simd> Closest<S> {
     }
 }
 
-/// Occlusion: the lanes found blocked, and the packet's rays (for single-ray subtrees).
-struct OcclusionQuery<'r> {
+/// Occlusion: the lanes found blocked, the packet's rays (for single-ray subtrees) and the
+/// filter.
+struct OcclusionQuery<'r, H> {
     blocked: u32,
     rays: &'r [Ray],
+    filter: &'r H,
 }
 
-impl<S: Simd> PacketQuery<S> for OcclusionQuery<'_> {
+impl<S: Simd, H: HitFilter> PacketQuery<S> for OcclusionQuery<'_, H> {
     #[inline(always)]
     fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32 {
-        let hit = triangle_hits(s, bvh, triangle, rays, *t_max, lanes).3;
+        let (t, b1, b2, hit) = triangle_hits(s, bvh, triangle, rays, *t_max, lanes);
+        let hit = accepted(s, self.filter, hit, triangle.slot, t, b1, b2);
         self.blocked |= hit;
         lanes & !hit
     }
 
     #[inline(always)]
     fn single(&mut self, _s: S, bvh: &Bvh, node: u32, lane: usize, _t_max: &mut S::F) -> bool {
-        // SAFETY: the token `_s` exists only where AVX2 and FMA exist (see `Simd`).
-        let hit = unsafe { bvh.any_below_avx2(node, &single(self.rays, lane)) };
+        let ray = single(self.rays, lane);
+        // SAFETY (both): the token `_s` exists only where AVX2 and FMA exist (see `Simd`).
+        let hit = if H::EVERY_HIT {
+            unsafe { bvh.any_below_avx2(node, &ray) }
+        } else {
+            unsafe { bvh.any_filtered_below_avx2(node, &ray, &|slot, t, b| self.filter.accept(lane, slot, t, b)) }
+        };
         self.blocked |= (hit as u32) << lane;
         hit
     }
@@ -703,7 +773,7 @@ fn lanes<S: Simd>(n: usize) -> u32 {
 
 /// [`Bvh::closest_packet`] with the kernel of token `s`.
 #[inline(always)]
-fn closest<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Option<Hit>]) {
+fn closest<S: Simd, H: HitFilter>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Option<Hit>], filter: &H) {
     let active = lanes::<S>(rays.len());
     let (r, mut t_max) = load(s, rays);
     let mut query = ClosestQuery {
@@ -714,6 +784,7 @@ fn closest<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Option<Hit>]) {
             b2: s.splat(0.0),
         },
         rays,
+        filter,
     };
     walk(s, bvh, &r, active, &mut t_max, &mut query);
     let best = query.best;
@@ -735,10 +806,10 @@ fn closest<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Option<Hit>]) {
 
 /// [`Bvh::occluded_packet`] with the kernel of token `s`.
 #[inline(always)]
-fn occluded<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [bool]) {
+fn occluded<S: Simd, H: HitFilter>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [bool], filter: &H) {
     let active = lanes::<S>(rays.len());
     let (r, mut t_max) = load(s, rays);
-    let mut query = OcclusionQuery { blocked: 0, rays };
+    let mut query = OcclusionQuery { blocked: 0, rays, filter };
     walk(s, bvh, &r, active, &mut t_max, &mut query);
     for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
         *o = query.blocked & (1 << i) != 0;
@@ -746,38 +817,40 @@ fn occluded<S: Simd>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [bool]) {
 }
 
 impl Bvh {
-    /// Closest hits of up to [`width`] rays traced as one packet, with the 16-ray kernel where
-    /// the CPU has AVX-512F, else the 8-ray one; `out[i]` as [`Bvh::intersect`] of `rays[i]`.
+    /// Closest hits that `filter` accepts of up to [`width`] rays traced as one packet, with
+    /// the 16-ray kernel where the CPU has AVX-512F, else the 8-ray one; `out[i]` as
+    /// [`Bvh::intersect`] of `rays[i]` (with [`EveryHit`]) or [`Bvh::intersect_filtered`].
     ///
     /// `rays` must hold 1 to [`width`] rays (else this panics), `out` as many entries.
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA.
-    pub(super) unsafe fn closest_packet(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+    pub(super) unsafe fn closest_packet<H: HitFilter>(&self, rays: &[Ray], out: &mut [Option<Hit>], filter: &H) {
         // SAFETY: the caller guarantees AVX2 and FMA; AVX-512F is checked.
         unsafe {
             if has_avx512f() {
-                self.closest_packet16(rays, out)
+                self.closest_packet16(rays, out, filter)
             } else {
-                self.closest_packet8(rays, out)
+                self.closest_packet8(rays, out, filter)
             }
         }
     }
 
-    /// Occlusion of up to [`width`] rays traced as one packet, as [`Bvh::closest_packet`]
-    /// chooses the kernel; `out[i]` as [`Bvh::occluded`] of `rays[i]`.
+    /// Occlusion by hits that `filter` accepts of up to [`width`] rays traced as one packet,
+    /// as [`Bvh::closest_packet`] chooses the kernel; `out[i]` as [`Bvh::occluded`] of
+    /// `rays[i]` (with [`EveryHit`]) or [`Bvh::occluded_filtered`].
     ///
     /// `rays` must hold 1 to [`width`] rays (else this panics), `out` as many entries.
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA.
-    pub(super) unsafe fn occluded_packet(&self, rays: &[Ray], out: &mut [bool]) {
+    pub(super) unsafe fn occluded_packet<H: HitFilter>(&self, rays: &[Ray], out: &mut [bool], filter: &H) {
         // SAFETY: the caller guarantees AVX2 and FMA; AVX-512F is checked.
         unsafe {
             if has_avx512f() {
-                self.occluded_packet16(rays, out)
+                self.occluded_packet16(rays, out, filter)
             } else {
-                self.occluded_packet8(rays, out)
+                self.occluded_packet8(rays, out, filter)
             }
         }
     }
@@ -787,9 +860,9 @@ impl Bvh {
     /// # Safety
     /// The CPU must support AVX-512F, AVX2 and FMA.
     #[target_feature(enable = "avx512f,avx2,fma")]
-    pub(super) unsafe fn closest_packet16(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+    pub(super) unsafe fn closest_packet16<H: HitFilter>(&self, rays: &[Ray], out: &mut [Option<Hit>], filter: &H) {
         // SAFETY: this function runs only where AVX-512F, AVX2 and FMA exist.
-        closest(unsafe { Avx512::new() }, self, rays, out)
+        closest(unsafe { Avx512::new() }, self, rays, out, filter)
     }
 
     /// [`Bvh::occluded_packet`] of 1 to 16 rays with AVX-512F.
@@ -797,9 +870,9 @@ impl Bvh {
     /// # Safety
     /// The CPU must support AVX-512F, AVX2 and FMA.
     #[target_feature(enable = "avx512f,avx2,fma")]
-    pub(super) unsafe fn occluded_packet16(&self, rays: &[Ray], out: &mut [bool]) {
+    pub(super) unsafe fn occluded_packet16<H: HitFilter>(&self, rays: &[Ray], out: &mut [bool], filter: &H) {
         // SAFETY: this function runs only where AVX-512F, AVX2 and FMA exist.
-        occluded(unsafe { Avx512::new() }, self, rays, out)
+        occluded(unsafe { Avx512::new() }, self, rays, out, filter)
     }
 
     /// [`Bvh::closest_packet`] of 1 to 8 rays with AVX2 and FMA.
@@ -807,9 +880,9 @@ impl Bvh {
     /// # Safety
     /// The CPU must support AVX2 and FMA.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn closest_packet8(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+    pub(super) unsafe fn closest_packet8<H: HitFilter>(&self, rays: &[Ray], out: &mut [Option<Hit>], filter: &H) {
         // SAFETY: this function runs only where AVX2 and FMA exist.
-        closest(unsafe { Avx2::new() }, self, rays, out)
+        closest(unsafe { Avx2::new() }, self, rays, out, filter)
     }
 
     /// [`Bvh::occluded_packet`] of 1 to 8 rays with AVX2 and FMA.
@@ -817,9 +890,9 @@ impl Bvh {
     /// # Safety
     /// The CPU must support AVX2 and FMA.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn occluded_packet8(&self, rays: &[Ray], out: &mut [bool]) {
+    pub(super) unsafe fn occluded_packet8<H: HitFilter>(&self, rays: &[Ray], out: &mut [bool], filter: &H) {
         // SAFETY: this function runs only where AVX2 and FMA exist.
-        occluded(unsafe { Avx2::new() }, self, rays, out)
+        occluded(unsafe { Avx2::new() }, self, rays, out, filter)
     }
 }
 
