@@ -11,7 +11,7 @@ use crate::frame::Frame;
 use crate::lanes::{Mask, MaskOps, Real, Vec2s, Vec3s, V2, V3};
 use crate::neural::latent_library::LatentLibrary;
 use crate::lights::environment::Environment;
-use crate::lights::area::{EmissionTexture, Emitter};
+use crate::lights::area::{EmissionCoat, EmissionTexture, Emitter};
 use crate::lights::LightSet;
 use crate::material::SceneMaterials;
 use crate::sampler::hash_float;
@@ -145,15 +145,16 @@ impl RenderScene {
         let emissive = (0..world_triangles).filter_map(|i| {
             let material = geometry.material_ids[i];
             let radiance = materials.emission(material);
-            let texture = materials.materials()[material as usize].emissive_texture.map(|texture| EmissionTexture {
-                texture,
-                uvs: geometry.triangles[i].map(|v| vertex_uv(&geometry, v, texture.tex_coord)),
-            });
-            (radiance.max_element() > 0.0).then(|| Emitter {
-                triangle: i as u32,
-                corners: geometry.triangle_positions(i),
-                radiance,
-                texture,
+            (radiance.max_element() > 0.0).then(|| {
+                let m = &materials.materials()[material as usize];
+                let uvs = |tex_coord: Option<u32>| geometry.triangles[i].map(|v| tex_coord.map_or(Vec2::ZERO, |set| vertex_uv(&geometry, v, set)));
+                Emitter {
+                    triangle: i as u32,
+                    corners: geometry.triangle_positions(i),
+                    radiance,
+                    texture: m.emissive_texture.map(|texture| EmissionTexture { texture, uvs: uvs(Some(texture.tex_coord)) }),
+                    coat: m.clearcoat.map(|coat| Box::new(EmissionCoat { coat, uvs: uvs(coat.texture.map(|t| t.tex_coord)) })),
+                }
             })
         });
         let lights = LightSet::new(
@@ -430,11 +431,13 @@ impl RenderScene {
         self.materials.bsdf(sp.material, sp.front_face, |set| self.uv(sp, set), sp.coat_normal)
     }
 
-    /// Radiance emitted at a surface point toward the ray that hit it (front side only).
+    /// Radiance emitted at a surface point toward `wo` (world, unit: back along the ray that
+    /// hit it), front side only; under a clear coat darkened by it
+    /// ([`SceneMaterials::emission_toward`]).
     #[inline]
-    pub fn emission(&self, sp: &SurfacePoint) -> Rgb {
+    pub fn emission(&self, sp: &SurfacePoint, wo: Vec3) -> Rgb {
         if sp.front_face {
-            self.materials.emission_at(sp.material, |set| self.uv(sp, set))
+            self.materials.emission_toward(sp.material, |set| self.uv(sp, set), sp.ng.dot(wo))
         } else {
             Rgb::ZERO
         }
@@ -723,7 +726,7 @@ mod tests {
         let scene = RenderScene::new(quads(&[0.0], vec![lamp], vec![red_blue])).unwrap();
         let at = |x: f32| {
             let hit = scene.intersect(&down_at(x)).unwrap();
-            scene.emission(&scene.surface_point(&hit, Vec3::NEG_Z).unwrap())
+            scene.emission(&scene.surface_point(&hit, Vec3::NEG_Z).unwrap(), Vec3::Z)
         };
         assert_eq!(at(0.25), Rgb::new(2.0, 0.0, 0.0));
         assert_eq!(at(0.75), Rgb::new(0.0, 0.0, 2.0));

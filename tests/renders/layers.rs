@@ -79,3 +79,51 @@ fn a_coat_over_glass_gains_nothing() {
         assert_eq!(discarded, 0, "{strategy:?}");
     }
 }
+
+/// Emission under a clear coat (the Cornell box's ceiling light coated): darkened by the
+/// coat's reflectance, 1 − c F_c(μ) (0.96 head-on for a full coat, less toward grazing, as
+/// the specification stacks the coat over emission), and the same darkening seen by light
+/// sampling as by paths that hit the light: the three estimators agree.
+#[test]
+fn emission_under_a_coat_is_darkened_alike_for_every_estimator() {
+    use neural_brdf_tests::image_mean_z;
+    use renderer::accel::Ray;
+    use renderer::scene::SceneDescription;
+    let load = |coated: bool| {
+        let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let mut description = SceneDescription::load(&root.join("scenes/cornell-box/scene.gltf")).expect("scene");
+        let light = description.materials.iter_mut().find(|m| m.name == "light").expect("the light's material");
+        if coated {
+            light.clearcoat = Some(coat(0.2));
+        }
+        RenderScene::new(description).expect("scene")
+    };
+    let (plain, coated) = (load(false), load(true));
+    // Rays into the centre of the ceiling light (y = 0.99, facing down), head-on and at 80°
+    // from its normal.
+    let seen = |scene: &RenderScene, direction: Vec3| {
+        let ray = Ray::new(Vec3::new(0.0, 0.99, 0.01) - direction * 0.5, direction);
+        let hit = scene.intersect(&ray).expect("the ray reaches the light");
+        let sp = scene.surface_point(&hit, ray.direction).expect("a surface point");
+        scene.emission(&sp, -direction)
+    };
+    let grazing = 80f32.to_radians();
+    for (direction, expected) in [(Vec3::Y, 0.96), (Vec3::new(grazing.sin(), grazing.cos(), 0.0), 1.0 - (0.04 + 0.96 * (1.0 - grazing.cos()).powi(5)))] {
+        let (a, b) = (seen(&plain, direction), seen(&coated, direction));
+        assert!(a.max_element() > 0.0, "{direction}: the ray sees the light");
+        let ratio = b / a;
+        assert!((ratio - Rgb::splat(expected)).abs().max_element() < 1e-5, "{direction}: {ratio} against {expected}");
+    }
+    // The floor and the boxes, the light out of view: lit through the coat over the light's
+    // hemisphere, mostly from above (1 − F_c is 0.96 head-on).
+    let camera = look_at(Vec3::new(0.0, -0.2, 2.5), Vec3::new(0.0, -0.8, 0.0), 30.0);
+    let estimate = |scene: &RenderScene, strategy, seed| render(scene, &camera, 32, 32, 128, PathTracer { max_depth: 4, strategy, ..PathTracer::default() }, seed);
+    let mis = estimate(&coated, Strategy::Mis, 1);
+    let darker = mean_rgb(&mis.mean) / mean_rgb(&estimate(&plain, Strategy::Mis, 1).mean);
+    assert!(darker.max_element() < 0.97 && darker.min_element() > 0.9, "the coated light lights the box less: {darker}");
+    for (strategy, seed) in [(Strategy::BsdfOnly, 2), (Strategy::LightOnly, 3)] {
+        let other = estimate(&coated, strategy, seed);
+        let z = image_mean_z(&mis, &other);
+        assert!(z < 4.5, "{strategy:?}: {} against MIS {}, z = {z}", mean_rgb(&other.mean), mean_rgb(&mis.mean));
+    }
+}

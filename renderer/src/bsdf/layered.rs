@@ -40,6 +40,22 @@ use glam::{Vec2, Vec3};
 /// The clear coat's normal-incidence reflectance (index of refraction 1.5).
 const COAT_F0: f32 = 0.04;
 
+/// F_c(μ) = 0.04 + 0.96 (1 − μ)⁵ for μ = |cos| ≤ 1 to the coat's normal.
+#[inline]
+fn coat_fresnel(mu: f32) -> f32 {
+    COAT_F0 + (1.0 - COAT_F0) * (1.0 - mu).powi(5)
+}
+
+/// 1 − c F_c(μ): the part of what a surface emits under a clear coat of weight `weight`
+/// (clamped to [0, 1]) that leaves through it in a direction at cosine `cos` to the coat's
+/// normal. The specification puts the coat over emission, which it darkens by the coat's
+/// reflectance ([`Coat::reflectance`]).
+#[inline]
+pub fn coat_transmittance(weight: f32, cos: f32) -> f32 {
+    let weight = if weight.is_nan() { 0.0 } else { weight.clamp(0.0, 1.0) };
+    1.0 - weight * coat_fresnel(cos.abs().min(1.0))
+}
+
 /// The clear coat of [`Layered`]: a GGX reflection of a weight c in [0, 1] about its own
 /// normal.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,8 +95,7 @@ impl Coat {
     /// reflects, and what it takes from the layers below.
     #[inline]
     pub fn reflectance(&self, wo: Vec3) -> f32 {
-        let mu = self.to_coat(wo).z.abs().min(1.0);
-        self.weight * (COAT_F0 + (1.0 - COAT_F0) * (1.0 - mu).powi(5))
+        self.weight * coat_fresnel(self.to_coat(wo).z.abs().min(1.0))
     }
 
     /// The coat lobe's value D G₂ / (4 μo μi) (1/sr, without the weight and Fresnel) and
@@ -400,6 +415,23 @@ mod tests {
     fn unit(theta_degrees: f32, phi: f32) -> Vec3 {
         let t = theta_degrees.to_radians();
         Vec3::new(t.sin() * phi.cos(), t.sin() * phi.sin(), t.cos())
+    }
+
+    /// What leaves through a coat is what the coat does not reflect, from both sides and at
+    /// any weight; no coat (or a NaN weight) darkens nothing.
+    #[test]
+    fn coat_transmittance_is_what_the_coat_does_not_reflect() {
+        for weight in [0.0, 0.3, 1.0] {
+            for theta in [0.0, 30.0, 60.0, 85.0, 90.0] {
+                let wo = unit(theta, 0.4);
+                let reflected = Coat::new(weight, 0.2, Vec3::Z).reflectance(wo);
+                assert_eq!(coat_transmittance(weight, wo.z), 1.0 - reflected, "weight {weight}, θ {theta}");
+                assert_eq!(coat_transmittance(weight, -wo.z), 1.0 - reflected, "from below");
+            }
+        }
+        assert_eq!(coat_transmittance(1.0, 1.0), 0.96);
+        assert_eq!(coat_transmittance(f32::NAN, 0.5), 1.0);
+        assert_eq!(coat_transmittance(2.0, 1.0), 0.96, "weights clamp to 1");
     }
 
     fn layered_bases() -> Vec<(&'static str, Base<'static>)> {

@@ -67,7 +67,7 @@ impl PathTracer {
         }
         let sampled = self.strategy != Strategy::BsdfOnly;
         if let Some(light) = scene.lights.triangle(index) {
-            return match (sampled, light.texture.is_none()) {
+            return match (sampled, light.texture.is_none() && light.coat.is_none()) {
                 (false, _) => Some(LaneLight::None),
                 (true, true) => Some(LaneLight::Triangle { light, u, select_pdf }),
                 (true, false) => None,

@@ -274,7 +274,7 @@ impl PathTracer {
         let ray = path.ray;
         let Draws { light, u_light, uc, u } = draws;
         let sp = scene.surface_point(&hit, ray.direction)?;
-        let le = scene.emission(&sp);
+        let le = scene.emission(&sp, -ray.direction);
         if le.max_element() > 0.0 {
             let w = self.hit_weight(path.prev_bsdf_pdf, || scene.lights.pdf_triangle(hit.triangle, path.prev_p, sp.p));
             path.l += path.beta * le * w;

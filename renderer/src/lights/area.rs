@@ -4,7 +4,8 @@ use super::LightSample;
 use crate::accel::{barycentric_point, offset_origin};
 use crate::lanes::{Real, V2, V3};
 use crate::sampling::{sample_uniform_triangle, uniform_triangle};
-use crate::scene::{Texture, TextureRef};
+use crate::bsdf::layered::coat_transmittance;
+use crate::scene::{Clearcoat, Texture, TextureRef};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -20,6 +21,29 @@ pub struct TriangleLight {
     pub radiance: Rgb,
     /// An emissive texture over the triangle, if any.
     pub texture: Option<EmissionTexture>,
+    /// The clear coat over the emitter, if any, which darkens what leaves through it (boxed:
+    /// rare, and large beside the rest).
+    pub coat: Option<Box<EmissionCoat>>,
+}
+
+/// The clear coat over an emissive triangle: the material's coat and the texture
+/// coordinates (of the set its weight texture reads; zero without one) at the corners.
+#[derive(Clone, Copy, Debug)]
+pub struct EmissionCoat {
+    pub coat: Clearcoat,
+    pub uvs: [Vec2; 3],
+}
+
+impl EmissionCoat {
+    /// 1 − c F_c(|cos|) at barycentric coordinates `b` for a direction at cosine `cos` to the
+    /// triangle's normal ([`SceneMaterials::emission_toward`] at a hit on it).
+    ///
+    /// [`SceneMaterials::emission_toward`]: crate::material::SceneMaterials::emission_toward
+    #[inline]
+    fn transmittance(&self, textures: &[Texture], b: Vec2, cos: f32) -> f32 {
+        let uv = self.uvs[0] * (1.0 - b.x - b.y) + self.uvs[1] * b.x + self.uvs[2] * b.y;
+        coat_transmittance(self.coat.weight(|t| t.lookup(textures, uv)), cos)
+    }
 }
 
 /// An emissive texture over a triangle: the material's texture reference and the texture
@@ -61,6 +85,8 @@ pub struct Emitter {
     /// Emitted radiance, W/(m² sr), times `texture` where given.
     pub radiance: Rgb,
     pub texture: Option<EmissionTexture>,
+    /// The clear coat over it, if any.
+    pub coat: Option<Box<EmissionCoat>>,
 }
 
 /// A point drawn on an emissive triangle as seen from a shading point.
@@ -105,6 +131,7 @@ impl TriangleLight {
             area: 0.5 * len,
             radiance,
             texture: None,
+            coat: None,
         })
     }
 
@@ -116,9 +143,16 @@ impl TriangleLight {
         s.ok.then(|| AreaSample {
             direction: s.direction.into(),
             distance: s.distance,
-            radiance: match &self.texture {
-                Some(t) => self.radiance * t.texture.lookup(textures, t.uv(s.barycentric.into())),
-                None => self.radiance,
+            radiance: {
+                let b = Vec2::from(s.barycentric);
+                let radiance = match &self.texture {
+                    Some(t) => self.radiance * t.texture.lookup(textures, t.uv(b)),
+                    None => self.radiance,
+                };
+                match &self.coat {
+                    Some(coat) => radiance * coat.transmittance(textures, b, -Vec3::from(s.direction).dot(self.normal)),
+                    None => radiance,
+                }
             },
             pdf: s.pdf,
             shadow_target: s.target.into(),

@@ -77,7 +77,7 @@ impl LightSet {
         let mut weights = Vec::new();
         let mut groups = Vec::new();
         let mut triangle_to_light = Vec::new();
-        for Emitter { triangle, corners, radiance, texture } in emissive {
+        for Emitter { triangle, corners, radiance, texture, coat } in emissive {
             if let Some(mut light) = TriangleLight::new(corners, radiance) {
                 if triangle_to_light.is_empty() {
                     triangle_to_light = vec![u32::MAX; triangle_count];
@@ -85,6 +85,7 @@ impl LightSet {
                 triangle_to_light[triangle as usize] = lights.len() as u32;
                 let mean = texture.as_ref().map_or(Rgb::ONE, |t| t.mean_over_triangle(&textures));
                 light.texture = texture;
+                light.coat = coat;
                 weights.push(light.area * std::f32::consts::PI * luminance(radiance * mean));
                 groups.push(0usize);
                 lights.push(Light::Triangle(light));
@@ -272,7 +273,7 @@ mod tests {
         let env = Environment::constant(Rgb::splat(1.0));
         let tri = [Vec3::ZERO, Vec3::X, Vec3::Z];
         let set = LightSet::new(
-            [(0, tri), (1, tri.map(|v| v * 2.0))].map(|(triangle, corners)| Emitter { triangle, corners, radiance: Rgb::splat(5.0), texture: None }),
+            [(0, tri), (1, tri.map(|v| v * 2.0))].map(|(triangle, corners)| Emitter { triangle, corners, radiance: Rgb::splat(5.0), texture: None, coat: None }),
             2,
             std::slice::from_ref(&point),
             Some(env),

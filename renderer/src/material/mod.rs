@@ -23,7 +23,7 @@ use binding::Surface;
 use crate::bsdf::neural::NeuralBsdf;
 use crate::bsdf::merl::MerlBsdf;
 use crate::bsdf::nbrdf::NbrdfBsdf;
-use crate::bsdf::layered::{Base, Coat};
+use crate::bsdf::layered::{coat_transmittance, Base, Coat};
 use crate::bsdf::sheen::Sheen;
 use crate::bsdf::mixture::Part;
 use crate::bsdf::{Bsdf, Dielectric, Lambert, Layered, MetallicRoughness, Mixture, Transmission};
@@ -429,7 +429,7 @@ impl SceneMaterials {
             Sheen::new(color, roughness)
         });
         let coat = m.clearcoat.map(|c| {
-            let weight = c.texture.as_ref().map_or(c.factor, |t| c.factor * lookup(t).x);
+            let weight = c.weight(lookup);
             let roughness = c.roughness_texture.as_ref().map_or(c.roughness, |t| c.roughness * lookup(t).y);
             Coat::new(weight, roughness, coat_normal)
         });
@@ -539,6 +539,21 @@ impl SceneMaterials {
         match &m.emissive_texture {
             Some(t) if m.emission.max_element() > 0.0 => m.emission * t.lookup(&self.textures, uv(t.tex_coord)),
             _ => m.emission,
+        }
+    }
+
+    /// Radiance `material` emits from its front side toward a direction at cosine `cos` to
+    /// the surface's geometric normal, at a point whose texture coordinates of a set are
+    /// `uv(set)`, W/(m² sr): [`Self::emission_at`], under a clear coat darkened by the coat's
+    /// reflectance, 1 − c F_c(|cos|) ([`crate::bsdf::layered::coat_transmittance`]). The coat's
+    /// angle is taken to the geometric normal, as the light set's samples take it (exact for
+    /// flat emitters; the coat's normal maps do not bend it).
+    #[inline]
+    pub fn emission_toward(&self, material: u32, uv: impl Fn(u32) -> Vec2, cos: f32) -> Rgb {
+        let le = self.emission_at(material, &uv);
+        match &self.materials[material as usize].clearcoat {
+            Some(c) if le.max_element() > 0.0 => le * coat_transmittance(c.weight(|t| t.lookup(&self.textures, uv(t.tex_coord))), cos),
+            _ => le,
         }
     }
 

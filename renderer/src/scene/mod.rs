@@ -244,6 +244,15 @@ pub struct Clearcoat {
     pub normal_texture: Option<NormalMap>,
 }
 
+impl Clearcoat {
+    /// The coat's weight c at a point: its factor times its texture's red channel, as
+    /// `lookup` reads the texture there.
+    #[inline]
+    pub fn weight(&self, lookup: impl Fn(&TextureRef) -> Rgb) -> f32 {
+        self.texture.as_ref().map_or(self.factor, |t| self.factor * lookup(t).x)
+    }
+}
+
 /// `KHR_materials_sheen`: a Charlie sheen over the material's base.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SheenLayer {
