@@ -211,6 +211,12 @@ impl Bvh {
         self.bvh.primitive_indices[slot as usize]
     }
 
+    /// The hit at distance `t` with barycentrics `barycentric` on primitive slot `slot`.
+    #[inline]
+    fn slot_hit(&self, slot: u32, t: f32, barycentric: Vec2) -> Hit {
+        Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE }
+    }
+
     /// Closest intersection with t in (0, ray.t_max), or `None`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
@@ -227,12 +233,7 @@ impl Bvh {
         };
         #[cfg(not(target_arch = "x86_64"))]
         let found = self.closest_portable(&bvh_ray);
-        found.map(|(t, slot, barycentric)| Hit {
-            t,
-            triangle: self.scene_triangle(slot),
-            barycentric,
-            instance: NO_INSTANCE,
-        })
+        found.map(|(t, slot, barycentric)| self.slot_hit(slot, t, barycentric))
     }
 
     /// Closest hits of many rays at path depth `depth` (0 for camera rays): `out[i]` =
@@ -254,10 +255,9 @@ impl Bvh {
     /// deciding which hits stop a ray: traced in packets or one by one as the closest-hit
     /// [`TracePolicy`] of the depth's class has found faster.
     pub fn intersect_all_filtered(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, depth: usize, accept: impl Fn(&Ray, &Hit) -> bool) {
-        let hit = |slot: u32, t: f32, barycentric: Vec2| Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE };
         self.closest_policies[depth_class(depth)].trace(rays.len(), |packets| {
             let packet = |r: &[Ray], o: &mut [_]| {
-                let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &hit(slot, t, b)));
+                let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &self.slot_hit(slot, t, b)));
                 // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
                 unsafe { self.closest_packet(r, o, &filter) }
             };
@@ -312,10 +312,9 @@ impl Bvh {
     /// deciding which hits block a ray, traced as the occlusion [`TracePolicy`] of the
     /// depth's class has found faster.
     pub fn occluded_all_filtered(&self, rays: &[Ray], out: &mut Vec<bool>, depth: usize, accept: impl Fn(&Ray, &Hit) -> bool) {
-        let hit = |slot: u32, t: f32, barycentric: Vec2| Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE };
         self.occluded_policies[depth_class(depth)].trace(rays.len(), |packets| {
             let packet = |r: &[Ray], o: &mut [_]| {
-                let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &hit(slot, t, b)));
+                let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &self.slot_hit(slot, t, b)));
                 // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
                 unsafe { self.occluded_packet(r, o, &filter) }
             };
@@ -363,7 +362,7 @@ impl Bvh {
             return None;
         }
         let bvh_ray = to_bvh_ray(ray);
-        let accept_slot = |slot: u32, t: f32, barycentric: Vec2| accept(&Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE });
+        let accept_slot = |slot: u32, t: f32, barycentric: Vec2| accept(&self.slot_hit(slot, t, barycentric));
         #[cfg(target_arch = "x86_64")]
         let found = if has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 and FMA.
@@ -373,7 +372,7 @@ impl Bvh {
         };
         #[cfg(not(target_arch = "x86_64"))]
         let found = self.closest_filtered_portable(&bvh_ray, &accept_slot);
-        found.map(|(t, slot, barycentric)| Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE })
+        found.map(|(t, slot, barycentric)| self.slot_hit(slot, t, barycentric))
     }
 
     /// True when a hit that `accept` takes (see [`Bvh::intersect_filtered`]) blocks the ray
@@ -383,7 +382,7 @@ impl Bvh {
             return false;
         }
         let bvh_ray = to_bvh_ray(ray);
-        let accept_slot = |slot: u32, t: f32, barycentric: Vec2| accept(&Hit { t, triangle: self.scene_triangle(slot), barycentric, instance: NO_INSTANCE });
+        let accept_slot = |slot: u32, t: f32, barycentric: Vec2| accept(&self.slot_hit(slot, t, barycentric));
         #[cfg(target_arch = "x86_64")]
         if has_avx2_fma() {
             // SAFETY: the CPU supports AVX2 and FMA.
@@ -997,7 +996,7 @@ mod tests {
             for chunk in 0..200 {
                 let n = if chunk % 5 == 0 { 1 + chunk % width } else { width };
                 let rays = packet_rays(&mut s, n, 24.0, chunk % 2 == 0);
-                let filter = packet::Accepted(|i: usize, slot, t, barycentric| !passes_through(&rays[i], &Hit { t, triangle: bvh.scene_triangle(slot), barycentric, instance: NO_INSTANCE }));
+                let filter = packet::Accepted(|i: usize, slot, t, barycentric| !passes_through(&rays[i], &bvh.slot_hit(slot, t, barycentric)));
                 let (mut closest, mut blocked) = (vec![None; n], vec![false; n]);
                 // SAFETY: AVX2 and FMA are present (and AVX-512F where width is 16); 1 to
                 // `width` rays.
