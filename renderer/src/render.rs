@@ -8,7 +8,7 @@
 
 use crate::camera::PinholeCamera;
 use crate::film::{Film, PixelAccumulator, Region, TILE_SIZE};
-use crate::accel::{Hit, Ray, DEPTH_CLASSES};
+use crate::accel::{negative_axes, Hit, Ray, DEPTH_CLASSES};
 use crate::integrator::{BatchBuffers, PathState, PathTracer, StepResults};
 use crate::lanes::{Vec2s, LANES};
 use crate::render_scene::RenderScene;
@@ -142,7 +142,7 @@ struct TileScratch<'s> {
 /// of a block point every way. The order changes which rays share a packet, never a hit or
 /// a path's random stream.
 fn octant_order(directions: impl Iterator<Item = Vec3> + Clone, order: &mut Vec<u32>) {
-    let octant = |d: Vec3| usize::from(d.x < 0.0) | usize::from(d.y < 0.0) << 1 | usize::from(d.z < 0.0) << 2;
+    let octant = |d: Vec3| negative_axes(d.into()) as usize;
     let mut start = [0u32; 9];
     for d in directions.clone() {
         start[octant(d) + 1] += 1;

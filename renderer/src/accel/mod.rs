@@ -4,6 +4,8 @@
 
 mod instances;
 mod node;
+
+pub(crate) use node::negative_axes;
 #[cfg(target_arch = "x86_64")]
 mod packet;
 mod policy;
