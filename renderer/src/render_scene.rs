@@ -4,7 +4,7 @@
 //! some triangle uses, and the environment's sampling structures exist only when the scene
 //! has an environment.
 
-use crate::accel::{gamma, interpolate_point, barycentric_point, Bvh, Hit, InstanceBvh, Ray, DEPTH_CLASSES, NO_INSTANCE};
+use crate::accel::{depth_class, gamma, interpolate_point, barycentric_point, Bvh, Hit, InstanceBvh, Ray, TracePolicy, DEPTH_CLASSES, NO_INSTANCE};
 use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
@@ -38,18 +38,18 @@ pub struct RenderScene {
     instances: Option<Instances>,
 }
 
-/// The instanced part of a scene: one BVH per mesh, in the mesh's space, and a BVH over
-/// the instances ([`InstanceBvh`]).
+/// The instanced part of a scene: a BVH over the instances and one per mesh, in the mesh's
+/// space ([`InstanceBvh`]), and how batches are traced through both levels with the
+/// scene's own triangles (per class of depth, see [`DEPTH_CLASSES`]).
 struct Instances {
     bvh: InstanceBvh,
-    /// Per mesh: its BVH (hits index its triangles from 0) and its first scene triangle.
-    meshes: Vec<(Bvh, u32)>,
     placements: Vec<Placement>,
+    closest_policies: [TracePolicy; DEPTH_CLASSES],
+    occluded_policies: [TracePolicy; DEPTH_CLASSES],
 }
 
-/// One instance: its mesh and the transforms a hit on it needs.
+/// The transforms a hit on an instance needs.
 struct Placement {
-    mesh: u32,
     object_to_world: Affine3A,
     /// Inverse transpose of the linear part, for normals.
     normal_matrix: Mat3A,
@@ -183,26 +183,15 @@ impl RenderScene {
     /// ([`AlphaMode`]).
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let mut best = if self.has_alpha {
+        let best = if self.has_alpha {
             self.bvh.intersect_filtered(ray, |hit| self.stops(ray, hit))
         } else {
             self.bvh.intersect(ray)
         };
-        if let Some(inst) = &self.instances {
-            let bounded = Ray { t_max: best.map_or(ray.t_max, |h| h.t), ..*ray };
-            inst.bvh.closest(&bounded, |instance, object_ray| {
-                let (mesh, first) = &inst.meshes[inst.placements[instance as usize].mesh as usize];
-                let placed = |h: Hit| Hit { triangle: h.triangle + first, instance, ..h };
-                let hit = if self.has_alpha {
-                    mesh.intersect_filtered(object_ray, |h| self.stops(ray, &placed(*h)))
-                } else {
-                    mesh.intersect(object_ray)
-                }?;
-                best = Some(placed(hit));
-                Some(hit.t)
-            });
+        match &self.instances {
+            Some(inst) => inst.bvh.intersect(ray, best, self.has_alpha.then_some(&|r: &Ray, h: &Hit| self.stops(r, h))),
+            None => best,
         }
-        best
     }
 
     /// Whether a surface blocks `ray` within (0, ray.t_max) (as [`RenderScene::intersect`]
@@ -214,27 +203,16 @@ impl RenderScene {
         } else {
             self.bvh.occluded(ray)
         };
-        world
-            || self.instances.as_ref().is_some_and(|inst| {
-                inst.bvh.any(ray, |instance, object_ray| {
-                    let (mesh, first) = &inst.meshes[inst.placements[instance as usize].mesh as usize];
-                    if self.has_alpha {
-                        mesh.occluded_filtered(object_ray, |h| self.stops(ray, &Hit { triangle: h.triangle + first, instance, ..*h }))
-                    } else {
-                        mesh.occluded(object_ray)
-                    }
-                })
-            })
+        world || self.instances.as_ref().is_some_and(|inst| inst.bvh.occluded(ray, self.has_alpha.then_some(&|r: &Ray, h: &Hit| self.stops(r, h))))
     }
 
     /// How batches of closest-hit and occlusion rays are traced (true: packets, false: one
-    /// ray at a time, `None` before the first measurement): one at a time for scenes with
-    /// instances, else as the BVH's policies chose.
+    /// ray at a time, `None` before the first measurement): as the policies of the
+    /// instances (both levels together) or of the BVH chose.
     pub fn trace_modes(&self) -> [(Option<bool>, Option<bool>); DEPTH_CLASSES] {
-        if self.instances.is_some() {
-            [(Some(false), Some(false)); DEPTH_CLASSES]
-        } else {
-            self.bvh.trace_modes()
+        match &self.instances {
+            Some(inst) => std::array::from_fn(|c| (inst.closest_policies[c].choice(), inst.occluded_policies[c].choice())),
+            None => self.bvh.trace_modes(),
         }
     }
 
@@ -242,9 +220,16 @@ impl RenderScene {
     /// batches of each depth choose their trace mode apart, see [`Bvh::intersect_all`]):
     /// `out[i]` for `rays[i]`.
     pub fn intersect_all(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, depth: usize) {
-        if self.instances.is_some() {
-            out.clear();
-            out.extend(rays.iter().map(|r| self.intersect(r)));
+        if let Some(inst) = &self.instances {
+            let stops = |r: &Ray, h: &Hit| self.stops(r, h);
+            let accept = self.has_alpha.then_some(&stops as &dyn Fn(&Ray, &Hit) -> bool);
+            inst.closest_policies[depth_class(depth)].trace(rays.len(), |packets| {
+                match accept {
+                    Some(accept) => self.bvh.intersect_all_filtered_with(rays, out, packets, accept),
+                    None => self.bvh.intersect_all_with(rays, out, packets),
+                }
+                inst.bvh.intersect_all_with(rays, out, packets, accept);
+            });
         } else if self.has_alpha {
             self.bvh.intersect_all_filtered(rays, out, depth, |ray, hit| self.stops(ray, hit));
         } else {
@@ -255,9 +240,16 @@ impl RenderScene {
     /// [`RenderScene::occluded`] of many rays from vertices at path depth `depth`: `out[i]`
     /// for `rays[i]`.
     pub fn occluded_all(&self, rays: &[Ray], out: &mut Vec<bool>, depth: usize) {
-        if self.instances.is_some() {
-            out.clear();
-            out.extend(rays.iter().map(|r| self.occluded(r)));
+        if let Some(inst) = &self.instances {
+            let stops = |r: &Ray, h: &Hit| self.stops(r, h);
+            let accept = self.has_alpha.then_some(&stops as &dyn Fn(&Ray, &Hit) -> bool);
+            inst.occluded_policies[depth_class(depth)].trace(rays.len(), |packets| {
+                match accept {
+                    Some(accept) => self.bvh.occluded_all_filtered_with(rays, out, packets, accept),
+                    None => self.bvh.occluded_all_with(rays, out, packets),
+                }
+                inst.bvh.occluded_all_with(rays, out, packets, accept);
+            });
         } else if self.has_alpha {
             self.bvh.occluded_all_filtered(rays, out, depth, |ray, hit| self.stops(ray, hit));
         } else {
@@ -573,13 +565,15 @@ impl Instances {
             .iter()
             .map(|i| {
                 let object_to_world = Affine3A::from_mat4(i.object_to_world);
-                Placement { mesh: i.mesh, object_to_world, normal_matrix: object_to_world.matrix3.inverse().transpose() }
+                Placement { object_to_world, normal_matrix: object_to_world.matrix3.inverse().transpose() }
             })
             .collect();
         let bvh = InstanceBvh::build(
-            description.instances.iter().zip(&placements).map(|(i, p)| (SceneDescription::instance_bounds(&mesh_bounds, i), p.object_to_world.inverse())),
+            description.instances.iter().zip(&placements).map(|(i, p)| (SceneDescription::instance_bounds(&mesh_bounds, i), p.object_to_world.inverse(), i.mesh)),
+            meshes,
         );
-        Instances { bvh, meshes, placements }
+        let policies = || std::array::from_fn(|_| TracePolicy::new(Bvh::packet_width().is_some()));
+        Instances { bvh, placements, closest_policies: policies(), occluded_policies: policies() }
     }
 }
 

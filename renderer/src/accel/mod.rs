@@ -102,7 +102,7 @@ pub const DEPTH_CLASSES: usize = 3;
 
 /// The class of batches at path depth `depth`.
 #[inline]
-fn depth_class(depth: usize) -> usize {
+pub(crate) fn depth_class(depth: usize) -> usize {
     depth.min(DEPTH_CLASSES - 1)
 }
 
@@ -257,14 +257,18 @@ impl Bvh {
     /// deciding which hits stop a ray: traced in packets or one by one as the closest-hit
     /// [`TracePolicy`] of the depth's class has found faster.
     pub fn intersect_all_filtered(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, depth: usize, accept: impl Fn(&Ray, &Hit) -> bool) {
-        self.closest_policies[depth_class(depth)].trace(rays.len(), |packets| {
-            let packet = |r: &[Ray], o: &mut [_]| {
-                let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &self.slot_hit(slot, t, b)));
-                // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
-                unsafe { self.closest_packet(r, o, &filter) }
-            };
-            self.trace_all(rays, out, packets, packet, |r| self.intersect_filtered(r, |h| accept(r, h)))
-        });
+        self.closest_policies[depth_class(depth)].trace(rays.len(), |packets| self.intersect_all_filtered_with(rays, out, packets, &accept));
+    }
+
+    /// As [`Bvh::intersect_all_filtered`], in packets where `packets` is asked for and the
+    /// CPU has a packet kernel, or one ray at a time.
+    pub fn intersect_all_filtered_with(&self, rays: &[Ray], out: &mut Vec<Option<Hit>>, packets: bool, accept: impl Fn(&Ray, &Hit) -> bool) {
+        let packet = |r: &[Ray], o: &mut [_]| {
+            let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &self.slot_hit(slot, t, b)));
+            // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
+            unsafe { self.closest_packet(r, o, &filter) }
+        };
+        self.trace_all(rays, out, packets, packet, |r| self.intersect_filtered(r, |h| accept(r, h)))
     }
 
     /// Fills `out[i]` with the answer for `rays[i]`: through `packet(rays, out)` in packets of
@@ -314,14 +318,18 @@ impl Bvh {
     /// deciding which hits block a ray, traced as the occlusion [`TracePolicy`] of the
     /// depth's class has found faster.
     pub fn occluded_all_filtered(&self, rays: &[Ray], out: &mut Vec<bool>, depth: usize, accept: impl Fn(&Ray, &Hit) -> bool) {
-        self.occluded_policies[depth_class(depth)].trace(rays.len(), |packets| {
-            let packet = |r: &[Ray], o: &mut [_]| {
-                let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &self.slot_hit(slot, t, b)));
-                // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
-                unsafe { self.occluded_packet(r, o, &filter) }
-            };
-            self.trace_all(rays, out, packets, packet, |r| self.occluded_filtered(r, |h| accept(r, h)))
-        });
+        self.occluded_policies[depth_class(depth)].trace(rays.len(), |packets| self.occluded_all_filtered_with(rays, out, packets, &accept));
+    }
+
+    /// As [`Bvh::occluded_all_filtered`], in packets where `packets` is asked for and the CPU
+    /// has a packet kernel, or one ray at a time.
+    pub fn occluded_all_filtered_with(&self, rays: &[Ray], out: &mut Vec<bool>, packets: bool, accept: impl Fn(&Ray, &Hit) -> bool) {
+        let packet = |r: &[Ray], o: &mut [_]| {
+            let filter = packet::Accepted(|i: usize, slot, t, b| accept(&r[i], &self.slot_hit(slot, t, b)));
+            // SAFETY: `trace_all` traces packets only where AVX2 and FMA exist.
+            unsafe { self.occluded_packet(r, o, &filter) }
+        };
+        self.trace_all(rays, out, packets, packet, |r| self.occluded_filtered(r, |h| accept(r, h)))
     }
 
     /// Rays per packet of [`Bvh::intersect_all`] and [`Bvh::occluded_all`] on this CPU:

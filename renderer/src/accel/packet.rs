@@ -13,6 +13,7 @@
 //! operations), so a packet of either width finds the same hits, bit for bit.
 
 use super::node::ChildBoxes;
+use super::instances::{Accept, InstanceBvh};
 use super::{to_bvh_ray, Bvh, Hit, Ray, Stack, LANES};
 use glam::{Vec2, Vec3A};
 use crate::support::cpu::has_avx512f;
@@ -545,14 +546,23 @@ struct LeafTriangle {
     slot: u32,
 }
 
-/// What a packet walk looks for: closest hits or occlusion.
+impl LeafTriangle {
+    #[inline(always)]
+    fn of_slot(slot: u32) -> Self {
+        let (pack, lane) = super::pack_and_lane(slot);
+        LeafTriangle { pack, lane, slot }
+    }
+}
+
+/// What a packet walk looks for (closest hits or occlusion) in what (triangles or
+/// instances).
 trait PacketQuery<S: Simd> {
-    /// Tests one triangle for the rays in `lanes`, may lower their bounds `t_max`, and
-    /// returns which of `lanes` still need tracing.
-    fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32;
+    /// Tests the leaf primitive in obvhs slot `slot` for the rays in `lanes`, may lower their
+    /// bounds `t_max`, and returns which of `lanes` still need tracing.
+    fn leaf(&mut self, s: S, rays: &Rays<S>, slot: u32, lanes: u32, t_max: &mut S::F) -> u32;
 
     /// Walks the subtree of `node` for ray `lane` alone; returns whether that ray is done.
-    fn single(&mut self, s: S, bvh: &Bvh, node: u32, lane: usize, t_max: &mut S::F) -> bool;
+    fn single(&mut self, s: S, node: u32, lane: usize, t_max: &mut S::F) -> bool;
 }
 
 /// Per lane and axis, the node's quantisation step over the ray direction and its origin
@@ -584,14 +594,14 @@ fn majority_octant<S: Simd>(s: S, rays: &Rays<S>, active: u32) -> usize {
     })
 }
 
-/// Walks the tree for the lanes in `active` (bit i: lane i), whose bounds are `t_max`. A
-/// node's crossed inner children are pushed so that they are popped nearest first for the
+/// Walks the CWBVH `nodes` for the lanes in `active` (bit i: lane i), whose bounds are
+/// `t_max`; `query` tests the leaves' primitives (triangles, or instances). A node's crossed
+/// inner children are pushed so that they are popped nearest first for the
 /// packet's majority octant, as the single-ray walk orders them for its ray's; its leaves are
 /// tested in slot order (their triangles are tested for all the lanes crossing them in any
 /// order).
 #[inline(always)]
-fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S::F, query: &mut impl PacketQuery<S>) {
-    let nodes = &bvh.bvh.nodes;
+fn walk<S: Simd>(s: S, nodes: &[CwBvhNode], rays: &Rays<S>, mut active: u32, t_max: &mut S::F, query: &mut impl PacketQuery<S>) {
     let octant = majority_octant(s, rays, active);
     let mut stack = Stack::new();
     stack.push((0u32, active));
@@ -605,7 +615,7 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
             while rest != 0 {
                 let lane = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
-                if query.single(s, bvh, index, lane, t_max) {
+                if query.single(s, index, lane, t_max) {
                     active &= !(1 << lane);
                 }
             }
@@ -660,9 +670,7 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
                 let first = (meta & 0b1_1111) as usize;
                 for local in first..first + (meta & 0b1110_0000).count_ones() as usize {
                     let slot = node.primitive_base_idx + local as u32;
-                    let (pack, lane) = super::pack_and_lane(slot);
-                    let triangle = LeafTriangle { pack, lane, slot };
-                    active = query.leaf(s, bvh, rays, triangle, hits & active, t_max) | (active & !hits);
+                    active = query.leaf(s, rays, slot, hits & active, t_max) | (active & !hits);
                 }
                 lowered = true;
             } else {
@@ -682,9 +690,10 @@ fn walk<S: Simd>(s: S, bvh: &Bvh, rays: &Rays<S>, mut active: u32, t_max: &mut S
     }
 }
 
-/// Closest accepted hits: the per-lane best so far, the packet's rays (for single-ray
-/// subtrees) and the filter.
+/// Closest accepted hits in a triangle BVH: the per-lane best so far, the packet's rays (for
+/// single-ray subtrees) and the filter.
 struct ClosestQuery<'r, S: Simd, H> {
+    bvh: &'r Bvh,
     best: Closest<S>,
     rays: &'r [Ray],
     filter: &'r H,
@@ -692,8 +701,9 @@ struct ClosestQuery<'r, S: Simd, H> {
 
 impl<S: Simd, H: HitFilter> PacketQuery<S> for ClosestQuery<'_, S, H> {
     #[inline(always)]
-    fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32 {
-        let (t, b1, b2, hit) = triangle_hits(s, bvh, triangle, rays, *t_max, lanes);
+    fn leaf(&mut self, s: S, rays: &Rays<S>, slot: u32, lanes: u32, t_max: &mut S::F) -> u32 {
+        let triangle = LeafTriangle::of_slot(slot);
+        let (t, b1, b2, hit) = triangle_hits(s, self.bvh, triangle, rays, *t_max, lanes);
         let hit = accepted(s, self.filter, hit, triangle.slot, t, b1, b2);
         if hit != 0 {
             self.best.take(s, hit, t, b1, b2, triangle.slot);
@@ -703,7 +713,8 @@ impl<S: Simd, H: HitFilter> PacketQuery<S> for ClosestQuery<'_, S, H> {
     }
 
     #[inline(always)]
-    fn single(&mut self, s: S, bvh: &Bvh, node: u32, lane: usize, t_max: &mut S::F) -> bool {
+    fn single(&mut self, s: S, node: u32, lane: usize, t_max: &mut S::F) -> bool {
+        let bvh = self.bvh;
         let mut bounds = [0.0f32; MAX_WIDTH];
         s.store(*t_max, &mut bounds);
         let ray = BvhRay { tmax: bounds[lane], ..single(self.rays, lane) };
@@ -733,9 +744,10 @@ impl<S: Simd> Closest<S> {
     }
 }
 
-/// Occlusion: the lanes found blocked, the packet's rays (for single-ray subtrees) and the
-/// filter.
+/// Occlusion in a triangle BVH: the lanes found blocked, the packet's rays (for single-ray
+/// subtrees) and the filter.
 struct OcclusionQuery<'r, H> {
+    bvh: &'r Bvh,
     blocked: u32,
     rays: &'r [Ray],
     filter: &'r H,
@@ -743,16 +755,17 @@ struct OcclusionQuery<'r, H> {
 
 impl<S: Simd, H: HitFilter> PacketQuery<S> for OcclusionQuery<'_, H> {
     #[inline(always)]
-    fn leaf(&mut self, s: S, bvh: &Bvh, rays: &Rays<S>, triangle: LeafTriangle, lanes: u32, t_max: &mut S::F) -> u32 {
-        let (t, b1, b2, hit) = triangle_hits(s, bvh, triangle, rays, *t_max, lanes);
+    fn leaf(&mut self, s: S, rays: &Rays<S>, slot: u32, lanes: u32, t_max: &mut S::F) -> u32 {
+        let triangle = LeafTriangle::of_slot(slot);
+        let (t, b1, b2, hit) = triangle_hits(s, self.bvh, triangle, rays, *t_max, lanes);
         let hit = accepted(s, self.filter, hit, triangle.slot, t, b1, b2);
         self.blocked |= hit;
         lanes & !hit
     }
 
     #[inline(always)]
-    fn single(&mut self, _s: S, bvh: &Bvh, node: u32, lane: usize, _t_max: &mut S::F) -> bool {
-        let ray = single(self.rays, lane);
+    fn single(&mut self, _s: S, node: u32, lane: usize, _t_max: &mut S::F) -> bool {
+        let (bvh, ray) = (self.bvh, single(self.rays, lane));
         // SAFETY (both): the token `_s` exists only where AVX2 and FMA exist (see `Simd`).
         let hit = if H::EVERY_HIT {
             unsafe { bvh.any_below_avx2(node, &ray) }
@@ -785,8 +798,9 @@ fn closest<S: Simd, H: HitFilter>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Opti
         },
         rays,
         filter,
+        bvh,
     };
-    walk(s, bvh, &r, active, &mut t_max, &mut query);
+    walk(s, &bvh.bvh.nodes, &r, active, &mut t_max, &mut query);
     let best = query.best;
     let [mut t, mut b1, mut b2, mut slot] = [[0.0f32; MAX_WIDTH]; 4];
     s.store(best.t, &mut t);
@@ -809,8 +823,8 @@ fn closest<S: Simd, H: HitFilter>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [Opti
 fn occluded<S: Simd, H: HitFilter>(s: S, bvh: &Bvh, rays: &[Ray], out: &mut [bool], filter: &H) {
     let active = lanes::<S>(rays.len());
     let (r, mut t_max) = load(s, rays);
-    let mut query = OcclusionQuery { blocked: 0, rays, filter };
-    walk(s, bvh, &r, active, &mut t_max, &mut query);
+    let mut query = OcclusionQuery { bvh, blocked: 0, rays, filter };
+    walk(s, &bvh.bvh.nodes, &r, active, &mut t_max, &mut query);
     for (i, o) in out.iter_mut().enumerate().take(rays.len()) {
         *o = query.blocked & (1 << i) != 0;
     }
@@ -893,6 +907,250 @@ impl Bvh {
     pub(super) unsafe fn occluded_packet8<H: HitFilter>(&self, rays: &[Ray], out: &mut [bool], filter: &H) {
         // SAFETY: this function runs only where AVX2 and FMA exist.
         occluded(unsafe { Avx2::new() }, self, rays, out, filter)
+    }
+}
+
+/// The rays lanes `0..rays.len()` hold, each bounded by its best hit so far: the rays a
+/// single-ray [`InstanceBvh::intersect`] starts from.
+#[inline(always)]
+fn bounded(rays: &[Ray], best: &[Option<Hit>]) -> [Ray; MAX_WIDTH] {
+    let mut out = [rays[0]; MAX_WIDTH];
+    for ((o, r), b) in out.iter_mut().zip(rays).zip(best) {
+        *o = Ray { t_max: b.map_or(r.t_max, |h| h.t), ..*r };
+    }
+    out
+}
+
+/// Up to [`MAX_WIDTH`] world rays moved into one instance's space: the object rays and the
+/// lane each came from.
+struct ObjectRays {
+    rays: [Ray; MAX_WIDTH],
+    lane: [usize; MAX_WIDTH],
+    len: usize,
+}
+
+impl ObjectRays {
+    /// `world` rays of `lanes` in `instance`'s space, lane i bounded by `bounds[i]`.
+    #[inline(always)]
+    fn new(instances: &InstanceBvh, instance: u32, world: &[Ray], lanes: u32, bounds: &[f32; MAX_WIDTH]) -> Self {
+        let mut out = ObjectRays { rays: [world[0]; MAX_WIDTH], lane: [0; MAX_WIDTH], len: 0 };
+        let mut rest = lanes;
+        while rest != 0 {
+            let lane = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            out.rays[out.len] = instances.object_ray(instance, &world[lane], bounds[lane]);
+            out.lane[out.len] = lane;
+            out.len += 1;
+        }
+        out
+    }
+}
+
+/// Closest hits through instances: each leaf of the top level is an instance, whose mesh
+/// is traced by the packet kernel for the lanes reaching it (their rays moved into its
+/// space, bounded by their best hits so far); `best` per lane, the world rays (`rays`, for
+/// the filter), the same bounded by the hits found elsewhere (`bounded`).
+struct InstanceClosestQuery<'r> {
+    instances: &'r InstanceBvh,
+    rays: &'r [Ray],
+    bounded: &'r [Ray],
+    best: &'r mut [Option<Hit>],
+    accept: Accept<'r>,
+}
+
+impl<S: Simd> PacketQuery<S> for InstanceClosestQuery<'_> {
+    #[inline(always)]
+    fn leaf(&mut self, s: S, _rays: &Rays<S>, slot: u32, lanes: u32, t_max: &mut S::F) -> u32 {
+        if lanes == 0 {
+            // No lane reaches this instance.
+            return 0;
+        }
+        let instance = self.instances.bvh.primitive_indices[slot as usize];
+        let mut bounds = [0.0f32; MAX_WIDTH];
+        s.store(*t_max, &mut bounds);
+        let object = ObjectRays::new(self.instances, instance, self.bounded, lanes, &bounds);
+        let mut found = [None; MAX_WIDTH];
+        if object.len == 1 {
+            found[0] = self.instances.mesh_closest(instance, &self.rays[object.lane[0]], &object.rays[0], self.accept);
+        } else {
+            let (mesh, first) = self.instances.mesh(instance);
+            let (rays, out) = (&object.rays[..object.len], &mut found[..object.len]);
+            // SAFETY (both): the token `s` exists only where AVX2 and FMA exist.
+            match self.accept {
+                None => unsafe { mesh.closest_packet(rays, out, &EveryHit) },
+                Some(accept) => {
+                    let world = self.rays;
+                    let filter = Accepted(|i: usize, slot, t, b| accept(&world[object.lane[i]], &Hit { t, triangle: mesh.scene_triangle(slot) + first, barycentric: b, instance }));
+                    unsafe { mesh.closest_packet(rays, out, &filter) }
+                }
+            }
+            for hit in out.iter_mut().flatten() {
+                *hit = Hit { triangle: hit.triangle + first, instance, ..*hit };
+            }
+        }
+        for (k, hit) in found[..object.len].iter().enumerate() {
+            if let Some(hit) = *hit {
+                let lane = object.lane[k];
+                self.best[lane] = Some(hit);
+                *t_max = s.blend(s.mask(1 << lane), *t_max, s.splat(hit.t));
+            }
+        }
+        lanes
+    }
+
+    #[inline(always)]
+    fn single(&mut self, s: S, node: u32, lane: usize, t_max: &mut S::F) -> bool {
+        // The lane's bound is its best hit's distance, or its ray's own: as the walk has it.
+        let best = self.instances.closest_below(node, &self.rays[lane], self.best[lane], self.accept);
+        if let Some(hit) = best {
+            self.best[lane] = Some(hit);
+            *t_max = s.blend(s.mask(1 << lane), *t_max, s.splat(hit.t));
+        }
+        false
+    }
+}
+
+/// Occlusion through instances: each instance reached is traced by the packet kernel for
+/// the lanes not yet blocked; `blocked` per lane.
+struct InstanceOcclusionQuery<'r> {
+    instances: &'r InstanceBvh,
+    rays: &'r [Ray],
+    blocked: &'r mut [bool],
+    accept: Accept<'r>,
+}
+
+impl<S: Simd> PacketQuery<S> for InstanceOcclusionQuery<'_> {
+    #[inline(always)]
+    fn leaf(&mut self, _s: S, _rays: &Rays<S>, slot: u32, lanes: u32, _t_max: &mut S::F) -> u32 {
+        if lanes == 0 {
+            // Every lane reaching this instance is already blocked (by an earlier one).
+            return 0;
+        }
+        let instance = self.instances.bvh.primitive_indices[slot as usize];
+        let mut bounds = [0.0f32; MAX_WIDTH];
+        for (b, r) in bounds.iter_mut().zip(self.rays) {
+            *b = r.t_max;
+        }
+        let object = ObjectRays::new(self.instances, instance, self.rays, lanes, &bounds);
+        let mut blocked = [false; MAX_WIDTH];
+        if object.len == 1 {
+            blocked[0] = self.instances.mesh_occluded(instance, &self.rays[object.lane[0]], &object.rays[0], self.accept);
+        } else {
+            let (mesh, first) = self.instances.mesh(instance);
+            let (rays, out) = (&object.rays[..object.len], &mut blocked[..object.len]);
+            // SAFETY (both): the token `_s` exists only where AVX2 and FMA exist.
+            match self.accept {
+                None => unsafe { mesh.occluded_packet(rays, out, &EveryHit) },
+                Some(accept) => {
+                    let world = self.rays;
+                    let filter = Accepted(|i: usize, slot, t, b| accept(&world[object.lane[i]], &Hit { t, triangle: mesh.scene_triangle(slot) + first, barycentric: b, instance }));
+                    unsafe { mesh.occluded_packet(rays, out, &filter) }
+                }
+            }
+        }
+        let mut still = lanes;
+        for (k, &b) in blocked[..object.len].iter().enumerate() {
+            if b {
+                self.blocked[object.lane[k]] = true;
+                still &= !(1 << object.lane[k]);
+            }
+        }
+        still
+    }
+
+    #[inline(always)]
+    fn single(&mut self, _s: S, node: u32, lane: usize, _t_max: &mut S::F) -> bool {
+        let blocked = self.instances.any_below(node, &self.rays[lane], self.accept);
+        self.blocked[lane] |= blocked;
+        blocked
+    }
+}
+
+/// [`InstanceBvh::closest_packet`] with the kernel of token `s`.
+#[inline(always)]
+fn instances_closest<S: Simd>(s: S, instances: &InstanceBvh, rays: &[Ray], best: &mut [Option<Hit>], accept: Accept) {
+    let active = lanes::<S>(rays.len());
+    let bounded = bounded(rays, best);
+    let (r, mut t_max) = load(s, &bounded[..rays.len()]);
+    let mut query = InstanceClosestQuery { instances, rays, bounded: &bounded, best, accept };
+    walk(s, &instances.bvh.nodes, &r, active, &mut t_max, &mut query);
+}
+
+/// [`InstanceBvh::occluded_packet`] with the kernel of token `s`.
+#[inline(always)]
+fn instances_occluded<S: Simd>(s: S, instances: &InstanceBvh, rays: &[Ray], blocked: &mut [bool], accept: Accept) {
+    let active = lanes::<S>(rays.len()) & !blocked.iter().enumerate().map(|(i, &b)| (b as u32) << i).sum::<u32>();
+    if active == 0 {
+        return;
+    }
+    let (r, mut t_max) = load(s, rays);
+    let mut query = InstanceOcclusionQuery { instances, rays, blocked, accept };
+    walk(s, &instances.bvh.nodes, &r, active, &mut t_max, &mut query);
+}
+
+impl InstanceBvh {
+    /// Closest hits of up to [`width`] rays through the instances, traced as one packet at
+    /// both levels: `best[i]` as [`InstanceBvh::intersect`] of `rays[i]` and `best[i]`.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    pub(super) unsafe fn closest_packet(&self, rays: &[Ray], best: &mut [Option<Hit>], accept: Accept) {
+        // SAFETY: the caller guarantees AVX2 and FMA; AVX-512F is checked.
+        unsafe {
+            if has_avx512f() {
+                self.closest_packet16(rays, best, accept)
+            } else {
+                self.closest_packet8(rays, best, accept)
+            }
+        }
+    }
+
+    /// Occlusion of up to [`width`] rays through the instances as one packet: `blocked[i]`
+    /// becomes true where [`InstanceBvh::occluded`] of `rays[i]` is.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    pub(super) unsafe fn occluded_packet(&self, rays: &[Ray], blocked: &mut [bool], accept: Accept) {
+        // SAFETY: the caller guarantees AVX2 and FMA; AVX-512F is checked.
+        unsafe {
+            if has_avx512f() {
+                self.occluded_packet16(rays, blocked, accept)
+            } else {
+                self.occluded_packet8(rays, blocked, accept)
+            }
+        }
+    }
+
+    /// # Safety
+    /// The CPU must support AVX-512F, AVX2 and FMA.
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    unsafe fn closest_packet16(&self, rays: &[Ray], best: &mut [Option<Hit>], accept: Accept) {
+        // SAFETY: this function runs only where AVX-512F, AVX2 and FMA exist.
+        instances_closest(unsafe { Avx512::new() }, self, rays, best, accept)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX-512F, AVX2 and FMA.
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    unsafe fn occluded_packet16(&self, rays: &[Ray], blocked: &mut [bool], accept: Accept) {
+        // SAFETY: this function runs only where AVX-512F, AVX2 and FMA exist.
+        instances_occluded(unsafe { Avx512::new() }, self, rays, blocked, accept)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn closest_packet8(&self, rays: &[Ray], best: &mut [Option<Hit>], accept: Accept) {
+        // SAFETY: this function runs only where AVX2 and FMA exist.
+        instances_closest(unsafe { Avx2::new() }, self, rays, best, accept)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn occluded_packet8(&self, rays: &[Ray], blocked: &mut [bool], accept: Accept) {
+        // SAFETY: this function runs only where AVX2 and FMA exist.
+        instances_occluded(unsafe { Avx2::new() }, self, rays, blocked, accept)
     }
 }
 
