@@ -21,8 +21,14 @@ only the initial weights and samples, every run is tested on the same materials,
 spread over seeds is the models' alone. Such runs are named MODEL-eE-sSEED-splitN-... and
 their tables go to docs/seed-study/tables-splitN.md; seed N itself is the study's run of seed N.
 
+--models names the configurations of scenes/materials/ to study (default: frenbrdf hyperbrdf,
+the talk's recipe and its baseline); the paired differences compare the first two. Studies of
+other models write their tables to docs/seed-study/tables-MODEL[-MODEL...].md, for example the
+shipped recipe alone: --models frenbrdf-interpolation.
+
     python3 assets-scripts/seed_study.py [--seeds 1 2 3] [--epochs 100] [--spp 1024] [--pairs 2000]
     python3 assets-scripts/seed_study.py --split-seed 3 --seeds 4 5 --pairs 200
+    python3 assets-scripts/seed_study.py --models frenbrdf-interpolation
 """
 
 import argparse
@@ -88,8 +94,12 @@ def stem(model: str, seed: int, args: argparse.Namespace) -> str:
     return f"{model}-e{args.epochs}-s{seed}{split}-spp{args.spp}-pairs{args.pairs}"
 
 
+DEFAULT_MODELS = ["frenbrdf", "hyperbrdf"]
+
+
 def tables_path(args: argparse.Namespace) -> Path:
-    return args.results / ("tables.md" if args.split_seed is None else f"tables-split{args.split_seed}.md")
+    name = "tables" if args.models == DEFAULT_MODELS else "tables-" + "-".join(args.models)
+    return args.results / (f"{name}.md" if args.split_seed is None else f"{name}-split{args.split_seed}.md")
 
 
 def write_tables(results: dict[str, list[tuple[dict, dict]]], args: argparse.Namespace) -> None:
@@ -120,13 +130,16 @@ def sign_test(wins: int, n: int) -> float:
 
 
 def paired(args: argparse.Namespace) -> list[str]:
-    """FreNBRDF against HyperBRDF paired on the seeds both finished (same split, same test
+    """The first two models paired on the seeds both finished (same split, same test
     materials): per seed, the differences of the tables' means; over every material of every
-    such seed, the mean PSNR difference ± its standard error, the materials FreNBRDF renders
+    such seed, the mean PSNR difference ± its standard error, the materials the first renders
     better, and the sign test of that count."""
+    if len(args.models) < 2:
+        return []
+    first, second = args.models[:2]
     rows, diffs = [], []
     for seed in args.seeds:
-        kept = [args.results / f"{stem(m, seed, args)}.json" for m in ("frenbrdf", "hyperbrdf")]
+        kept = [args.results / f"{stem(m, seed, args)}.json" for m in (first, second)]
         if not all(k.exists() for k in kept):
             continue
         fre, hyper = (json.loads(k.read_text()) for k in kept)
@@ -135,17 +148,17 @@ def paired(args: argparse.Namespace) -> list[str]:
                     f"{d('reconstruction', 'rec', 100):+.3f} | {d('reconstruction', 'fre', 1000):+.3f} | "
                     f"{d('editing', 'rec', 100):+.3f} | {d('editing', 'fre', 1000):+.3f} |")
         psnr = [{r["name"]: float(r["psnr"]) for r in csv.DictReader((args.results / f"{stem(m, seed, args)}-reconstruction.csv").open())}
-                for m in ("frenbrdf", "hyperbrdf")]
+                for m in (first, second)]
         diffs += [psnr[0][name] - psnr[1][name] for name in psnr[0] if name in psnr[1]]
     if not rows:
         return []
-    lines = ["\nPaired by seed, FreNBRDF − HyperBRDF (positive PSNR and negative losses favour FreNBRDF)\n",
+    lines = [f"\nPaired by seed, {first} − {second} (positive PSNR and negative losses favour {first})\n",
              "| seed | PSNR (dB) | worst PSNR (dB) | L_rec data ×10² | L_fre×10³ | editing L_rec ×10² | editing L_fre×10³ |",
              "|" + " --- |" * 7, *rows]
     wins = sum(x > 0 for x in diffs)
     se = statistics.stdev(diffs) / math.sqrt(len(diffs)) if len(diffs) > 1 else 0.0
     lines.append(f"\nOver {len(diffs)} material-seed pairs: PSNR difference {statistics.fmean(diffs):+.2f} ± {se:.2f} dB "
-                 f"(mean ± standard error); FreNBRDF better on {wins} of {len(diffs)} "
+                 f"(mean ± standard error); {first} better on {wins} of {len(diffs)} "
                  f"(sign test, two-sided p = {sign_test(wins, len(diffs)):.2f}).")
     return lines
 
@@ -156,6 +169,8 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=100)
     ap.add_argument("--spp", type=int, default=1024)
     ap.add_argument("--pairs", type=int, default=2000)
+    ap.add_argument("--models", nargs="+", default=DEFAULT_MODELS,
+                    help="configurations of scenes/materials/ (without .json); the first two are paired")
     ap.add_argument("--split-seed", type=int, default=None,
                     help="hold the split fixed at this seed's (default: each seed draws its own)")
     ap.add_argument("--data", type=Path, default=ROOT / "data" / "merl-fitted")
@@ -163,6 +178,9 @@ def main() -> None:
     ap.add_argument("--results", type=Path, default=ROOT / "docs" / "seed-study",
                     help="where each finished run's results are kept (committed)")
     args = ap.parse_args()
+    for model in args.models:
+        if not (ROOT / "scenes" / "materials" / f"{model}.json").is_file():
+            sys.exit(f"error: scenes/materials/{model}.json: no such configuration (--models)")
     subprocess.run(["cargo", "build", "--release", "-p", "material-nn"], cwd=ROOT, check=True)
     args.out.mkdir(parents=True, exist_ok=True)
     args.results.mkdir(parents=True, exist_ok=True)
@@ -177,7 +195,7 @@ def main() -> None:
         shutil.rmtree(references)
     results: dict[str, list[tuple[dict, dict]]] = {}
     for seed in args.seeds:
-        for model in ["frenbrdf", "hyperbrdf"]:
+        for model in args.models:
             kept = args.results / f"{stem(model, seed, args)}.json"
             if kept.exists():
                 means_of = json.loads(kept.read_text())
