@@ -8,7 +8,7 @@ use crate::accel::{depth_class, gamma, interpolate_point, barycentric_point, Bvh
 use crate::bsdf::Bsdf;
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::lanes::{Mask, MaskOps, Real, Vec2s, Vec3s, V2, V3};
+use crate::lanes::{F32s, Mask, MaskOps, Real, SetLane, Vec2s, Vec3s, V2, V3};
 use crate::neural::latent_library::LatentLibrary;
 use crate::lights::environment::Environment;
 use crate::lights::area::{EmissionCoat, EmissionTexture, Emitter};
@@ -17,7 +17,7 @@ use crate::material::SceneMaterials;
 use crate::sampler::hash_float;
 use crate::scene::{AlphaMode, Geometry, SceneDescription};
 use crate::Rgb;
-use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
+use glam::{Affine3A, Vec2, Vec3, Vec3A};
 
 /// Everything the integrator needs, built once from a [`SceneDescription`].
 pub struct RenderScene {
@@ -43,16 +43,10 @@ pub struct RenderScene {
 /// scene's own triangles (per class of depth, see [`DEPTH_CLASSES`]).
 struct Instances {
     bvh: InstanceBvh,
-    placements: Vec<Placement>,
+    /// Per instance, the transforms a hit on it needs.
+    placements: Vec<Placed<f32>>,
     closest_policies: [TracePolicy; DEPTH_CLASSES],
     occluded_policies: [TracePolicy; DEPTH_CLASSES],
-}
-
-/// The transforms a hit on an instance needs.
-struct Placement {
-    object_to_world: Affine3A,
-    /// Inverse transpose of the linear part, for normals.
-    normal_matrix: Mat3A,
 }
 
 /// The per-triangle data a hit needs, in one record (60 bytes, aligned to one 64-byte cache
@@ -290,15 +284,19 @@ impl RenderScene {
     }
 
     /// What finding `hit`'s surface point in lanes needs ([`surface_points_lanes`]), where
-    /// its triangle is neither degenerate nor instanced; `None` elsewhere. (Its material's
+    /// its triangle is not degenerate; `None` elsewhere. (Its material's
     /// normal map, which bends the normal per point, is the caller's to rule out.)
     #[inline]
     pub(crate) fn lane_hit(&self, hit: &Hit) -> Option<LaneHit> {
         let tri = hit.triangle as usize;
         let HitRecord { corners, ng, flat_normal } = self.hit_records[tri];
-        if ng == Vec3::ZERO || hit.instance != NO_INSTANCE {
+        if ng == Vec3::ZERO {
             return None;
         }
+        let placed = match &self.instances {
+            Some(inst) if hit.instance != NO_INSTANCE => Some(inst.placements[hit.instance as usize]),
+            _ => None,
+        };
         let flat = flat_normal != Vec3::ZERO;
         let normals = if flat {
             [flat_normal; 3]
@@ -311,6 +309,7 @@ impl RenderScene {
             normals,
             flat,
             material: self.geometry.material_ids[tri],
+            placed,
         })
     }
 
@@ -345,12 +344,11 @@ impl RenderScene {
         }
         let mut ng = ng;
         if hit.instance != NO_INSTANCE {
-            let placement = &self.instances.as_ref()?.placements[hit.instance as usize];
-            (p, p_error) = placement.to_world(p, p_error);
-            ng = (placement.normal_matrix * Vec3A::from(ng)).normalize_or_zero().into();
-            ns = Vec3::from(placement.normal_matrix * Vec3A::from(ns)).try_normalize().unwrap_or(ng);
-            coat_normal = coat_normal.map(|n| Vec3::from(placement.normal_matrix * Vec3A::from(n)).try_normalize().unwrap_or(ng));
-            if ng == Vec3::ZERO {
+            let placed = &self.instances.as_ref()?.placements[hit.instance as usize];
+            let (world, error, ng_world, ns_world, ok) = placed.to_world(p.into(), p_error.into(), ng.into(), ns.into());
+            (p, p_error, ng, ns) = (world.into(), error.into(), ng_world.into(), ns_world.into());
+            coat_normal = coat_normal.map(|n| placed.normal_to_world(n.into(), ng_world).into());
+            if !ok {
                 return None;
             }
         }
@@ -446,6 +444,9 @@ pub(crate) struct LaneHit {
     pub normals: [Vec3; 3],
     pub flat: bool,
     pub material: u32,
+    /// Where the triangle is an instance's, the instance's transforms (the fields above are
+    /// in its mesh's space).
+    pub placed: Option<Placed<f32>>,
 }
 
 /// A vertex's surface point per lane, as the lane kernels read it: position, its absolute
@@ -479,9 +480,12 @@ impl SurfaceLanes {
 
 /// The surface points of [`LaneHit`]s (per lane: the triangle's corners, geometric normal
 /// `ng`, `normals` and whether they are `flat`; `any_smooth` where some lane's are not) at
-/// barycentric coordinates `barycentric` of rays with directions `direction`, with
+/// barycentric coordinates `barycentric` of rays with directions `direction`, the lanes of
+/// `placed`'s mask on instances moved into world space by its transforms, with
 /// [`RenderScene::surface_point`]'s operations for a triangle without normal map and wo as
-/// `PathTracer::begin` finds it (so the same bits); and the lanes hit from the front.
+/// `PathTracer::begin` finds it (so the same bits); the lanes hit from the front; and the
+/// lanes with a surface point (`surface_point` gives none where an instance's transform
+/// leaves no geometric normal).
 #[inline(always)]
 pub(crate) fn surface_points_lanes(
     corners: [Vec3s; 3],
@@ -491,17 +495,24 @@ pub(crate) fn surface_points_lanes(
     any_smooth: bool,
     barycentric: Vec2s,
     direction: Vec3s,
-) -> (SurfaceLanes, Mask) {
-    let (p, p_error) = barycentric_point(corners, barycentric);
+    placed: Option<(&Placed<F32s>, Mask)>,
+) -> (SurfaceLanes, Mask, Mask) {
+    let (mut p, mut p_error) = barycentric_point(corners, barycentric);
     let mut ns = normals[0];
     if any_smooth {
         ns = flat.select(ns, smooth_normal(normals, barycentric, ng));
+    }
+    let (mut ng, mut valid) = (ng, Mask::splat(true));
+    if let Some((placed, lanes)) = placed {
+        let (world, error, ng_world, ns_world, ok) = placed.to_world(p, p_error, ng, ns);
+        ((p, p_error), (ng, ns)) = lanes.select(((world, error), (ng_world, ns_world)), ((p, p_error), (ng, ns)));
+        valid = !lanes | ok;
     }
     let (front_face, ng_facing, n) = facing(direction, ng, ns);
     let (s, t) = crate::frame::tangents(n);
     let mut surface = SurfaceLanes { p, p_error, ng: ng_facing, s, t, n, wo: Vec3s::default() };
     surface.wo = surface.to_local(-direction);
-    (surface, front_face)
+    (surface, front_face, valid)
 }
 
 /// The unit shading normal interpolated from a triangle's corner normals `normals` at
@@ -560,16 +571,10 @@ impl Instances {
             })
             .collect();
         let mesh_bounds = description.mesh_bounds();
-        let placements: Vec<Placement> = description
-            .instances
-            .iter()
-            .map(|i| {
-                let object_to_world = Affine3A::from_mat4(i.object_to_world);
-                Placement { object_to_world, normal_matrix: object_to_world.matrix3.inverse().transpose() }
-            })
-            .collect();
+        let to_world: Vec<Affine3A> = description.instances.iter().map(|i| Affine3A::from_mat4(i.object_to_world)).collect();
+        let placements = to_world.iter().map(Placed::of).collect();
         let bvh = InstanceBvh::build(
-            description.instances.iter().zip(&placements).map(|(i, p)| (SceneDescription::instance_bounds(&mesh_bounds, i), p.object_to_world.inverse(), i.mesh)),
+            description.instances.iter().zip(&to_world).map(|(i, m)| (SceneDescription::instance_bounds(&mesh_bounds, i), m.inverse(), i.mesh)),
             meshes,
         );
         let policies = || std::array::from_fn(|_| TracePolicy::new(Bvh::packet_width().is_some()));
@@ -577,17 +582,70 @@ impl Instances {
     }
 }
 
-impl Placement {
-    /// A point of the instance's mesh and its absolute error bound, in world space: the
-    /// transformed point, and the transformed bound plus the rounding of the transform
-    /// itself (pbrt-v4's bound for applying a transform to a point with error).
-    #[inline]
-    fn to_world(&self, p: Vec3, p_error: Vec3) -> (Vec3, Vec3) {
-        let m = &self.object_to_world;
-        let abs = Mat3A::from_cols(m.matrix3.x_axis.abs(), m.matrix3.y_axis.abs(), m.matrix3.z_axis.abs());
-        let world = m.transform_point3(p);
-        let error = (gamma(3.0) + 1.0) * (abs * Vec3A::from(p_error)) + gamma(3.0) * (abs * Vec3A::from(p).abs() + m.translation.abs());
-        (world, error.into())
+/// An instance's transforms over [`Real`] values (one instance's, or one per lane): the
+/// object-to-world matrix's columns and translation, and the inverse transpose of its linear
+/// part (for normals).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Placed<R> {
+    cols: [V3<R>; 3],
+    translation: V3<R>,
+    normal: [V3<R>; 3],
+}
+
+impl Placed<f32> {
+    /// The transforms of an instance placed by `object_to_world`.
+    fn of(object_to_world: &Affine3A) -> Self {
+        let v = |a: Vec3A| V3::from(Vec3::from(a));
+        let m = &object_to_world.matrix3;
+        let n = m.inverse().transpose();
+        Placed {
+            cols: [v(m.x_axis), v(m.y_axis), v(m.z_axis)],
+            translation: v(object_to_world.translation),
+            normal: [v(n.x_axis), v(n.y_axis), v(n.z_axis)],
+        }
+    }
+}
+
+impl Placed<F32s> {
+    /// Lane `i` holds `placed`.
+    #[inline(always)]
+    pub(crate) fn set(&mut self, i: usize, placed: &Placed<f32>) {
+        for (lanes, &one) in self.cols.iter_mut().chain(self.normal.iter_mut()).zip(placed.cols.iter().chain(&placed.normal)) {
+            lanes.set_lane(i, one);
+        }
+        self.translation.set_lane(i, placed.translation);
+    }
+}
+
+impl<R: Real> Placed<R> {
+    /// Linear part applied to `v`, summed as glam's `Mat3A * Vec3A`.
+    #[inline(always)]
+    fn apply(cols: &[V3<R>; 3], v: V3<R>) -> V3<R> {
+        cols[0] * v.x + cols[1] * v.y + cols[2] * v.z
+    }
+
+    /// A point of the instance's mesh with its absolute error bound, and its geometric and
+    /// shading normals, in world space: the transformed point, the transformed bound plus the
+    /// rounding of the transform itself (pbrt-v4's bound for applying a transform to a point
+    /// with error), the normals through the normal matrix made unit (the geometric one zero,
+    /// and the mask unset, where it cannot be; the shading one falling back to the geometric).
+    #[inline(always)]
+    fn to_world(&self, p: V3<R>, p_error: V3<R>, ng: V3<R>, ns: V3<R>) -> (V3<R>, V3<R>, V3<R>, V3<R>, R::Mask) {
+        let abs = self.cols.map(V3::abs);
+        let g = gamma(3.0);
+        let world = Self::apply(&self.cols, p) + self.translation;
+        let error = Self::apply(&abs, p_error) * R::splat(g + 1.0) + (Self::apply(&abs, p.abs()) + self.translation.abs()) * R::splat(g);
+        let (ng_unit, ok) = Self::apply(&self.normal, ng).try_normalize();
+        let ng = ok.select(ng_unit, V3::splat(Vec3::ZERO));
+        let (ns_unit, ns_ok) = Self::apply(&self.normal, ns).try_normalize();
+        (world, error, ng, ns_ok.select(ns_unit, ng), ok)
+    }
+
+    /// A normal `n` in world space, made unit (`fallback` where it cannot be).
+    #[inline(always)]
+    fn normal_to_world(&self, n: V3<R>, fallback: V3<R>) -> V3<R> {
+        let (unit, ok) = Self::apply(&self.normal, n).try_normalize();
+        ok.select(unit, fallback)
     }
 }
 

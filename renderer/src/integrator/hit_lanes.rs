@@ -5,7 +5,7 @@
 
 use super::Vertex;
 use crate::lanes::{F32s, Mask, MaskOps, Vec2s, Vec3s, LANES};
-use crate::render_scene::{surface_points_lanes, LaneHit, SurfaceLanes};
+use crate::render_scene::{surface_points_lanes, LaneHit, Placed, SurfaceLanes};
 use glam::{Vec2, Vec3};
 
 /// A hit whose surface point a lane kernel finds: a ray of direction `direction` reaching
@@ -36,6 +36,10 @@ pub(crate) struct HitLanes {
     barycentric: Vec2s,
     direction: Vec3s,
     double_sided: [bool; LANES],
+    /// Lanes pushed as a hit on an instance, whether any is, and their instances' transforms.
+    instanced: [bool; LANES],
+    any_instanced: bool,
+    placed: Placed<F32s>,
 }
 
 impl HitLanes {
@@ -44,6 +48,7 @@ impl HitLanes {
     pub fn clear(&mut self) {
         self.any_from_hit = false;
         self.any_smooth = false;
+        self.any_instanced = false;
     }
 
     /// Lane `i` is `vertex`'s surface point.
@@ -80,6 +85,11 @@ impl HitLanes {
         self.barycentric.set(i, barycentric);
         self.direction.set(i, direction);
         self.double_sided[i] = double_sided;
+        self.instanced[i] = hit.placed.is_some();
+        if let Some(placed) = &hit.placed {
+            self.placed.set(i, placed);
+            self.any_instanced = true;
+        }
         self.from_hit[i] = true;
         self.any_from_hit = true;
         self.any_smooth |= !hit.flat;
@@ -87,17 +97,18 @@ impl HitLanes {
 
     /// The lanes' surface points; the lanes whose vertex scatters: those pushed found, and
     /// those pushed as their hit where [`PathTracer::begin`](super::PathTracer) would not end
-    /// the path (at the back of a single-sided material, or with the ray arriving below the
-    /// shading hemisphere); and the lanes pushed as their hit whose ray arrives at the front
+    /// the path (at the back of a single-sided material, with the ray arriving below the
+    /// shading hemisphere, or on an instance whose transform leaves no normal); and the lanes pushed as their hit whose ray arrives at the front
     /// of the surface (set for those pushed found).
     #[inline(always)]
     pub fn surface_points(&self) -> (SurfaceLanes, Mask, Mask) {
         if !self.any_from_hit {
             return (self.found.clone(), Mask([true; LANES]), Mask([true; LANES]));
         }
-        let (hit, front_face) =
-            surface_points_lanes(self.corners, self.ng, self.normals, Mask(self.flat), self.any_smooth, self.barycentric, self.direction);
-        let scatters = (front_face | Mask(self.double_sided)) & !hit.wo.z.le(F32s::splat(0.0));
+        let placed = self.any_instanced.then_some((&self.placed, Mask(self.instanced)));
+        let (hit, front_face, valid) =
+            surface_points_lanes(self.corners, self.ng, self.normals, Mask(self.flat), self.any_smooth, self.barycentric, self.direction, placed);
+        let scatters = (front_face | Mask(self.double_sided)) & !hit.wo.z.le(F32s::splat(0.0)) & valid;
         let (from_hit, found) = (Mask(self.from_hit), &self.found);
         let surface = SurfaceLanes {
             p: from_hit.select(hit.p, found.p),
@@ -135,7 +146,9 @@ mod tests {
     /// preview's flat ground, and its smooth-shaded sphere made Lambertian),
     /// metallic-roughness ones (the preview's sphere, and its ground made
     /// metallic-roughness) and glass (the glass-and-coats scene's, seen from outside and
-    /// inside, and the same made thin-walled), under every strategy.
+    /// inside, and the same made thin-walled), and on instances (the feature showcase's 18
+    /// rocks, its textures, normal maps, coats and emission removed; Lambertian, then
+    /// metallic-roughness), under every strategy.
     #[test]
     fn hits_pushed_equal_scalar_begin_and_scatter() {
         let load = crate::testing::data::shipped_scene;
@@ -159,17 +172,44 @@ mod tests {
         for m in thin.materials.iter_mut().filter(|m| m.transmits()) {
             m.volume = None;
         }
+        let mut showcase = load("feature-showcase");
+        assert!(!showcase.instances.is_empty(), "the showcase places its rocks by instances");
+        for m in &mut showcase.materials {
+            (m.base_color_texture, m.metallic_roughness_texture, m.transmission_texture, m.normal_texture) = (None, None, None, None);
+            (m.clearcoat, m.sheen, m.emission) = (None, None, Rgb::ZERO);
+        }
+        let instanced = |model: SurfaceModel| {
+            let mut description = showcase.clone();
+            for m in description.materials.iter_mut().filter(|m| !m.transmits()) {
+                m.model = model.clone();
+            }
+            description
+        };
+        let (instanced_diffuse, instanced_glossy) = (instanced(SurfaceModel::Lambert), instanced(SurfaceModel::MetallicRoughness));
         // Per kernel (diffuse, glossy, glass): vertices, pushed as hits, ended, smooth-shaded,
-        // lit.
-        let mut totals = [[0usize; 5]; 3];
-        for (description, double_sided) in [(cornell, false), (double_sided, true), (preview, false), (glossy, false), (diffuse, false), (glass, false), (thin, false)] {
+        // lit, on instances.
+        let mut totals = [[0usize; 6]; 3];
+        // (scene, whether its materials are double-sided, whether only hits on instances are
+        // taken).
+        let scenes = [
+            (cornell, false, false),
+            (double_sided, true, false),
+            (preview, false, false),
+            (glossy, false, false),
+            (diffuse, false, false),
+            (glass, false, false),
+            (thin, false, false),
+            (instanced_diffuse, false, true),
+            (instanced_glossy, false, true),
+        ];
+        for (description, double_sided, on_instances) in scenes {
             let scene = RenderScene::new(description).expect("scene");
             for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
                 let tracer = PathTracer {
                     strategy,
                     ..PathTracer::default()
                 };
-                for (kernel, cases) in cases(&scene, &tracer).into_iter().enumerate() {
+                for (kernel, cases) in cases(&scene, &tracer, on_instances).into_iter().enumerate() {
                     if cases.is_empty() {
                         continue;
                     }
@@ -194,18 +234,20 @@ mod tests {
                             _ => unreachable!(),
                         }),
                     };
-                    let Counts { from_hits, ended, shadows, smooth } = counts;
+                    let Counts { from_hits, ended, shadows, smooth, instanced } = counts;
                     let n = cases.len();
                     assert!(from_hits > n / 2, "{strategy:?}: {from_hits} of {n} pushed as hits");
                     assert!(ended < n && (ended == 0 || !double_sided), "{strategy:?}: {ended} of {n} ended");
-                    for (total, count) in totals[kernel].iter_mut().zip([n, from_hits, ended, smooth, shadows]) {
+                    for (total, count) in totals[kernel].iter_mut().zip([n, from_hits, ended, smooth, shadows, instanced]) {
                         *total += count;
                     }
                 }
             }
         }
-        for (kernel, [n, from_hits, ended, smooth, shadows]) in totals.into_iter().enumerate() {
+        for (kernel, [n, from_hits, ended, smooth, shadows, instanced]) in totals.into_iter().enumerate() {
             assert!(n >= 1000 && from_hits > 0 && ended > 0 && smooth > 0 && shadows > 0, "kernel {kernel}: {:?}", totals[kernel]);
+            // The showcase's rocks are opaque: the glass kernel meets no instance.
+            assert!(kernel == 2 || instanced > 100, "kernel {kernel}: {instanced} lanes on instances");
         }
     }
 
@@ -213,14 +255,15 @@ mod tests {
     type Case = (PathState, Hit, bool);
 
     /// Up to 169 vertices each for the diffuse, the glossy and the glass kernel that can be
-    /// begun in lanes, from rays inside the scene's bounds in random directions or (every
-    /// other ray) toward a random triangle (so mostly the dense meshes'), every eighth vertex
-    /// with a zero throughput.
-    fn cases(scene: &RenderScene, tracer: &PathTracer) -> [Vec<Case>; 3] {
+    /// begun in lanes (`on_instances`: only those on instances), from rays inside the scene's
+    /// bounds in random directions or (every other ray) toward a random triangle (so mostly
+    /// the dense meshes'), every eighth vertex with a zero throughput; 20,000 rays, 80,000
+    /// where only hits on instances count.
+    fn cases(scene: &RenderScene, tracer: &PathTracer, on_instances: bool) -> [Vec<Case>; 3] {
         let mut rng = Sampler::new(9, 2, 6);
         let (mut diffuse, mut glossy, mut glass) = (Vec::new(), Vec::new(), Vec::new());
         let triangles = scene.geometry.triangle_count();
-        for k in 0..20_000 {
+        for k in 0..if on_instances { 80_000 } else { 20_000 } {
             let origin = scene.bounds_centre + (rng.next_2d().extend(rng.next_1d()) - 0.5) * scene.bounds_radius;
             let direction = if k % 2 == 0 {
                 sample_uniform_sphere(rng.next_2d())
@@ -234,6 +277,9 @@ mod tests {
             let mut state = tracer.start(ray, rng.clone()).expect("depth allows a segment");
             rng.next_1d();
             let Some(hit) = scene.intersect(&ray) else { continue };
+            if on_instances && hit.instance == crate::accel::NO_INSTANCE {
+                continue;
+            }
             let mut drawn = state.clone();
             let draws = tracer.draw(scene, &mut drawn);
             let Some((_, &(bsdf, _), _)) = tracer.lane_begin(scene, &drawn, &hit, &draws) else { continue };
@@ -256,6 +302,7 @@ mod tests {
         ended: usize,
         shadows: usize,
         smooth: usize,
+        instanced: usize,
     }
 
     /// Pushes `cases` into the kernel of BSDF `B` (`one` gives a vertex's parameters from its
@@ -264,7 +311,7 @@ mod tests {
     fn check<'s, B: LaneBxdf>(scene: &'s RenderScene, tracer: &PathTracer, cases: &[Case], one: impl Fn(&Bsdf<'s>, Option<&Vertex<'s>>, u32) -> B::One) -> Counts {
         let strategy = tracer.strategy;
         let (mut lanes, mut out) = (BxdfLanes::<B>::default(), ScatteredLanes::default());
-        let mut counts = Counts { from_hits: 0, ended: 0, shadows: 0, smooth: 0 };
+        let mut counts = Counts { from_hits: 0, ended: 0, shadows: 0, smooth: 0, instanced: 0 };
         for group in cases.chunks(LANES) {
             lanes.clear();
             let mut expected = Vec::new();
@@ -283,6 +330,7 @@ mod tests {
                         lanes.push_hit(&at, &one(&bsdf, None, lane_hit.material), state.beta, &draws, light);
                         counts.from_hits += 1;
                         counts.smooth += !lane_hit.flat as usize;
+                        counts.instanced += lane_hit.placed.is_some() as usize;
                     }
                 }
                 counts.ended += scattered.is_none() as usize;
