@@ -345,10 +345,10 @@ impl RenderScene {
         let mut ng = ng;
         if hit.instance != NO_INSTANCE {
             let placed = &self.instances.as_ref()?.placements[hit.instance as usize];
-            let (world, error, ng_world, ns_world, ok) = placed.to_world(p.into(), p_error.into(), ng.into(), ns.into());
-            (p, p_error, ng, ns) = (world.into(), error.into(), ng_world.into(), ns_world.into());
-            coat_normal = coat_normal.map(|n| placed.normal_to_world(n.into(), ng_world).into());
-            if !ok {
+            let world = placed.place(p.into(), p_error.into(), ng.into(), ns.into());
+            (p, p_error, ng, ns) = (world.p.into(), world.p_error.into(), world.ng.into(), world.ns.into());
+            coat_normal = coat_normal.map(|n| placed.normal_to_world(n.into(), world.ng).into());
+            if !world.ok {
                 return None;
             }
         }
@@ -478,35 +478,74 @@ impl SurfaceLanes {
 }
 
 
-/// The surface points of [`LaneHit`]s (per lane: the triangle's corners, geometric normal
-/// `ng`, `normals` and whether they are `flat`; `any_smooth` where some lane's are not) at
-/// barycentric coordinates `barycentric` of rays with directions `direction`, the lanes of
-/// `placed`'s mask on instances moved into world space by its transforms, with
-/// [`RenderScene::surface_point`]'s operations for a triangle without normal map and wo as
-/// `PathTracer::begin` finds it (so the same bits); the lanes hit from the front; and the
-/// lanes with a surface point (`surface_point` gives none where an instance's transform
-/// leaves no geometric normal).
-#[inline(always)]
-pub(crate) fn surface_points_lanes(
+/// The triangles of up to [`LANES`] hits whose surface points are found in lanes
+/// ([`surface_points_lanes`]): per lane, a [`LaneHit`]'s corners, geometric normal, vertex
+/// normals (the flat shading normal three times where `flat`) and, on an instance, its
+/// transforms; whether any lane is smooth-shaded, and whether any is on an instance.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TriangleLanes {
     corners: [Vec3s; 3],
     ng: Vec3s,
     normals: [Vec3s; 3],
     flat: Mask,
     any_smooth: bool,
-    barycentric: Vec2s,
-    direction: Vec3s,
-    placed: Option<(&Placed<F32s>, Mask)>,
-) -> (SurfaceLanes, Mask, Mask) {
+    placed: Placed<F32s>,
+    instanced: Mask,
+    any_instanced: bool,
+}
+
+impl TriangleLanes {
+    /// Forgets which lanes are smooth-shaded or on instances (their old values stay, unused).
+    #[inline]
+    pub fn clear(&mut self) {
+        self.any_smooth = false;
+        self.any_instanced = false;
+    }
+
+    /// Lane `i` holds `hit`'s triangle.
+    #[inline(always)]
+    pub fn set(&mut self, i: usize, hit: &LaneHit) {
+        for (corners, &corner) in self.corners.iter_mut().zip(&hit.corners) {
+            corners.set(i, corner);
+        }
+        // A flat lane's normal is its first; the others are read only where some lane is
+        // smooth, and then not used for the flat lanes.
+        self.normals[0].set(i, hit.normals[0]);
+        if !hit.flat {
+            self.normals[1].set(i, hit.normals[1]);
+            self.normals[2].set(i, hit.normals[2]);
+        }
+        self.ng.set(i, hit.ng);
+        self.flat.0[i] = hit.flat;
+        self.any_smooth |= !hit.flat;
+        self.instanced.0[i] = hit.placed.is_some();
+        if let Some(placed) = &hit.placed {
+            self.placed.set(i, placed);
+            self.any_instanced = true;
+        }
+    }
+}
+
+/// The surface points on `triangles` at barycentric coordinates `barycentric` of rays with
+/// directions `direction` (the lanes on instances moved into world space by their
+/// transforms), with [`RenderScene::surface_point`]'s operations for a triangle without
+/// normal map and wo as `PathTracer::begin` finds it (so the same bits); the lanes hit from
+/// the front; and the lanes with a surface point (`surface_point` gives none where an
+/// instance's transform leaves no geometric normal).
+#[inline(always)]
+pub(crate) fn surface_points_lanes(triangles: &TriangleLanes, barycentric: Vec2s, direction: Vec3s) -> (SurfaceLanes, Mask, Mask) {
+    let TriangleLanes { corners, ng, normals, flat, any_smooth, .. } = *triangles;
     let (mut p, mut p_error) = barycentric_point(corners, barycentric);
     let mut ns = normals[0];
     if any_smooth {
         ns = flat.select(ns, smooth_normal(normals, barycentric, ng));
     }
     let (mut ng, mut valid) = (ng, Mask::splat(true));
-    if let Some((placed, lanes)) = placed {
-        let (world, error, ng_world, ns_world, ok) = placed.to_world(p, p_error, ng, ns);
-        ((p, p_error), (ng, ns)) = lanes.select(((world, error), (ng_world, ns_world)), ((p, p_error), (ng, ns)));
-        valid = !lanes | ok;
+    if triangles.any_instanced {
+        let world = triangles.placed.place(p, p_error, ng, ns);
+        let lanes = triangles.instanced;
+        ((p, p_error), (ng, ns)) = lanes.select(((world.p, world.p_error), (world.ng, world.ns)), ((p, p_error), (ng, ns)));
+        valid = !lanes | world.ok;
     }
     let (front_face, ng_facing, n) = facing(direction, ng, ns);
     let (s, t) = crate::frame::tangents(n);
@@ -592,6 +631,16 @@ pub(crate) struct Placed<R> {
     normal: [V3<R>; 3],
 }
 
+/// A surface point placed in world space by [`Placed::place`]: position, its absolute error
+/// bound, unit geometric and shading normals, and whether the geometric normal exists.
+struct PlacedPoint<R: Real> {
+    p: V3<R>,
+    p_error: V3<R>,
+    ng: V3<R>,
+    ns: V3<R>,
+    ok: R::Mask,
+}
+
 impl Placed<f32> {
     /// The transforms of an instance placed by `object_to_world`.
     fn of(object_to_world: &Affine3A) -> Self {
@@ -625,12 +674,12 @@ impl<R: Real> Placed<R> {
     }
 
     /// A point of the instance's mesh with its absolute error bound, and its geometric and
-    /// shading normals, in world space: the transformed point, the transformed bound plus the
-    /// rounding of the transform itself (pbrt-v4's bound for applying a transform to a point
-    /// with error), the normals through the normal matrix made unit (the geometric one zero,
-    /// and the mask unset, where it cannot be; the shading one falling back to the geometric).
+    /// shading normals, placed in world space: the transformed point, the transformed bound
+    /// plus the rounding of the transform itself (pbrt-v4's bound for applying a transform to
+    /// a point with error), the normals through the normal matrix made unit (the geometric one
+    /// zero, and `ok` unset, where it cannot be; the shading one falling back to the geometric).
     #[inline(always)]
-    fn to_world(&self, p: V3<R>, p_error: V3<R>, ng: V3<R>, ns: V3<R>) -> (V3<R>, V3<R>, V3<R>, V3<R>, R::Mask) {
+    fn place(&self, p: V3<R>, p_error: V3<R>, ng: V3<R>, ns: V3<R>) -> PlacedPoint<R> {
         let abs = self.cols.map(V3::abs);
         let g = gamma(3.0);
         let world = Self::apply(&self.cols, p) + self.translation;
@@ -638,7 +687,7 @@ impl<R: Real> Placed<R> {
         let (ng_unit, ok) = Self::apply(&self.normal, ng).try_normalize();
         let ng = ok.select(ng_unit, V3::splat(Vec3::ZERO));
         let (ns_unit, ns_ok) = Self::apply(&self.normal, ns).try_normalize();
-        (world, error, ng, ns_ok.select(ns_unit, ng), ok)
+        PlacedPoint { p: world, p_error: error, ng, ns: ns_ok.select(ns_unit, ng), ok }
     }
 
     /// A normal `n` in world space, made unit (`fallback` where it cannot be).

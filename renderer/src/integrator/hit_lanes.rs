@@ -5,7 +5,7 @@
 
 use super::Vertex;
 use crate::lanes::{F32s, Mask, MaskOps, Vec2s, Vec3s, LANES};
-use crate::render_scene::{surface_points_lanes, LaneHit, Placed, SurfaceLanes};
+use crate::render_scene::{surface_points_lanes, LaneHit, SurfaceLanes, TriangleLanes};
 use glam::{Vec2, Vec3};
 
 /// A hit whose surface point a lane kernel finds: a ray of direction `direction` reaching
@@ -24,22 +24,13 @@ pub(crate) struct HitAt<'a> {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct HitLanes {
     found: SurfaceLanes,
-    /// Lanes pushed as their hit; whether any is, and whether any of those has a smooth
-    /// (interpolated) shading normal.
+    /// Lanes pushed as their hit, and whether any is.
     from_hit: [bool; LANES],
     any_from_hit: bool,
-    any_smooth: bool,
-    corners: [Vec3s; 3],
-    ng: Vec3s,
-    normals: [Vec3s; 3],
-    flat: [bool; LANES],
+    triangles: TriangleLanes,
     barycentric: Vec2s,
     direction: Vec3s,
     double_sided: [bool; LANES],
-    /// Lanes pushed as a hit on an instance, whether any is, and their instances' transforms.
-    instanced: [bool; LANES],
-    any_instanced: bool,
-    placed: Placed<F32s>,
 }
 
 impl HitLanes {
@@ -47,8 +38,7 @@ impl HitLanes {
     #[inline]
     pub fn clear(&mut self) {
         self.any_from_hit = false;
-        self.any_smooth = false;
-        self.any_instanced = false;
+        self.triangles.clear();
     }
 
     /// Lane `i` is `vertex`'s surface point.
@@ -70,29 +60,12 @@ impl HitLanes {
     #[inline(always)]
     pub fn set_hit(&mut self, i: usize, at: &HitAt) {
         let HitAt { hit, barycentric, direction, double_sided } = *at;
-        for (corners, &corner) in self.corners.iter_mut().zip(&hit.corners) {
-            corners.set(i, corner);
-        }
-        // A flat lane's normal is its first; the others are read only where some lane is
-        // smooth, and then not used for the flat lanes.
-        self.normals[0].set(i, hit.normals[0]);
-        if !hit.flat {
-            self.normals[1].set(i, hit.normals[1]);
-            self.normals[2].set(i, hit.normals[2]);
-        }
-        self.ng.set(i, hit.ng);
-        self.flat[i] = hit.flat;
+        self.triangles.set(i, hit);
         self.barycentric.set(i, barycentric);
         self.direction.set(i, direction);
         self.double_sided[i] = double_sided;
-        self.instanced[i] = hit.placed.is_some();
-        if let Some(placed) = &hit.placed {
-            self.placed.set(i, placed);
-            self.any_instanced = true;
-        }
         self.from_hit[i] = true;
         self.any_from_hit = true;
-        self.any_smooth |= !hit.flat;
     }
 
     /// The lanes' surface points; the lanes whose vertex scatters: those pushed found, and
@@ -105,9 +78,7 @@ impl HitLanes {
         if !self.any_from_hit {
             return (self.found.clone(), Mask([true; LANES]), Mask([true; LANES]));
         }
-        let placed = self.any_instanced.then_some((&self.placed, Mask(self.instanced)));
-        let (hit, front_face, valid) =
-            surface_points_lanes(self.corners, self.ng, self.normals, Mask(self.flat), self.any_smooth, self.barycentric, self.direction, placed);
+        let (hit, front_face, valid) = surface_points_lanes(&self.triangles, self.barycentric, self.direction);
         let scatters = (front_face | Mask(self.double_sided)) & !hit.wo.z.le(F32s::splat(0.0)) & valid;
         let (from_hit, found) = (Mask(self.from_hit), &self.found);
         let surface = SurfaceLanes {
