@@ -718,6 +718,16 @@ impl<R: Real> V3<R> {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
 
+    /// Cross product, with `glam::Vec3::cross`'s operations.
+    #[inline(always)]
+    pub fn cross(self, o: V3<R>) -> V3<R> {
+        V3 {
+            x: self.y * o.z - o.y * self.z,
+            y: self.z * o.x - o.z * self.x,
+            z: self.x * o.y - o.x * self.y,
+        }
+    }
+
     #[inline(always)]
     pub fn abs(self) -> V3<R> {
         V3 {

@@ -15,7 +15,7 @@ use crate::lights::area::{EmissionCoat, EmissionTexture, Emitter};
 use crate::lights::LightSet;
 use crate::material::SceneMaterials;
 use crate::sampler::hash_float;
-use crate::scene::{AlphaMode, Geometry, SceneDescription};
+use crate::scene::{AlphaMode, Geometry, NormalMap, SceneDescription};
 use crate::Rgb;
 use glam::{Affine3A, Vec2, Vec3, Vec3A};
 
@@ -283,12 +283,16 @@ impl RenderScene {
         }
     }
 
-    /// What finding `hit`'s surface point in lanes needs ([`surface_points_lanes`]), where
-    /// its triangle is not degenerate; `None` elsewhere. (Its material's
-    /// normal map, which bends the normal per point, is the caller's to rule out.)
+    /// What beginning `hit`'s vertex in lanes needs, where its material lets the lane
+    /// kernels begin it ([`SceneMaterials::lane_bsdf`]) and its triangle is not degenerate:
+    /// the triangle with its normal map's reading at the hit ([`LaneHit`], for
+    /// [`surface_points_lanes`]), the material's BSDF there seen from its front, and whether
+    /// it is double-sided; `None` elsewhere.
     #[inline]
-    pub(crate) fn lane_hit(&self, hit: &Hit) -> Option<LaneHit> {
+    pub(crate) fn lane_hit(&self, hit: &Hit) -> Option<(LaneHit, Bsdf<'_>, bool)> {
         let tri = hit.triangle as usize;
+        let material = self.geometry.material_ids[tri];
+        let (bsdf, double_sided) = self.materials.lane_bsdf(material, |set| self.uv_at(hit.triangle, hit.barycentric, set))?;
         let HitRecord { corners, ng, flat_normal } = self.hit_records[tri];
         if ng == Vec3::ZERO {
             return None;
@@ -303,14 +307,18 @@ impl RenderScene {
         } else {
             self.geometry.triangles[tri].map(|v| self.geometry.normals[v as usize])
         };
-        Some(LaneHit {
+        let map = self.materials.normal_map(material);
+        let lane_hit = LaneHit {
             corners,
             ng,
             normals,
             flat,
-            material: self.geometry.material_ids[tri],
+            material,
             placed,
-        })
+            mapped: map.is_some(),
+            bend: map.and_then(|map| self.normal_bend(tri, hit.barycentric, map)),
+        };
+        Some((lane_hit, bsdf, double_sided))
     }
 
     /// The surface point of a hit of a ray with direction `direction`; `None` for a
@@ -352,16 +360,15 @@ impl RenderScene {
                 return None;
             }
         }
-        let (front_face, ng_facing, facing_ns) = facing(direction.into(), ng.into(), ns.into());
-        let (ng_facing, mut ns) = (ng_facing.into(), facing_ns.into());
+        let (front_face, ng_facing, mut ns) = facing(direction.into(), ng.into(), ns.into());
         if normal_map.is_some() {
-            ns = keep_viewer_above(ns, -direction, ng_facing);
+            ns = keep_viewer_above(ns, (-direction).into(), ng_facing);
         }
-        let frame = Frame::from_normal(ns);
+        let (ng_facing, frame): (Vec3, _) = (ng_facing.into(), Frame::from_normal(ns.into()));
         let coat_normal = match coat_normal {
             Some(n) => {
                 let n = if n.dot(ng_facing) < 0.0 { -n } else { n };
-                frame.to_local(keep_viewer_above(n, -direction, ng_facing))
+                frame.to_local(keep_viewer_above(n.into(), (-direction).into(), ng_facing.into()).into())
             }
             None => Vec3::Z,
         };
@@ -379,24 +386,31 @@ impl RenderScene {
         })
     }
 
-    /// The shading normal `n` (interpolated, unit) bent by normal map `map` at a point of
-    /// triangle `tri`: the texel's tangent-space normal in the frame of the interpolated
-    /// tangent (made orthogonal to `n`), the bitangent w · n × t and `n`. `n` itself where the
+    /// The shading normal `n` (interpolated, unit) bent by normal map `map` at barycentric
+    /// coordinates `b` of triangle `tri` ([`NormalBend::bend`]); `n` itself where the
     /// vertices carry no tangent.
-    fn mapped_normal(&self, tri: usize, b: Vec2, n: Vec3, map: &crate::scene::NormalMap) -> Vec3 {
+    fn mapped_normal(&self, tri: usize, b: Vec2, n: Vec3, map: &NormalMap) -> Vec3 {
+        match self.normal_bend(tri, b, map) {
+            Some(bend) => bend.bend(n.into()).into(),
+            None => n,
+        }
+    }
+
+    /// Normal map `map`'s reading at barycentric coordinates `b` of triangle `tri`: the
+    /// tangent and bitangent sign interpolated from its vertices, and the texel's normal;
+    /// `None` where the vertices carry no tangent.
+    #[inline]
+    fn normal_bend(&self, tri: usize, b: Vec2, map: &NormalMap) -> Option<NormalBend<f32>> {
         let g = &self.geometry;
         if g.tangents.is_empty() {
-            return n;
+            return None;
         }
         let [i0, i1, i2] = g.triangles[tri].map(|i| g.tangents[i as usize]);
-        let t = (i0 * (1.0 - b.x - b.y) + i1 * b.x + i2 * b.y).truncate();
-        let w = if i0.w + i1.w + i2.w < 0.0 { -1.0 } else { 1.0 };
-        let Some(t) = (t - n * n.dot(t)).try_normalize() else {
-            return n;
-        };
+        let tangent = (i0 * (1.0 - b.x - b.y) + i1 * b.x + i2 * b.y).truncate();
+        let sign = if i0.w + i1.w + i2.w < 0.0 { -1.0 } else { 1.0 };
         let texel = map.texture.lookup(self.materials.textures(), self.uv_at(tri as u32, b, map.texture.tex_coord));
-        let v = (2.0 * texel - Vec3::ONE) * Vec3::new(map.scale, map.scale, 1.0);
-        (t * v.x + w * n.cross(t) * v.y + n * v.z).try_normalize().unwrap_or(n)
+        let normal = (2.0 * texel - Vec3::ONE) * Vec3::new(map.scale, map.scale, 1.0);
+        Some(NormalBend { tangent: tangent.into(), sign, normal: normal.into() })
     }
 
     /// Texture coordinates of set `set` (0 or 1; set 1 falls back to set 0 where the scene has
@@ -447,6 +461,10 @@ pub(crate) struct LaneHit {
     /// Where the triangle is an instance's, the instance's transforms (the fields above are
     /// in its mesh's space).
     pub placed: Option<Placed<f32>>,
+    /// Whether the material has a normal map, and its reading at the hit where the vertices
+    /// carry tangents.
+    pub mapped: bool,
+    pub bend: Option<NormalBend<f32>>,
 }
 
 /// A vertex's surface point per lane, as the lane kernels read it: position, its absolute
@@ -480,8 +498,9 @@ impl SurfaceLanes {
 
 /// The triangles of up to [`LANES`] hits whose surface points are found in lanes
 /// ([`surface_points_lanes`]): per lane, a [`LaneHit`]'s corners, geometric normal, vertex
-/// normals (the flat shading normal three times where `flat`) and, on an instance, its
-/// transforms; whether any lane is smooth-shaded, and whether any is on an instance.
+/// normals (the flat shading normal three times where `flat`), on an instance its
+/// transforms, and on a normal-mapped material the map's reading; whether any lane is
+/// smooth-shaded, whether any is on an instance, and whether any is normal-mapped.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct TriangleLanes {
     corners: [Vec3s; 3],
@@ -492,14 +511,22 @@ pub(crate) struct TriangleLanes {
     placed: Placed<F32s>,
     instanced: Mask,
     any_instanced: bool,
+    bends: NormalBend<F32s>,
+    /// The lanes whose material has a normal map, and those of them whose map bends the
+    /// normal (their vertices carry tangents).
+    mapped: Mask,
+    bent: Mask,
+    any_mapped: bool,
 }
 
 impl TriangleLanes {
-    /// Forgets which lanes are smooth-shaded or on instances (their old values stay, unused).
+    /// Forgets which lanes are smooth-shaded, on instances or normal-mapped (their old values
+    /// stay, unused).
     #[inline]
     pub fn clear(&mut self) {
         self.any_smooth = false;
         self.any_instanced = false;
+        self.any_mapped = false;
     }
 
     /// Lane `i` holds `hit`'s triangle.
@@ -523,13 +550,19 @@ impl TriangleLanes {
             self.placed.set(i, placed);
             self.any_instanced = true;
         }
+        self.mapped.0[i] = hit.mapped;
+        self.bent.0[i] = hit.bend.is_some();
+        self.any_mapped |= hit.mapped;
+        if let Some(bend) = &hit.bend {
+            self.bends.set(i, bend);
+        }
     }
 }
 
 /// The surface points on `triangles` at barycentric coordinates `barycentric` of rays with
 /// directions `direction` (the lanes on instances moved into world space by their
-/// transforms), with [`RenderScene::surface_point`]'s operations for a triangle without
-/// normal map and wo as `PathTracer::begin` finds it (so the same bits); the lanes hit from
+/// transforms, the normal-mapped ones' normals bent), with [`RenderScene::surface_point`]'s
+/// operations and wo as `PathTracer::begin` finds it (so the same bits); the lanes hit from
 /// the front; and the lanes with a surface point (`surface_point` gives none where an
 /// instance's transform leaves no geometric normal).
 #[inline(always)]
@@ -540,6 +573,9 @@ pub(crate) fn surface_points_lanes(triangles: &TriangleLanes, barycentric: Vec2s
     if any_smooth {
         ns = flat.select(ns, smooth_normal(normals, barycentric, ng));
     }
+    if triangles.any_mapped {
+        ns = triangles.bent.select(triangles.bends.bend(ns), ns);
+    }
     let (mut ng, mut valid) = (ng, Mask::splat(true));
     if triangles.any_instanced {
         let world = triangles.placed.place(p, p_error, ng, ns);
@@ -547,7 +583,10 @@ pub(crate) fn surface_points_lanes(triangles: &TriangleLanes, barycentric: Vec2s
         ((p, p_error), (ng, ns)) = lanes.select(((world.p, world.p_error), (world.ng, world.ns)), ((p, p_error), (ng, ns)));
         valid = !lanes | world.ok;
     }
-    let (front_face, ng_facing, n) = facing(direction, ng, ns);
+    let (front_face, ng_facing, mut n) = facing(direction, ng, ns);
+    if triangles.any_mapped {
+        n = triangles.mapped.select(keep_viewer_above(n, -direction, ng_facing), n);
+    }
     let (s, t) = crate::frame::tangents(n);
     let mut surface = SurfaceLanes { p, p_error, ng: ng_facing, s, t, n, wo: Vec3s::default() };
     surface.wo = surface.to_local(-direction);
@@ -579,15 +618,48 @@ fn facing<R: Real>(direction: V3<R>, ng: V3<R>, ns: V3<R>) -> (R::Mask, V3<R>, V
 /// the side of `ng`) just enough that the viewer stays above its hemisphere: where a bump
 /// faces away at grazing view, the BSDF would otherwise see `wo` below its horizon and the
 /// path would end black (dark speckles on normal-mapped ground far away). The bound,
-/// min(0.9 wo·ng, 0.01), follows Cycles' `ensure_valid_reflection`.
-#[inline]
-fn keep_viewer_above(ns: Vec3, wo: Vec3, ng: Vec3) -> Vec3 {
-    let least = (0.9 * wo.dot(ng)).min(0.01);
+/// min(0.9 wo·ng, 0.01), follows Cycles' `ensure_valid_reflection`. Over [`Real`] values
+/// (one point, or one per lane).
+#[inline(always)]
+fn keep_viewer_above<R: Real>(ns: V3<R>, wo: V3<R>, ng: V3<R>) -> V3<R> {
+    let least = (wo.dot(ng) * 0.9).min(R::splat(0.01));
     let cos = ns.dot(wo);
-    if cos >= least {
-        return ns;
+    let (tilted, ok) = (ns + wo * (least - cos)).try_normalize();
+    cos.ge(least).select(ns, ok.select(tilted, ng))
+}
+
+/// A normal map's reading at a point, over [`Real`] values (one point's, or one per lane):
+/// the tangent interpolated from the triangle's vertices (not unit, in the mesh's space),
+/// the bitangent's sign w (±1), and the texel's tangent-space normal (2 texel − 1, its x and
+/// y times the map's scale).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct NormalBend<R> {
+    tangent: V3<R>,
+    sign: R,
+    normal: V3<R>,
+}
+
+impl<R: Real> NormalBend<R> {
+    /// The unit shading normal `n` bent by the map: the texel's normal in the frame of the
+    /// tangent made orthogonal to `n`, the bitangent w n × t, and `n`; `n` itself where the
+    /// tangent has no length orthogonal to `n` or the bent normal has none.
+    #[inline(always)]
+    fn bend(&self, n: V3<R>) -> V3<R> {
+        let (t, ok) = (self.tangent - n * n.dot(self.tangent)).try_normalize();
+        let v = self.normal;
+        let (bent, bent_ok) = (t * v.x + n.cross(t) * self.sign * v.y + n * v.z).try_normalize();
+        (ok & bent_ok).select(bent, n)
     }
-    (ns + (least - cos) * wo).try_normalize().unwrap_or(ng)
+}
+
+impl NormalBend<F32s> {
+    /// Lane `i` holds `bend`.
+    #[inline(always)]
+    fn set(&mut self, i: usize, bend: &NormalBend<f32>) {
+        self.tangent.set_lane(i, bend.tangent);
+        self.sign.set_lane(i, bend.sign);
+        self.normal.set_lane(i, bend.normal);
+    }
 }
 
 /// Texture coordinates of set `set` (0 or 1; set 1 falls back to set 0 where the geometry
@@ -710,7 +782,7 @@ fn bounding_sphere(bounds: Option<(Vec3, Vec3)>) -> (Vec3, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{Material, NormalMap, Texture, TextureRef};
+    use crate::scene::{Material, Texture, TextureRef};
     use crate::scene::texture::Filter;
     use glam::Vec4;
 
@@ -813,9 +885,10 @@ mod tests {
         let n = Vec3::new(-0.6, 0.0, 0.8);
         let wo = Vec3::new(0.99, 0.0, 0.141).normalize();
         assert!(n.dot(wo) < 0.0);
-        let tilted = keep_viewer_above(n, wo, Vec3::Z);
+        let keep = |n: Vec3| Vec3::from(keep_viewer_above::<f32>(n.into(), wo.into(), Vec3::Z.into()));
+        let tilted = keep(n);
         assert!((0.01..0.02).contains(&tilted.dot(wo)) && (tilted.length() - 1.0).abs() < 1e-6, "{tilted}");
-        assert_eq!(keep_viewer_above(Vec3::Z, wo, Vec3::Z), Vec3::Z, "a normal the viewer sees is kept");
+        assert_eq!(keep(Vec3::Z), Vec3::Z, "a normal the viewer sees is kept");
     }
 
     /// An emissive texture scales the emission seen by rays and sampled by lights, and

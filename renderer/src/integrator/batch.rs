@@ -128,7 +128,7 @@ impl PathTracer {
                 path.attenuate(hit.t);
                 let draws = self.draw(scene, path);
                 let beta = path.beta;
-                if let Some((lane_hit, &(bsdf, double_sided), light)) = self.lane_begin(scene, path, &hit, &draws) {
+                if let Some((lane_hit, (bsdf, double_sided), light)) = self.lane_begin(scene, path, &hit, &draws) {
                     let at = HitAt { hit: &lane_hit, barycentric: hit.barycentric, direction: path.ray.direction, double_sided };
                     let settle = |i, p, s| self.settle(paths, results, i, p, s);
                     match bsdf {
@@ -138,7 +138,7 @@ impl PathTracer {
                             let faces = GlassFaces::plain(&scene.materials, lane_hit.material, t.glass_alone().expect("plain glass is glass alone"));
                             glass.push(i, light_only, |lanes| lanes.push_hit(&at, &faces, beta, &draws, light), settle)
                         }
-                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => unreachable!("a plain BSDF is Lambertian, metallic-roughness or glass"),
+                        Bsdf::Merl(_) | Bsdf::Nbrdf(_) | Bsdf::Neural(_) | Bsdf::Layered(_) | Bsdf::Mixture(_) => unreachable!("a BSDF begun in lanes is Lambertian, metallic-roughness or glass"),
                     }
                     continue;
                 }
@@ -176,22 +176,21 @@ impl PathTracer {
     }
 
     /// What beginning the vertex of `path` at `hit` (its random numbers `draws`) in a lane
-    /// kernel needs — the hit's triangle ([`RenderScene::lane_hit`]), its material's BSDF
-    /// (Lambertian or metallic-roughness) and double-sidedness
-    /// ([`SceneMaterials::plain_bsdf`]) and its light ([`Self::kernel_light`]) — where the
-    /// kernel can find its surface point and light sample; `None` where
-    /// [`Self::begin_drawn`] must begin it (also where the path may not scatter there).
-    ///
-    /// [`SceneMaterials::plain_bsdf`]: crate::material::SceneMaterials::plain_bsdf
+    /// kernel needs — the hit's triangle, its material's BSDF there and double-sidedness
+    /// ([`RenderScene::lane_hit`]) and its light ([`Self::kernel_light`]) — where the kernel
+    /// can find its surface point and light sample; `None` where [`Self::begin_drawn`] must
+    /// begin it (also where the path may not scatter there).
     #[inline(always)]
     #[allow(clippy::type_complexity)]
-    pub(super) fn lane_begin<'s>(&self, scene: &'s RenderScene, path: &PathState, hit: &Hit, draws: &Draws) -> Option<(LaneHit, &'s (Bsdf<'s>, bool), LaneLight<'s>)> {
-        let lane_hit = scene.lane_hit(hit)?;
-        let plain = scene.materials.plain_bsdf(lane_hit.material)?;
+    pub(super) fn lane_begin<'s>(&self, scene: &'s RenderScene, path: &PathState, hit: &Hit, draws: &Draws) -> Option<(LaneHit, (Bsdf<'s>, bool), LaneLight<'s>)> {
         if !self.allows(path.segments + 1) {
             return None;
         }
-        Some((lane_hit, plain, self.kernel_light(scene, draws.light, draws.u_light)?))
+        // The light first: finding a textured material's BSDF is wasted where `begin_drawn`
+        // must begin the vertex anyway.
+        let light = self.kernel_light(scene, draws.light, draws.u_light)?;
+        let (lane_hit, bsdf, double_sided) = scene.lane_hit(hit)?;
+        Some((lane_hit, (bsdf, double_sided), light))
     }
 
     /// Hands path `i`'s vertex at `p`, scattered into `s`, on: its shadow test to the

@@ -108,12 +108,12 @@ impl GlassFaces {
         GlassFaces { front: lobes, back: lobes, enters_front: enters, enters_back: enters }
     }
 
-    /// The faces of plain glass `material` ([`SceneMaterials::plain_bsdf`]), whose glass
+    /// The faces of glass `material` begun in lanes ([`SceneMaterials::lane_bsdf`]), whose glass
     /// seen from the front is `front`: its back from [`SceneMaterials::glass_back`], the
     /// media entered through either from [`SceneMaterials::entered_volume`].
     #[inline(always)]
     pub fn plain(materials: &SceneMaterials, material: u32, front: &Dielectric) -> Self {
-        let back = materials.glass_back(material).expect("plain glass has a back");
+        let back = materials.glass_back(material).expect("glass begun in lanes has a back");
         GlassFaces {
             front: front.lobes(),
             back: back.lobes(),
@@ -204,13 +204,13 @@ impl<'s, B: LaneBxdf> BxdfLanes<'s, B> {
         self.set(i, bsdf, beta, vertex.u, vertex.uc, light);
     }
 
-    /// Appends the vertex `at`'s ray reaches, whose material's BSDF is `bsdf` everywhere
-    /// ([`SceneMaterials::plain_bsdf`]), for a path of throughput `beta`, with its random
+    /// Appends the vertex `at`'s ray reaches, whose material's BSDF there is `bsdf`
+    /// ([`SceneMaterials::lane_bsdf`]), for a path of throughput `beta`, with its random
     /// numbers `draws` and their light (a [`PathTracer::kernel_light`]): what
     /// [`PathTracer::begin`] and [`Self::push`] would give, the surface point found by the
     /// kernel ([`HitLanes`]).
     ///
-    /// [`SceneMaterials::plain_bsdf`]: crate::material::SceneMaterials::plain_bsdf
+    /// [`SceneMaterials::lane_bsdf`]: crate::material::SceneMaterials::lane_bsdf
     /// [`PathTracer::kernel_light`]: super::PathTracer::kernel_light
     /// [`PathTracer::begin`]: super::PathTracer
     ///
@@ -302,7 +302,8 @@ mod tests {
     /// throughputs: in the Cornell box (triangle lights) and on the material-preview's
     /// diffuse ground (a point light and an environment map or, in place of the map, a
     /// constant environment; or, in place of the point light, a spot light, whose samples
-    /// are pushed drawn).
+    /// are pushed drawn), and in the feature showcase made Lambertian (a directional light,
+    /// pushed drawn, a point light and a triangle light with an emissive texture).
     #[test]
     fn diffuse_lanes_equal_scalar_scatter_bit_for_bit() {
         let load = crate::testing::data::shipped_scene;
@@ -322,12 +323,18 @@ mod tests {
                 };
             }
         }
-        for (description, spot_light) in [(load("cornell-box"), false), (preview, false), (constant, false), (spot, true)] {
-            diffuse_lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"), spot_light);
+        let mut showcase = load("feature-showcase");
+        for m in showcase.materials.iter_mut().filter(|m| !m.transmits()) {
+            m.model = crate::scene::SurfaceModel::Lambert;
+        }
+        for (description, drawn_light) in [(load("cornell-box"), false), (preview, false), (constant, false), (spot, true), (showcase, true)] {
+            diffuse_lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"), drawn_light);
         }
     }
 
-    fn diffuse_lanes_equal_scalar_scatter_in(scene: &RenderScene, spot_light: bool) {
+    /// `drawn_light`: whether the scene has a spot or directional light, whose samples are
+    /// pushed drawn.
+    fn diffuse_lanes_equal_scalar_scatter_in(scene: &RenderScene, drawn_light: bool) {
         let mut rng = Sampler::new(3, 1, 4);
         for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
             let tracer = PathTracer {
@@ -339,7 +346,7 @@ mod tests {
                 _ => None,
             });
             let (mut lanes, mut out) = (DiffuseLanes::default(), ScatteredLanes::default());
-            let (mut shadows, mut ended, mut drawn_by_kernel, mut points, mut pushed_drawn) = (0, 0, 0, 0, 0);
+            let (mut shadows, mut ended, mut drawn_by_kernel, mut points, mut pushed_drawn, mut textured) = (0, 0, 0, 0, 0, 0);
             for group in cases.chunks(LANES) {
                 lanes.clear();
                 for (vertex, bsdf, beta) in group {
@@ -347,6 +354,7 @@ mod tests {
                     drawn_by_kernel += matches!(light, LaneLight::Triangle { .. } | LaneLight::Environment { .. }) as usize;
                     points += matches!(light, LaneLight::Point { .. }) as usize;
                     pushed_drawn += matches!(light, LaneLight::Sampled(_)) as usize;
+                    textured += matches!(light, LaneLight::Triangle { light, .. } if light.texture.is_some()) as usize;
                     lanes.push(vertex, &bsdf.lobe(), *beta, light);
                 }
                 crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
@@ -367,7 +375,9 @@ mod tests {
             // The preview's key light is a point light, illuminating under every strategy.
             let has_point_light = (0..scene.lights.len() as u32).any(|l| scene.lights.point(l).is_some());
             assert_eq!(points > 0, has_point_light, "{strategy:?}: {points} lanes lit by a point light");
-            assert_eq!(pushed_drawn > 0, spot_light, "{strategy:?}: {pushed_drawn} spot-light samples pushed drawn");
+            assert_eq!(pushed_drawn > 0, drawn_light, "{strategy:?}: {pushed_drawn} spot or directional samples pushed drawn");
+            let textured_lights = (0..scene.lights.len() as u32).any(|l| scene.lights.triangle(l).is_some_and(|t| t.texture.is_some()));
+            assert_eq!(textured > 0, textured_lights && strategy != Strategy::BsdfOnly, "{strategy:?}: {textured} lanes sample a textured triangle");
         }
     }
 

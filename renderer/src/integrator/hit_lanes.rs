@@ -117,9 +117,10 @@ mod tests {
     /// preview's flat ground, and its smooth-shaded sphere made Lambertian),
     /// metallic-roughness ones (the preview's sphere, and its ground made
     /// metallic-roughness) and glass (the glass-and-coats scene's, seen from outside and
-    /// inside, and the same made thin-walled), and on instances (the feature showcase's 18
-    /// rocks, its textures, normal maps, coats and emission removed; Lambertian, then
-    /// metallic-roughness), under every strategy.
+    /// inside, and the same made thin-walled), and on the feature showcase's textured and
+    /// normal-mapped materials and instanced rocks (its coats and emission removed;
+    /// Lambertian, then metallic-roughness; all hits, then only those on instances), under
+    /// every strategy.
     #[test]
     fn hits_pushed_equal_scalar_begin_and_scatter() {
         let load = crate::testing::data::shipped_scene;
@@ -145,21 +146,21 @@ mod tests {
         }
         let mut showcase = load("feature-showcase");
         assert!(!showcase.instances.is_empty(), "the showcase places its rocks by instances");
+        assert!(showcase.materials.iter().any(|m| m.normal_texture.is_some() && m.metallic_roughness_texture.is_some()), "the showcase has textured, normal-mapped materials");
         for m in &mut showcase.materials {
-            (m.base_color_texture, m.metallic_roughness_texture, m.transmission_texture, m.normal_texture) = (None, None, None, None);
             (m.clearcoat, m.sheen, m.emission) = (None, None, Rgb::ZERO);
         }
-        let instanced = |model: SurfaceModel| {
+        let opaque = |model: SurfaceModel| {
             let mut description = showcase.clone();
             for m in description.materials.iter_mut().filter(|m| !m.transmits()) {
                 m.model = model.clone();
             }
             description
         };
-        let (instanced_diffuse, instanced_glossy) = (instanced(SurfaceModel::Lambert), instanced(SurfaceModel::MetallicRoughness));
+        let (textured_diffuse, textured_glossy) = (opaque(SurfaceModel::Lambert), opaque(SurfaceModel::MetallicRoughness));
         // Per kernel (diffuse, glossy, glass): vertices, pushed as hits, ended, smooth-shaded,
-        // lit, on instances.
-        let mut totals = [[0usize; 6]; 3];
+        // lit, on instances, with their normals bent by a normal map.
+        let mut totals = [[0usize; 7]; 3];
         // (scene, whether its materials are double-sided, whether only hits on instances are
         // taken).
         let scenes = [
@@ -170,8 +171,10 @@ mod tests {
             (diffuse, false, false),
             (glass, false, false),
             (thin, false, false),
-            (instanced_diffuse, false, true),
-            (instanced_glossy, false, true),
+            (textured_diffuse.clone(), false, false),
+            (textured_glossy.clone(), false, false),
+            (textured_diffuse, false, true),
+            (textured_glossy, false, true),
         ];
         for (description, double_sided, on_instances) in scenes {
             let scene = RenderScene::new(description).expect("scene");
@@ -205,20 +208,21 @@ mod tests {
                             _ => unreachable!(),
                         }),
                     };
-                    let Counts { from_hits, ended, shadows, smooth, instanced } = counts;
+                    let Counts { from_hits, ended, shadows, smooth, instanced, bent } = counts;
                     let n = cases.len();
                     assert!(from_hits > n / 2, "{strategy:?}: {from_hits} of {n} pushed as hits");
                     assert!(ended < n && (ended == 0 || !double_sided), "{strategy:?}: {ended} of {n} ended");
-                    for (total, count) in totals[kernel].iter_mut().zip([n, from_hits, ended, smooth, shadows, instanced]) {
+                    for (total, count) in totals[kernel].iter_mut().zip([n, from_hits, ended, smooth, shadows, instanced, bent]) {
                         *total += count;
                     }
                 }
             }
         }
-        for (kernel, [n, from_hits, ended, smooth, shadows, instanced]) in totals.into_iter().enumerate() {
+        for (kernel, [n, from_hits, ended, smooth, shadows, instanced, bent]) in totals.into_iter().enumerate() {
             assert!(n >= 1000 && from_hits > 0 && ended > 0 && smooth > 0 && shadows > 0, "kernel {kernel}: {:?}", totals[kernel]);
-            // The showcase's rocks are opaque: the glass kernel meets no instance.
-            assert!(kernel == 2 || instanced > 100, "kernel {kernel}: {instanced} lanes on instances");
+            // The showcase's rocks and normal-mapped materials are opaque: the glass kernel
+            // meets neither.
+            assert!(kernel == 2 || (instanced > 100 && bent > 100), "kernel {kernel}: {instanced} lanes on instances, {bent} normal-mapped");
         }
     }
 
@@ -253,7 +257,7 @@ mod tests {
             }
             let mut drawn = state.clone();
             let draws = tracer.draw(scene, &mut drawn);
-            let Some((_, &(bsdf, _), _)) = tracer.lane_begin(scene, &drawn, &hit, &draws) else { continue };
+            let Some((_, (bsdf, _), _)) = tracer.lane_begin(scene, &drawn, &hit, &draws) else { continue };
             let cases = match bsdf {
                 Bsdf::Lambert(_) => &mut diffuse,
                 Bsdf::MetallicRoughness(_) => &mut glossy,
@@ -274,6 +278,7 @@ mod tests {
         shadows: usize,
         smooth: usize,
         instanced: usize,
+        bent: usize,
     }
 
     /// Pushes `cases` into the kernel of BSDF `B` (`one` gives a vertex's parameters from its
@@ -282,7 +287,7 @@ mod tests {
     fn check<'s, B: LaneBxdf>(scene: &'s RenderScene, tracer: &PathTracer, cases: &[Case], one: impl Fn(&Bsdf<'s>, Option<&Vertex<'s>>, u32) -> B::One) -> Counts {
         let strategy = tracer.strategy;
         let (mut lanes, mut out) = (BxdfLanes::<B>::default(), ScatteredLanes::default());
-        let mut counts = Counts { from_hits: 0, ended: 0, shadows: 0, smooth: 0, instanced: 0 };
+        let mut counts = Counts { from_hits: 0, ended: 0, shadows: 0, smooth: 0, instanced: 0, bent: 0 };
         for group in cases.chunks(LANES) {
             lanes.clear();
             let mut expected = Vec::new();
@@ -293,7 +298,7 @@ mod tests {
                 let mut drawn = state.clone();
                 let draws = tracer.draw(scene, &mut drawn);
                 assert_eq!(format!("{:?}", drawn.sampler), format!("{:?}", begun.sampler), "the same numbers drawn");
-                let (lane_hit, &(bsdf, double_sided), light) = tracer.lane_begin(scene, &drawn, hit, &draws).expect("begins in lanes");
+                let (lane_hit, (bsdf, double_sided), light) = tracer.lane_begin(scene, &drawn, hit, &draws).expect("begins in lanes");
                 match (vertex, as_hit) {
                     (Some(v), false) => lanes.push(&v, &one(&bsdf, Some(&v), lane_hit.material), state.beta, tracer.lane_light(scene, &v)),
                     _ => {
@@ -302,6 +307,7 @@ mod tests {
                         counts.from_hits += 1;
                         counts.smooth += !lane_hit.flat as usize;
                         counts.instanced += lane_hit.placed.is_some() as usize;
+                        counts.bent += lane_hit.bend.is_some() as usize;
                     }
                 }
                 counts.ended += scattered.is_none() as usize;

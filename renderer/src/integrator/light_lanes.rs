@@ -2,13 +2,15 @@
 //! next-event estimation, per lane with the scalar code's
 //! operations (so the same bits).
 //!
-//! A vertex pushes its chosen light as a [`LaneLight`]: an untextured emissive triangle or
+//! A vertex pushes its chosen light as a [`LaneLight`]: an emissive triangle (its emissive
+//! texture read at the point drawn, which does not depend on the vertex) or
 //! the environment (constant or map) is sampled by the kernel and a point light illuminates
 //! the vertex there, all lanes at once — the triangle's point (Heitz's mapping) and
 //! solid-angle density, the environment's draw with its sixteen alias-table look-ups issued
-//! together rather than one draw's dependent misses after another's; a spot or directional
-//! light or a textured triangle is drawn one by one as [`PathTracer::scatter`] draws it
-//! (short work) and pushed drawn.
+//! together rather than one draw's dependent misses after another's; a directional light's
+//! sample, the same at every point, is drawn when the vertex is pushed, so its vertices too
+//! are begun in lanes; a spot light or a coated triangle is drawn one by one at the
+//! vertex's point as [`PathTracer::scatter`] draws it (short work) and pushed drawn.
 //!
 //! [`PathTracer::scatter`]: super::PathTracer
 
@@ -30,9 +32,10 @@ pub(crate) enum LaneLight<'s> {
     None,
     /// Drawn one by one, as `scatter` draws it.
     Sampled(LightSample),
-    /// An untextured emissive triangle chosen with probability `select_pdf`, sampled by the
-    /// kernel from `u` as `TriangleLight::sample` samples it.
-    Triangle { light: &'s TriangleLight, u: Vec2, select_pdf: f32 },
+    /// An emissive triangle without clear coat chosen with probability `select_pdf`,
+    /// sampled by the kernel from `u` as `TriangleLight::sample` samples it; `radiance` what
+    /// the point drawn from `u` emits ([`TriangleLight::emitted_at_sample`]).
+    Triangle { light: &'s TriangleLight, radiance: Rgb, u: Vec2, select_pdf: f32 },
     /// The environment's sample, drawn by the kernel from `u`: the sample `scatter` would
     /// draw, its density times `select_pdf`.
     Environment { environment: &'s Environment, u: Vec2, select_pdf: f32 },
@@ -42,7 +45,7 @@ pub(crate) enum LaneLight<'s> {
 }
 
 impl PathTracer {
-    /// What vertex `v` pushes into a lane kernel as its light: an untextured triangle's or
+    /// What vertex `v` pushes into a lane kernel as its light: a triangle's or
     /// the environment's sample, or a point light's illumination, left to the kernel; any
     /// other drawn now ([`PathTracer::light_sample`]).
     #[inline(always)]
@@ -52,9 +55,10 @@ impl PathTracer {
     }
 
     /// The [`LaneLight`] of a vertex whose chosen light is `light` (index, selection
-    /// probability) and whose light sample's u is `u`, where the kernel samples or
-    /// illuminates it without the vertex's point: an untextured triangle, the environment, a
-    /// point light, or no light; `None` where its sample must be drawn at the point first.
+    /// probability) and whose light sample's u is `u`, where it is known without the
+    /// vertex's point: a triangle without clear coat, the environment or a point light (the kernel
+    /// samples or illuminates it), a directional light (the same sample everywhere, drawn
+    /// now), or no light; `None` where its sample must be drawn at the point first.
     #[inline(always)]
     pub(crate) fn kernel_light<'s>(&self, scene: &'s RenderScene, light: Option<(u32, f32)>, u: Vec2) -> Option<LaneLight<'s>> {
         let Some((index, select_pdf)) = light else {
@@ -65,11 +69,14 @@ impl PathTracer {
         if let Some((position, intensity)) = scene.lights.point(index) {
             return Some(LaneLight::Point { position, intensity, select_pdf });
         }
+        if let Some(sample) = scene.lights.sample_anywhere(index, select_pdf) {
+            return Some(LaneLight::Sampled(sample));
+        }
         let sampled = self.strategy != Strategy::BsdfOnly;
         if let Some(light) = scene.lights.triangle(index) {
-            return match (sampled, light.texture.is_none() && light.coat.is_none()) {
+            return match (sampled, light.coat.is_none()) {
                 (false, _) => Some(LaneLight::None),
-                (true, true) => Some(LaneLight::Triangle { light, u, select_pdf }),
+                (true, true) => Some(LaneLight::Triangle { light, radiance: light.emitted_at_sample(u, scene.lights.textures()), u, select_pdf }),
                 (true, false) => None,
             };
         }
@@ -142,13 +149,13 @@ impl<'s> LightLanes<'s> {
                 self.has_target[i] = ls.shadow_target.is_some();
                 self.target.set(i, ls.shadow_target.unwrap_or(Vec3::ZERO));
             }
-            LaneLight::Triangle { light, u, select_pdf } => {
+            LaneLight::Triangle { light, radiance, u, select_pdf } => {
                 for (c, &corner) in self.corners.iter_mut().zip(&light.corners) {
                     c.set(i, corner);
                 }
                 self.normal.set(i, light.normal);
                 self.area.0[i] = light.area;
-                self.radiance.set(i, light.radiance);
+                self.radiance.set(i, radiance);
                 self.u.set(i, u);
                 self.pdf.0[i] = select_pdf;
                 self.delta[i] = false;

@@ -145,10 +145,7 @@ impl TriangleLight {
             distance: s.distance,
             radiance: {
                 let b = Vec2::from(s.barycentric);
-                let radiance = match &self.texture {
-                    Some(t) => self.radiance * t.texture.lookup(textures, t.uv(b)),
-                    None => self.radiance,
-                };
+                let radiance = self.emitted(b, textures);
                 match &self.coat {
                     Some(coat) => radiance * coat.transmittance(textures, b, -Vec3::from(s.direction).dot(self.normal)),
                     None => radiance,
@@ -157,6 +154,24 @@ impl TriangleLight {
             pdf: s.pdf,
             shadow_target: s.target.into(),
         })
+    }
+
+    /// The radiance [`Self::sample`]'s point drawn from `u` emits, where the light has no
+    /// clear coat (whose darkening depends on the shading point): the same from every
+    /// shading point, so the lane kernels take it when a vertex is pushed.
+    #[inline]
+    pub fn emitted_at_sample(&self, u: Vec2, textures: &[Texture]) -> Rgb {
+        self.emitted(uniform_triangle(V2::from(u)).into(), textures)
+    }
+
+    /// The radiance emitted at barycentric coordinates `b` (b1, b2), before any coat: the
+    /// emitted radiance times the emissive texture there.
+    #[inline(always)]
+    fn emitted(&self, b: Vec2, textures: &[Texture]) -> Rgb {
+        match &self.texture {
+            Some(t) => self.radiance * t.texture.lookup(textures, t.uv(b)),
+            None => self.radiance,
+        }
     }
 
     /// Solid-angle density of [`Self::sample`] at `p` for the light point `q`, 1/sr.

@@ -143,6 +143,12 @@ impl LightSet {
         (select_pdf > 0.0).then_some((index as u32, select_pdf))
     }
 
+    /// The scene's textures, which the triangle lights' emissive textures index.
+    #[inline]
+    pub fn textures(&self) -> &[Texture] {
+        &self.textures
+    }
+
     /// The emissive triangle that light `index` is, if it is one.
     #[inline]
     pub fn triangle(&self, index: u32) -> Option<&TriangleLight> {
@@ -166,6 +172,16 @@ impl LightSet {
     pub fn point(&self, index: u32) -> Option<(Vec3, Rgb)> {
         match self.lights.get(index as usize) {
             Some(&Light::Punctual(PunctualLight::Point { position, intensity })) => Some((position, intensity)),
+            _ => None,
+        }
+    }
+
+    /// [`Self::sample_chosen`]'s sample of light `index` where it is the same from every
+    /// shading point (a directional light's); `None` for the other kinds.
+    #[inline]
+    pub fn sample_anywhere(&self, index: u32, select_pdf: f32) -> Option<LightSample> {
+        match &self.lights[index as usize] {
+            Light::Punctual(PunctualLight::Directional { .. }) => self.sample_chosen(index, select_pdf, Vec3::ZERO, Vec2::ZERO),
             _ => None,
         }
     }

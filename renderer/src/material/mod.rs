@@ -267,15 +267,25 @@ impl Opener<'_> {
     }
 }
 
+/// How the lane kernels begin a material's vertices ([`SceneMaterials::lane_bsdf`]).
+#[derive(Clone, Copy, Debug)]
+enum LaneBegin {
+    /// With this BSDF, the same at every point seen from the front.
+    Uniform(Bsdf<'static>),
+    /// With the BSDF its textures give at the point (Lambertian or metallic-roughness).
+    Textured,
+}
+
 /// A scene's materials prepared for shading (see the module documentation).
 pub struct SceneMaterials {
     materials: Vec<Material>,
     /// Shared with the light set (emissive textures).
     textures: Arc<[Texture]>,
     kinds: Vec<Kind>,
-    /// Per material, its [`SceneMaterials::plain_bsdf`] answer.
-    plain: Vec<Option<(Bsdf<'static>, bool)>>,
-    /// Per plain glass material, its [`SceneMaterials::glass_back`].
+    /// Per material, how the lane kernels begin its vertices ([`SceneMaterials::lane_bsdf`])
+    /// and whether it is double-sided; `None` where they cannot.
+    lanes: Vec<Option<(LaneBegin, bool)>>,
+    /// Per glass material that begins in lanes, its [`SceneMaterials::glass_back`].
     glass_backs: Vec<Option<Dielectric>>,
     shared: Vec<SharedBsdf>,
     varying: Vec<PreparedVarying>,
@@ -332,42 +342,43 @@ impl SceneMaterials {
         stats.opened = shared.len();
         stats.bytes = shared.iter().map(SharedBsdf::heap_bytes).sum();
         stats.seconds = started.elapsed().as_secs_f64();
-        let plain = materials
+        let lanes = materials
             .iter()
             .zip(&kinds)
             .map(|(m, &kind)| {
-                // Emits nothing: `emission_at`'s value is then the factor, which `begin` adds
-                // only where some channel is > 0 (so NaN factors count as nothing too).
+                // Emits nothing (`emission_at`'s value is then the factor, which `begin` adds
+                // only where some channel is > 0, so NaN factors count as nothing too), and
+                // has no layers over its base.
                 #[allow(clippy::neg_cmp_op_on_partial_ord)]
+                let bare = m.clearcoat.is_none() && m.sheen.is_none() && !(m.emission.max_element() > 0.0);
                 let uniform = m.base_color_texture.is_none()
                     && (kind == Kind::Lambert || m.metallic_roughness_texture.is_none())
                     && m.transmission_texture.is_none()
-                    && m.normal_texture.is_none()
-                    && m.clearcoat.is_none()
-                    && m.sheen.is_none()
-                    && !(m.emission.max_element() > 0.0);
-                let bsdf = match kind {
-                    Kind::Lambert => Bsdf::Lambert(Lambert { albedo: m.base_color }),
+                    && m.normal_texture.is_none();
+                let begin = match kind {
+                    _ if !bare => return None,
+                    Kind::Lambert | Kind::MetallicRoughness if !uniform => LaneBegin::Textured,
+                    Kind::Lambert => LaneBegin::Uniform(Bsdf::Lambert(Lambert { albedo: m.base_color })),
                     Kind::MetallicRoughness => {
                         let (f0, f90) = m.dielectric_fresnel();
-                        Bsdf::MetallicRoughness(MetallicRoughness::new(m.base_color, m.metallic, m.roughness).with_dielectric(f0, f90))
+                        LaneBegin::Uniform(Bsdf::MetallicRoughness(MetallicRoughness::new(m.base_color, m.metallic, m.roughness).with_dielectric(f0, f90)))
                     }
-                    // Glass alone (no opaque part): seen from its front (`glass_back` has its
-                    // back), scattering on both sides.
-                    Kind::Transmission => match transmission_bsdf(m, true, m.base_color, (m.metallic, m.roughness), m.transmission) {
-                        Bsdf::Transmission(t) if t.glass_alone().is_some() => return uniform.then_some((Bsdf::Transmission(t), true)),
+                    // Glass alone (no opaque part), untextured: seen from its front
+                    // (`glass_back` has its back), scattering on both sides.
+                    Kind::Transmission if uniform => match transmission_bsdf(m, true, m.base_color, (m.metallic, m.roughness), m.transmission) {
+                        Bsdf::Transmission(t) if t.glass_alone().is_some() => return Some((LaneBegin::Uniform(Bsdf::Transmission(t)), true)),
                         _ => return None,
                     },
-                    Kind::Shared(_) | Kind::Varying(_) => return None,
+                    Kind::Transmission | Kind::Shared(_) | Kind::Varying(_) => return None,
                 };
-                uniform.then_some((bsdf, m.double_sided))
+                Some((begin, m.double_sided))
             })
             .collect::<Vec<_>>();
         let glass_backs = materials
             .iter()
-            .zip(&plain)
-            .map(|(m, plain)| match plain {
-                Some((Bsdf::Transmission(_), _)) => match transmission_bsdf(m, false, m.base_color, (m.metallic, m.roughness), m.transmission) {
+            .zip(&lanes)
+            .map(|(m, lanes)| match lanes {
+                Some((LaneBegin::Uniform(Bsdf::Transmission(_)), _)) => match transmission_bsdf(m, false, m.base_color, (m.metallic, m.roughness), m.transmission) {
                     Bsdf::Transmission(t) => t.glass_alone().copied(),
                     _ => None,
                 },
@@ -378,7 +389,7 @@ impl SceneMaterials {
             materials,
             textures: textures.into(),
             kinds,
-            plain,
+            lanes,
             glass_backs,
             shared,
             varying,
@@ -505,18 +516,23 @@ impl SceneMaterials {
         }
     }
 
-    /// The BSDF of `material` and whether it is double-sided, where the BSDF is the same at
-    /// every point seen from its front (what [`SceneMaterials::bsdf`] gives wherever it gives
-    /// one) and the material emits nothing: an untextured Lambertian or metallic-roughness
-    /// material without normal map, or such a glass (transmission with no opaque part; its
-    /// back is [`SceneMaterials::glass_back`]), so the lane kernels can begin its vertices
-    /// from their hits; `None` elsewhere.
+    /// The BSDF of `material` seen from its front at a point whose texture coordinates of a
+    /// set are `uv(set)` (what [`SceneMaterials::bsdf`] gives there), and whether it is
+    /// double-sided, where the lane kernels can begin its vertices from their hits: a
+    /// material that emits nothing and has no clear coat or sheen, Lambertian or
+    /// metallic-roughness (textured and normal-mapped or not), or untextured glass alone
+    /// (transmission with no opaque part; its back is [`SceneMaterials::glass_back`]);
+    /// `None` elsewhere. `uv` is asked only for textured materials.
     #[inline]
-    pub fn plain_bsdf(&self, material: u32) -> Option<&(Bsdf<'_>, bool)> {
-        self.plain[material as usize].as_ref()
+    pub fn lane_bsdf(&self, material: u32, uv: impl Fn(u32) -> Vec2) -> Option<(Bsdf<'_>, bool)> {
+        match self.lanes[material as usize] {
+            Some((LaneBegin::Uniform(bsdf), double_sided)) => Some((bsdf, double_sided)),
+            Some((LaneBegin::Textured, double_sided)) => Some((self.base_bsdf(material, true, &uv)?, double_sided)),
+            None => None,
+        }
     }
 
-    /// The glass of a plain glass `material` ([`SceneMaterials::plain_bsdf`]) seen from its
+    /// The glass of a glass `material` that begins in lanes ([`SceneMaterials::lane_bsdf`]) seen from its
     /// back: what [`SceneMaterials::bsdf`] gives there.
     #[inline]
     pub fn glass_back(&self, material: u32) -> Option<&Dielectric> {

@@ -124,11 +124,13 @@ fn wrap_index(i: i64, n: usize, wrap: Wrap) -> usize {
         // Inside the image every mode is the identity (no division).
         return i as usize;
     }
+    // i mod m ≥ 0; a mask where m is a power of two (most textures: no division).
+    let modulo = |m: i64| if m & (m - 1) == 0 { i & (m - 1) } else { i.rem_euclid(m) };
     match wrap {
-        Wrap::Repeat => i.rem_euclid(n) as usize,
+        Wrap::Repeat => modulo(n) as usize,
         Wrap::ClampToEdge => i.clamp(0, n - 1) as usize,
         Wrap::MirroredRepeat => {
-            let period = i.rem_euclid(2 * n);
+            let period = modulo(2 * n);
             (if period < n { period } else { 2 * n - 1 - period }) as usize
         }
     }
@@ -275,6 +277,19 @@ mod tests {
         assert_eq!(at(&t, 0.9375, Wrap::ClampToEdge, Filter::Linear), 3.0);
         assert_eq!(at(&t, f32::NAN, Wrap::Repeat, Filter::Linear), at(&t, 0.0, Wrap::Repeat, Filter::Linear));
         assert_eq!(t.lookup(Vec2::new(0.5, 0.5)), t.sample(Vec2::new(0.5, 0.5), [Wrap::Repeat; 2], Filter::Linear));
+    }
+
+    /// Wrapping by a mask (sizes that are powers of two) gives what the remainder gives.
+    #[test]
+    fn wrapping_by_mask_equals_the_remainder() {
+        for n in [1usize, 2, 3, 4, 6, 64, 100, 128] {
+            for i in -300i64..300 {
+                let m = n as i64;
+                let mirrored = |p: i64| if p < m { p } else { 2 * m - 1 - p };
+                assert_eq!(wrap_index(i, n, Wrap::Repeat), i.rem_euclid(m) as usize, "n {n}, i {i}");
+                assert_eq!(wrap_index(i, n, Wrap::MirroredRepeat), mirrored(i.rem_euclid(2 * m)) as usize, "n {n}, i {i}");
+            }
+        }
     }
 
     /// The extension's matrix T · R · S: offset (0, 1), rotation π/2, scale (0.5, 0.5) maps
