@@ -301,9 +301,9 @@ mod tests {
     /// full and partial groups, every strategy, lights behind the surface and zero
     /// throughputs: in the Cornell box (triangle lights) and on the material-preview's
     /// diffuse ground (a point light and an environment map or, in place of the map, a
-    /// constant environment; or, in place of the point light, a spot light, whose samples
-    /// are pushed drawn), and in the feature showcase made Lambertian (a directional light,
-    /// pushed drawn, a point light and a triangle light with an emissive texture).
+    /// constant environment; or, in place of the point light, a spot light), and in the
+    /// feature showcase made Lambertian (a directional light, pushed drawn, a point light and
+    /// a triangle light with an emissive texture).
     #[test]
     fn diffuse_lanes_equal_scalar_scatter_bit_for_bit() {
         let load = crate::testing::data::shipped_scene;
@@ -327,13 +327,13 @@ mod tests {
         for m in showcase.materials.iter_mut().filter(|m| !m.transmits()) {
             m.model = crate::scene::SurfaceModel::Lambert;
         }
-        for (description, drawn_light) in [(load("cornell-box"), false), (preview, false), (constant, false), (spot, true), (showcase, true)] {
+        for (description, drawn_light) in [(load("cornell-box"), false), (preview, false), (constant, false), (spot, false), (showcase, true)] {
             diffuse_lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"), drawn_light);
         }
     }
 
-    /// `drawn_light`: whether the scene has a spot or directional light, whose samples are
-    /// pushed drawn.
+    /// `drawn_light`: whether the scene has a directional light, whose samples are pushed
+    /// drawn.
     fn diffuse_lanes_equal_scalar_scatter_in(scene: &RenderScene, drawn_light: bool) {
         let mut rng = Sampler::new(3, 1, 4);
         for strategy in [Strategy::Mis, Strategy::LightOnly, Strategy::BsdfOnly] {
@@ -346,13 +346,14 @@ mod tests {
                 _ => None,
             });
             let (mut lanes, mut out) = (DiffuseLanes::default(), ScatteredLanes::default());
-            let (mut shadows, mut ended, mut drawn_by_kernel, mut points, mut pushed_drawn, mut textured) = (0, 0, 0, 0, 0, 0);
+            let (mut shadows, mut ended, mut drawn_by_kernel, mut points, mut spots, mut pushed_drawn, mut textured) = (0, 0, 0, 0, 0, 0, 0);
             for group in cases.chunks(LANES) {
                 lanes.clear();
                 for (vertex, bsdf, beta) in group {
                     let light = tracer.lane_light(scene, vertex);
                     drawn_by_kernel += matches!(light, LaneLight::Triangle { .. } | LaneLight::Environment { .. }) as usize;
                     points += matches!(light, LaneLight::Point { .. }) as usize;
+                    spots += matches!(light, LaneLight::Spot { .. }) as usize;
                     pushed_drawn += matches!(light, LaneLight::Sampled(_)) as usize;
                     textured += matches!(light, LaneLight::Triangle { light, .. } if light.texture.is_some()) as usize;
                     lanes.push(vertex, &bsdf.lobe(), *beta, light);
@@ -372,10 +373,12 @@ mod tests {
                 assert!(drawn_by_kernel > cases.len() / 4, "{strategy:?}: {drawn_by_kernel} samples drawn in lanes");
             }
             assert!(ended >= cases.len() / 8, "{strategy:?}: zero throughputs end: {ended}");
-            // The preview's key light is a point light, illuminating under every strategy.
-            let has_point_light = (0..scene.lights.len() as u32).any(|l| scene.lights.point(l).is_some());
-            assert_eq!(points > 0, has_point_light, "{strategy:?}: {points} lanes lit by a point light");
-            assert_eq!(pushed_drawn > 0, drawn_light, "{strategy:?}: {pushed_drawn} spot or directional samples pushed drawn");
+            // The preview's key light is a point light (or a spot), illuminating under every
+            // strategy.
+            let has = |kind: fn(&PunctualLight) -> bool| (0..scene.lights.len() as u32).any(|l| scene.lights.punctual(l).is_some_and(kind));
+            assert_eq!(points > 0, has(|l| matches!(l, PunctualLight::Point { .. })), "{strategy:?}: {points} lanes lit by a point light");
+            assert_eq!(spots > 0, has(|l| matches!(l, PunctualLight::Spot { .. })), "{strategy:?}: {spots} lanes lit by a spot light");
+            assert_eq!(pushed_drawn > 0, drawn_light, "{strategy:?}: {pushed_drawn} directional samples pushed drawn");
             let textured_lights = (0..scene.lights.len() as u32).any(|l| scene.lights.triangle(l).is_some_and(|t| t.texture.is_some()));
             assert_eq!(textured > 0, textured_lights && strategy != Strategy::BsdfOnly, "{strategy:?}: {textured} lanes sample a textured triangle");
         }

@@ -4,13 +4,13 @@
 //!
 //! A vertex pushes its chosen light as a [`LaneLight`]: an emissive triangle (its emissive
 //! texture read at the point drawn, which does not depend on the vertex) or
-//! the environment (constant or map) is sampled by the kernel and a point light illuminates
-//! the vertex there, all lanes at once — the triangle's point (Heitz's mapping) and
+//! the environment (constant or map) is sampled by the kernel and a point or spot light
+//! illuminates the vertex there, all lanes at once — the triangle's point (Heitz's mapping) and
 //! solid-angle density, the environment's draw with its sixteen alias-table look-ups issued
 //! together rather than one draw's dependent misses after another's; a directional light's
 //! sample, the same at every point, is drawn when the vertex is pushed, so its vertices too
-//! are begun in lanes; a spot light or a coated triangle is drawn one by one at the
-//! vertex's point as [`PathTracer::scatter`] draws it (short work) and pushed drawn.
+//! are begun in lanes; a coated triangle is drawn one by one at the vertex's point as
+//! [`PathTracer::scatter`] draws it (short work) and pushed drawn.
 //!
 //! [`PathTracer::scatter`]: super::PathTracer
 
@@ -18,10 +18,11 @@ use super::scattered_lanes::ScatteredLanes;
 use super::{shadow_test, PathTracer, RealLightSample, Strategy, Vertex};
 use crate::lanes::{F32s, Mask, MaskOps, Vec2s, Vec3s, LANES};
 use crate::lights::area::{triangle_sample, TriangleLight};
-use crate::lights::punctual::point_illumination;
+use crate::lights::punctual::{point_illumination, spot_illumination};
 use crate::lights::environment::Environment;
 use crate::lights::LightSample;
 use crate::render_scene::{RenderScene, SurfaceLanes};
+use crate::scene::PunctualLight;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -42,11 +43,14 @@ pub(crate) enum LaneLight<'s> {
     /// A point light at `position` of intensity `intensity` (W/sr) chosen with probability
     /// `select_pdf`, illuminating the vertex as `punctual::illuminate` finds in the kernel.
     Point { position: Vec3, intensity: Rgb, select_pdf: f32 },
+    /// A spot light, likewise: at `position`, shining along `axis` with `intensity` on it
+    /// and cone cosines `cone` (inner, outer).
+    Spot { position: Vec3, axis: Vec3, intensity: Rgb, cone: (f32, f32), select_pdf: f32 },
 }
 
 impl PathTracer {
     /// What vertex `v` pushes into a lane kernel as its light: a triangle's or
-    /// the environment's sample, or a point light's illumination, left to the kernel; any
+    /// the environment's sample, or a point or spot light's illumination, left to the kernel; any
     /// other drawn now ([`PathTracer::light_sample`]).
     #[inline(always)]
     pub(crate) fn lane_light<'s>(&self, scene: &'s RenderScene, v: &Vertex) -> LaneLight<'s> {
@@ -56,7 +60,7 @@ impl PathTracer {
 
     /// The [`LaneLight`] of a vertex whose chosen light is `light` (index, selection
     /// probability) and whose light sample's u is `u`, where it is known without the
-    /// vertex's point: a triangle without clear coat, the environment or a point light (the kernel
+    /// vertex's point: a triangle without clear coat, the environment, a point or spot light (the kernel
     /// samples or illuminates it), a directional light (the same sample everywhere, drawn
     /// now), or no light; `None` where its sample must be drawn at the point first.
     #[inline(always)]
@@ -66,11 +70,14 @@ impl PathTracer {
         };
         // Delta lights are sampled under every strategy, the others (triangles, the
         // environment) where light sampling is (as `light_sample` filters them).
-        if let Some((position, intensity)) = scene.lights.point(index) {
-            return Some(LaneLight::Point { position, intensity, select_pdf });
-        }
-        if let Some(sample) = scene.lights.sample_anywhere(index, select_pdf) {
-            return Some(LaneLight::Sampled(sample));
+        match scene.lights.punctual(index) {
+            Some(&PunctualLight::Point { position, intensity }) => return Some(LaneLight::Point { position, intensity, select_pdf }),
+            Some(&PunctualLight::Spot { position, direction, intensity, cos_inner, cos_outer }) => {
+                return Some(LaneLight::Spot { position, axis: direction, intensity, cone: (cos_inner, cos_outer), select_pdf })
+            }
+            // The same sample at every point: drawn now.
+            Some(PunctualLight::Directional { .. }) => return scene.lights.sample_chosen(index, select_pdf, Vec3::ZERO, Vec2::ZERO).map(LaneLight::Sampled),
+            None => {}
         }
         let sampled = self.strategy != Strategy::BsdfOnly;
         if let Some(light) = scene.lights.triangle(index) {
@@ -107,6 +114,11 @@ pub(crate) struct LightLanes<'s> {
     from_environment: [bool; LANES],
     point: [bool; LANES],
     position: Vec3s,
+    /// Lanes lit by a spot light at `position`, its axis and cone cosines.
+    spot: [bool; LANES],
+    axis: Vec3s,
+    cos_inner: F32s,
+    cos_outer: F32s,
     u: Vec2s,
     /// The triangles' corners, unit normals and areas.
     corners: [Vec3s; 3],
@@ -139,6 +151,7 @@ impl<'s> LightLanes<'s> {
         self.triangle[i] = matches!(light, LaneLight::Triangle { .. });
         self.from_environment[i] = matches!(light, LaneLight::Environment { .. });
         self.point[i] = matches!(light, LaneLight::Point { .. });
+        self.spot[i] = matches!(light, LaneLight::Spot { .. });
         match light {
             LaneLight::None => {}
             LaneLight::Sampled(ls) => {
@@ -163,6 +176,15 @@ impl<'s> LightLanes<'s> {
             }
             LaneLight::Point { position, intensity, select_pdf } => {
                 self.position.set(i, position);
+                self.radiance.set(i, intensity);
+                self.pdf.0[i] = select_pdf;
+                self.delta[i] = true;
+            }
+            LaneLight::Spot { position, axis, intensity, cone: (inner, outer), select_pdf } => {
+                self.position.set(i, position);
+                self.axis.set(i, axis);
+                self.cos_inner.0[i] = inner;
+                self.cos_outer.0[i] = outer;
                 self.radiance.set(i, intensity);
                 self.pdf.0[i] = select_pdf;
                 self.delta[i] = true;
@@ -199,15 +221,21 @@ impl<'s> LightLanes<'s> {
             l.pdf = triangle.select(s.pdf * self.pdf, l.pdf);
             l.target = triangle.select(s.target, l.target);
         }
-        let point = Mask(self.point);
-        if point.0.iter().any(|&l| l) {
-            // punctual::illuminate of a point light, and LightSet::sample_chosen's target.
-            let s = point_illumination(self.position, self.radiance, p);
-            ok = ok & (!point | s.ok);
-            l.direction = point.select(s.direction, l.direction);
-            l.radiance = point.select(s.value, l.radiance);
-            l.has_target = l.has_target & !point | (point & s.distance.is_finite());
-            l.target = point.select(p + s.direction * s.distance, l.target);
+        // punctual::illuminate of point and spot lights, and LightSet::sample_chosen's target.
+        for (lanes, lit) in [(Mask(self.point), false), (Mask(self.spot), true)] {
+            if !lanes.0.iter().any(|&l| l) {
+                continue;
+            }
+            let s = if lit {
+                spot_illumination(self.position, self.axis, self.radiance, (self.cos_inner, self.cos_outer), p)
+            } else {
+                point_illumination(self.position, self.radiance, p)
+            };
+            ok = ok & (!lanes | s.ok);
+            l.direction = lanes.select(s.direction, l.direction);
+            l.radiance = lanes.select(s.value, l.radiance);
+            l.has_target = l.has_target & !lanes | (lanes & s.distance.is_finite());
+            l.target = lanes.select(p + s.direction * s.distance, l.target);
         }
         let from_environment = Mask(self.from_environment);
         if let Some(environment) = self.environment.filter(|_| from_environment.0.iter().any(|&e| e)) {

@@ -167,21 +167,11 @@ impl LightSet {
         }
     }
 
-    /// The position and radiant intensity (W/sr) of light `index`, where it is a point light.
+    /// Light `index`, where it is a point, spot or directional light.
     #[inline]
-    pub fn point(&self, index: u32) -> Option<(Vec3, Rgb)> {
+    pub fn punctual(&self, index: u32) -> Option<&PunctualLight> {
         match self.lights.get(index as usize) {
-            Some(&Light::Punctual(PunctualLight::Point { position, intensity })) => Some((position, intensity)),
-            _ => None,
-        }
-    }
-
-    /// [`Self::sample_chosen`]'s sample of light `index` where it is the same from every
-    /// shading point (a directional light's); `None` for the other kinds.
-    #[inline]
-    pub fn sample_anywhere(&self, index: u32, select_pdf: f32) -> Option<LightSample> {
-        match &self.lights[index as usize] {
-            Light::Punctual(PunctualLight::Directional { .. }) => self.sample_chosen(index, select_pdf, Vec3::ZERO, Vec2::ZERO),
+            Some(Light::Punctual(l)) => Some(l),
             _ => None,
         }
     }

@@ -17,17 +17,15 @@ pub struct PunctualSample {
     pub distance: f32,
 }
 
-/// Smoothstep falloff between the outer and inner cone cosines (as glTF suggests).
-#[inline]
-fn spot_falloff(cos_theta: f32, cos_inner: f32, cos_outer: f32) -> f32 {
-    if cos_theta >= cos_inner {
-        return 1.0;
-    }
-    if cos_theta <= cos_outer || cos_inner <= cos_outer {
-        return 0.0;
-    }
+/// Smoothstep falloff between the outer and inner cone cosines (as glTF suggests): 1 inside
+/// the inner cone, 0 outside the outer one (and for a cone whose inner cosine is not above
+/// its outer one); over [`Real`] values.
+#[inline(always)]
+fn spot_falloff<R: Real>(cos_theta: R, cos_inner: R, cos_outer: R) -> R {
     let t = (cos_theta - cos_outer) / (cos_inner - cos_outer);
-    t * t * (3.0 - 2.0 * t)
+    let smooth = t * t * (R::splat(3.0) - t * 2.0);
+    let dark = cos_theta.le(cos_outer) | cos_inner.le(cos_outer);
+    R::select(cos_theta.ge(cos_inner), R::splat(1.0), R::select(dark, R::splat(0.0), smooth))
 }
 
 /// Illumination arriving at `p` from `light`; `None` where the light contributes nothing.
@@ -48,18 +46,11 @@ pub fn illuminate(light: &PunctualLight, p: Vec3) -> Option<PunctualSample> {
             cos_inner,
             cos_outer,
         } => {
-            let to = position - p;
-            let d2 = to.length_squared();
-            if d2 <= 0.0 {
-                return None;
-            }
-            let distance = d2.sqrt();
-            let wi = to / distance;
-            let falloff = spot_falloff((-wi).dot(direction), cos_inner, cos_outer);
-            (falloff > 0.0).then_some(PunctualSample {
-                direction: wi,
-                value: intensity * (falloff / d2),
-                distance,
+            let s = spot_illumination(position.into(), direction.into(), intensity.into(), (cos_inner, cos_outer), p.into());
+            s.ok.then(|| PunctualSample {
+                direction: s.direction.into(),
+                value: s.value.into(),
+                distance: s.distance,
             })
         }
         PunctualLight::Directional {
@@ -113,6 +104,24 @@ pub(crate) fn point_illumination<R: Real>(position: V3<R>, intensity: V3<R>, p: 
         ok: d2.gt(R::splat(0.0)),
         direction: to / distance,
         value: intensity / d2,
+        distance,
+    }
+}
+
+/// [`illuminate`] of a spot light at `position` shining along `axis` (unit) with intensity
+/// `intensity` (W/sr) on its axis and cone cosines `(inner, outer)`, at `p`, written once (one
+/// shading point, or one per lane); not `ok` at the light itself or outside the cone.
+#[inline(always)]
+pub(crate) fn spot_illumination<R: Real>(position: V3<R>, axis: V3<R>, intensity: V3<R>, (cos_inner, cos_outer): (R, R), p: V3<R>) -> PointIllumination<R> {
+    let to = position - p;
+    let d2 = to.dot(to);
+    let distance = d2.sqrt();
+    let direction = to / distance;
+    let falloff = spot_falloff((-direction).dot(axis), cos_inner, cos_outer);
+    PointIllumination {
+        ok: !d2.le(R::splat(0.0)) & falloff.gt(R::splat(0.0)),
+        direction,
+        value: intensity * (falloff / d2),
         distance,
     }
 }
