@@ -5,7 +5,7 @@
 //! ([`InstanceBvh::intersect_all_with`]). Memory grows with the unique meshes plus one record
 //! per instance.
 
-use super::{node, packets_available, to_bvh_ray, traverse_nodes, Bvh, Hit, Ray};
+use super::{node, to_bvh_ray, trace_chunks, traverse_nodes, Bvh, Hit, Ray};
 use glam::{Affine3A, Vec3};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::node::CwBvhNode;
@@ -84,42 +84,16 @@ impl InstanceBvh {
     /// packets where `packets` is asked for and the CPU has packet kernels, else one ray at a
     /// time (the same hits either way).
     pub fn intersect_all_with(&self, rays: &[Ray], best: &mut [Option<Hit>], packets: bool, accept: Accept) {
-        assert_eq!(rays.len(), best.len(), "one best hit per ray");
-        #[cfg(target_arch = "x86_64")]
-        if packets && !self.is_empty() && packets_available() {
-            let width = super::packet::width();
-            for (r, b) in rays.chunks(width).zip(best.chunks_mut(width)) {
-                // SAFETY: packet kernels are available (AVX2 and FMA).
-                unsafe { self.closest_packet(r, b, accept) };
-            }
-            return;
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = packets; // no packet kernels off x86-64
-        for (ray, best) in rays.iter().zip(best) {
-            *best = self.intersect(ray, *best, accept);
-        }
+        // SAFETY: `trace_chunks` traces packets only where AVX2 and FMA exist.
+        trace_chunks(rays, best, packets && !self.is_empty(), |r, b| unsafe { self.closest_packet(r, b, accept) }, |ray, best| *best = self.intersect(ray, *best, accept));
     }
 
     /// [`InstanceBvh::occluded`] of many rays: `blocked[i]` holds whether `rays[i]` is
     /// blocked elsewhere, and becomes true where an instance blocks it; traced as
     /// [`InstanceBvh::intersect_all_with`] chooses.
     pub fn occluded_all_with(&self, rays: &[Ray], blocked: &mut [bool], packets: bool, accept: Accept) {
-        assert_eq!(rays.len(), blocked.len(), "one answer per ray");
-        #[cfg(target_arch = "x86_64")]
-        if packets && !self.is_empty() && packets_available() {
-            let width = super::packet::width();
-            for (r, b) in rays.chunks(width).zip(blocked.chunks_mut(width)) {
-                // SAFETY: packet kernels are available (AVX2 and FMA).
-                unsafe { self.occluded_packet(r, b, accept) };
-            }
-            return;
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = packets; // no packet kernels off x86-64
-        for (ray, blocked) in rays.iter().zip(blocked) {
-            *blocked = *blocked || self.occluded(ray, accept);
-        }
+        // SAFETY: as above.
+        trace_chunks(rays, blocked, packets && !self.is_empty(), |r, b| unsafe { self.occluded_packet(r, b, accept) }, |ray, blocked| *blocked = *blocked || self.occluded(ray, accept));
     }
 
     /// [`InstanceBvh::intersect`] below node `root` of the top level.
@@ -173,12 +147,11 @@ impl InstanceBvh {
     #[inline]
     pub(super) fn mesh_closest(&self, instance: u32, ray: &Ray, object_ray: &Ray, accept: Accept) -> Option<Hit> {
         let (mesh, first) = self.mesh(instance);
-        let placed = |h: Hit| Hit { triangle: h.triangle + first, instance, ..h };
         let hit = match accept {
             None => mesh.intersect(object_ray),
-            Some(accept) => mesh.intersect_filtered(object_ray, |h| accept(ray, &placed(*h))),
+            Some(accept) => mesh.intersect_filtered(object_ray, |h| accept(ray, &placed(*h, first, instance))),
         }?;
-        Some(placed(hit))
+        Some(placed(hit, first, instance))
     }
 
     /// Whether `instance`'s mesh blocks world ray `ray`, moved into the instance's space as
@@ -188,11 +161,11 @@ impl InstanceBvh {
         let (mesh, first) = self.mesh(instance);
         match accept {
             None => mesh.occluded(object_ray),
-            Some(accept) => mesh.occluded_filtered(object_ray, |h| accept(ray, &Hit { triangle: h.triangle + first, instance, ..*h })),
+            Some(accept) => mesh.occluded_filtered(object_ray, |h| accept(ray, &placed(*h, first, instance))),
         }
     }
 
-    /// `instance`'s mesh: its BVH and the scene index of its first triangle.
+    /// `instance`'s mesh: its BVH and the scene index of its first triangle ([`placed`]).
     #[inline]
     pub(super) fn mesh(&self, instance: u32) -> (&Bvh, u32) {
         let (mesh, first) = &self.meshes[self.mesh_of[instance as usize] as usize];
@@ -227,6 +200,14 @@ fn node_hits(node: &CwBvhNode, ray: &BvhRay, oct: u32, t_max: f32) -> u32 {
         return unsafe { node::intersect_avx2(node, ray, oct, t_max) };
     }
     node::intersect_portable(node, ray, oct, t_max)
+}
+
+/// A hit on an instance's mesh (its triangle numbered in the mesh, whose first triangle is
+/// scene triangle `first`) as the scene sees it: on scene triangle `first` + its own, of
+/// instance `instance`.
+#[inline(always)]
+pub(super) fn placed(hit: Hit, first: u32, instance: u32) -> Hit {
+    Hit { triangle: hit.triangle + first, instance, ..hit }
 }
 
 #[cfg(test)]

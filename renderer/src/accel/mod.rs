@@ -271,27 +271,13 @@ impl Bvh {
         self.trace_all(rays, out, packets, packet, |r| self.intersect_filtered(r, |h| accept(r, h)))
     }
 
-    /// Fills `out[i]` with the answer for `rays[i]`: through `packet(rays, out)` in packets of
-    /// [`packet::width`] where `packets` is asked for and the CPU has a packet kernel (AVX2
-    /// and FMA, which `packet` may take as given), else through `single` one ray at a time.
-    /// `rays` are given to `packet` in chunks of 1 to [`packet::width`].
+    /// Fills `out[i]` with the answer for `rays[i]`, as [`trace_chunks`] (packets only in a
+    /// BVH with triangles), `single` giving one ray's.
     #[inline]
-    fn trace_all<T: Clone + Default>(&self, rays: &[Ray], out: &mut Vec<T>, packets: bool, mut packet: impl FnMut(&[Ray], &mut [T]), single: impl Fn(&Ray) -> T) {
+    fn trace_all<T: Clone + Default>(&self, rays: &[Ray], out: &mut Vec<T>, packets: bool, packet: impl FnMut(&[Ray], &mut [T]), single: impl Fn(&Ray) -> T) {
         out.clear();
         out.resize(rays.len(), T::default());
-        #[cfg(target_arch = "x86_64")]
-        if packets && !self.is_empty() && packets_available() {
-            let width = packet::width();
-            for (r, o) in rays.chunks(width).zip(out.chunks_mut(width)) {
-                packet(r, o);
-            }
-            return;
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = (packets, &mut packet); // no packet kernels off x86-64
-        for (r, o) in rays.iter().zip(out.iter_mut()) {
-            *o = single(r);
-        }
+        trace_chunks(rays, out, packets && !self.is_empty(), packet, |r, o| *o = single(r));
     }
 
     /// Occlusion of many rays from vertices at path depth `depth` (0 for the camera's
@@ -680,6 +666,29 @@ fn slots_in_packs(slot_base: u32, lanes: u32) -> (usize, u32, u32) {
     let (pack, lane) = pack_and_lane(slot_base);
     // 24 leaf bits shifted by at most 7: within the word.
     (pack, (pack * LANES) as u32, lanes << lane)
+}
+
+/// Answers every ray of `rays` in `out` (one answer each, updated in place): through
+/// `packet(rays, out)` in chunks of 1 to [`packet::width`] where `packets` is asked for and
+/// the CPU has a packet kernel (AVX2 and FMA, which `packet` may take as given), else through
+/// `single(ray, answer)` one ray at a time. Both BVH levels' batches (`Bvh::trace_all`,
+/// `InstanceBvh::intersect_all_with`) go through it.
+#[inline]
+fn trace_chunks<T>(rays: &[Ray], out: &mut [T], packets: bool, mut packet: impl FnMut(&[Ray], &mut [T]), mut single: impl FnMut(&Ray, &mut T)) {
+    assert_eq!(rays.len(), out.len(), "one answer per ray");
+    #[cfg(target_arch = "x86_64")]
+    if packets && packets_available() {
+        let width = packet::width();
+        for (r, o) in rays.chunks(width).zip(out.chunks_mut(width)) {
+            packet(r, o);
+        }
+        return;
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (packets, &mut packet); // no packet kernels off x86-64
+    for (r, o) in rays.iter().zip(out.iter_mut()) {
+        single(r, o);
+    }
 }
 
 /// Whether this CPU traces packets: of 16 rays with AVX-512F, else of 8 with AVX2 and FMA

@@ -13,7 +13,7 @@
 //! operations), so a packet of either width finds the same hits, bit for bit.
 
 use super::node::ChildBoxes;
-use super::instances::{Accept, InstanceBvh};
+use super::instances::{placed, Accept, InstanceBvh};
 use super::{to_bvh_ray, Bvh, Hit, Ray, Stack, LANES};
 use glam::{Vec2, Vec3A};
 use crate::support::cpu::has_avx512f;
@@ -980,12 +980,12 @@ impl<S: Simd> PacketQuery<S> for InstanceClosestQuery<'_> {
                 None => unsafe { mesh.closest_packet(rays, out, &EveryHit) },
                 Some(accept) => {
                     let world = self.rays;
-                    let filter = Accepted(|i: usize, slot, t, b| accept(&world[object.lane[i]], &Hit { t, triangle: mesh.scene_triangle(slot) + first, barycentric: b, instance }));
+                    let filter = Accepted(|i: usize, slot, t, b| accept(&world[object.lane[i]], &placed(Hit { t, triangle: mesh.scene_triangle(slot), barycentric: b, instance }, first, instance)));
                     unsafe { mesh.closest_packet(rays, out, &filter) }
                 }
             }
             for hit in out.iter_mut().flatten() {
-                *hit = Hit { triangle: hit.triangle + first, instance, ..*hit };
+                *hit = placed(*hit, first, instance);
             }
         }
         for (k, hit) in found[..object.len].iter().enumerate() {
@@ -1015,6 +1015,8 @@ impl<S: Simd> PacketQuery<S> for InstanceClosestQuery<'_> {
 struct InstanceOcclusionQuery<'r> {
     instances: &'r InstanceBvh,
     rays: &'r [Ray],
+    /// The rays' `t_max` (occlusion never lowers them).
+    bounds: [f32; MAX_WIDTH],
     blocked: &'r mut [bool],
     accept: Accept<'r>,
 }
@@ -1027,11 +1029,7 @@ impl<S: Simd> PacketQuery<S> for InstanceOcclusionQuery<'_> {
             return 0;
         }
         let instance = self.instances.bvh.primitive_indices[slot as usize];
-        let mut bounds = [0.0f32; MAX_WIDTH];
-        for (b, r) in bounds.iter_mut().zip(self.rays) {
-            *b = r.t_max;
-        }
-        let object = ObjectRays::new(self.instances, instance, self.rays, lanes, &bounds);
+        let object = ObjectRays::new(self.instances, instance, self.rays, lanes, &self.bounds);
         let mut blocked = [false; MAX_WIDTH];
         if object.len == 1 {
             blocked[0] = self.instances.mesh_occluded(instance, &self.rays[object.lane[0]], &object.rays[0], self.accept);
@@ -1043,7 +1041,7 @@ impl<S: Simd> PacketQuery<S> for InstanceOcclusionQuery<'_> {
                 None => unsafe { mesh.occluded_packet(rays, out, &EveryHit) },
                 Some(accept) => {
                     let world = self.rays;
-                    let filter = Accepted(|i: usize, slot, t, b| accept(&world[object.lane[i]], &Hit { t, triangle: mesh.scene_triangle(slot) + first, barycentric: b, instance }));
+                    let filter = Accepted(|i: usize, slot, t, b| accept(&world[object.lane[i]], &placed(Hit { t, triangle: mesh.scene_triangle(slot), barycentric: b, instance }, first, instance)));
                     unsafe { mesh.occluded_packet(rays, out, &filter) }
                 }
             }
@@ -1084,7 +1082,11 @@ fn instances_occluded<S: Simd>(s: S, instances: &InstanceBvh, rays: &[Ray], bloc
         return;
     }
     let (r, mut t_max) = load(s, rays);
-    let mut query = InstanceOcclusionQuery { instances, rays, blocked, accept };
+    let mut bounds = [0.0f32; MAX_WIDTH];
+    for (b, r) in bounds.iter_mut().zip(rays) {
+        *b = r.t_max;
+    }
+    let mut query = InstanceOcclusionQuery { instances, rays, bounds, blocked, accept };
     walk(s, &instances.bvh.nodes, &r, active, &mut t_max, &mut query);
 }
 
