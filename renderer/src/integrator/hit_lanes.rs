@@ -71,8 +71,9 @@ impl HitLanes {
     /// The lanes' surface points; the lanes whose vertex scatters: those pushed found, and
     /// those pushed as their hit where [`PathTracer::begin`](super::PathTracer) would not end
     /// the path (at the back of a single-sided material, with the ray arriving below the
-    /// shading hemisphere, or on an instance whose transform leaves no normal); and the lanes pushed as their hit whose ray arrives at the front
-    /// of the surface (set for those pushed found).
+    /// shading hemisphere, or on an instance whose transform leaves no normal); and the lanes
+    /// pushed as their hit whose ray arrives at the front of the surface (set for those
+    /// pushed found).
     #[inline(always)]
     pub fn surface_points(&self) -> (SurfaceLanes, Mask, Mask) {
         if !self.any_from_hit {

@@ -222,11 +222,11 @@ impl<'s> LightLanes<'s> {
             l.target = triangle.select(s.target, l.target);
         }
         // punctual::illuminate of point and spot lights, and LightSet::sample_chosen's target.
-        for (lanes, lit) in [(Mask(self.point), false), (Mask(self.spot), true)] {
+        for (lanes, in_cone) in [(Mask(self.point), false), (Mask(self.spot), true)] {
             if !lanes.0.iter().any(|&l| l) {
                 continue;
             }
-            let s = if lit {
+            let s = if in_cone {
                 spot_illumination(self.position, self.axis, self.radiance, (self.cos_inner, self.cos_outer), p)
             } else {
                 point_illumination(self.position, self.radiance, p)

@@ -161,7 +161,12 @@ impl TriangleLight {
     /// shading point, so the lane kernels take it when a vertex is pushed.
     #[inline]
     pub fn emitted_at_sample(&self, u: Vec2, textures: &[Texture]) -> Rgb {
-        self.emitted(uniform_triangle(V2::from(u)).into(), textures)
+        // The drawn point is found only where a texture is read there (every vertex that
+        // chooses an untextured light passes here).
+        match self.texture {
+            Some(_) => self.emitted(uniform_triangle(V2::from(u)).into(), textures),
+            None => self.radiance,
+        }
     }
 
     /// The radiance emitted at barycentric coordinates `b` (b1, b2), before any coat: the
