@@ -806,7 +806,7 @@ mod tests {
 
     /// A 2 × 1 texture: left texel `left`, right texel `right` (RGB and alpha).
     fn two_texels(left: (Rgb, f32), right: (Rgb, f32)) -> Texture {
-        Texture { width: 2, height: 1, texels: vec![left.0, right.0], alpha: vec![left.1, right.1] }
+        Texture::from_linear(2, 1, vec![left.0, right.0], vec![left.1, right.1])
     }
 
     fn nearest(texture: usize) -> TextureRef {
@@ -862,7 +862,7 @@ mod tests {
     #[test]
     fn normal_maps_bend_the_shading_normal() {
         // Texel (0.8, 0.5, 0.9) encodes the tangent-space normal (0.6, 0, 0.8).
-        let texture = Texture { width: 1, height: 1, texels: vec![Rgb::new(0.8, 0.5, 0.9)], alpha: Vec::new() };
+        let texture = Texture::from_linear(1, 1, vec![Rgb::new(0.8, 0.5, 0.9)], Vec::new());
         let material = |scale| Material { normal_texture: Some(NormalMap { texture: TextureRef::new(0), scale }), ..Material::default_diffuse("bumpy") };
         let scene = quads(&[0.0, -1.0, -2.0], vec![material(1.0), material(0.5), Material::default_diffuse("flat")], vec![texture]);
         let scene = RenderScene::new(scene).unwrap();
@@ -895,7 +895,7 @@ mod tests {
     /// the light's selection weight follows its mean.
     #[test]
     fn emissive_textures_vary_emission_over_the_surface() {
-        let red_blue = Texture { width: 2, height: 1, texels: vec![Rgb::new(1.0, 0.0, 0.0), Rgb::new(0.0, 0.0, 1.0)], alpha: Vec::new() };
+        let red_blue = Texture::from_linear(2, 1, vec![Rgb::new(1.0, 0.0, 0.0), Rgb::new(0.0, 0.0, 1.0)], Vec::new());
         let lamp = Material { emission: Rgb::splat(2.0), emissive_texture: Some(nearest(0)), ..Material::default_diffuse("lamp") };
         let scene = RenderScene::new(quads(&[0.0], vec![lamp], vec![red_blue])).unwrap();
         let at = |x: f32| {

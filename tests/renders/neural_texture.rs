@@ -41,7 +41,7 @@ fn preview(model: SurfaceModel, texels: Option<Vec<Rgb>>) -> (RenderScene, rende
     let mut description = SceneDescription::load(&root().join("scenes/material-preview/scene.gltf")).expect("scene");
     if let Some(texels) = texels {
         assert!(description.textures.is_empty(), "the preview has no textures of its own");
-        description.textures.push(Texture { width: texels.len() as u32, height: 1, texels, alpha: Vec::new() });
+        description.textures.push(Texture::from_linear(texels.len() as u32, 1, texels, Vec::new()));
     }
     description.materials.iter_mut().find(|m| m.name == "preview").expect("preview material").model = model;
     let camera = description.camera(None).expect("camera").clone();

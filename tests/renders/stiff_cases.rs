@@ -174,7 +174,7 @@ fn glass_coats_and_neural_mixtures_stay_finite_under_a_tiny_bright_emitter() {
         add_floor(&mut g, 0.0, 4.0, 0);
         add_sphere(&mut g, Vec3::new(0.0, 0.5, 0.0), 0.5, 16, 32, false, 1);
         add_triangle(&mut g, [Vec3::new(0.0, 1.2, 0.0), Vec3::new(1e-3, 1.2, 0.0), Vec3::new(0.0, 1.2, 1e-3)], 2);
-        let textures = texels.map(|texels| Texture { width: texels.len() as u32, height: 1, texels, alpha: Vec::new() }).into_iter().collect();
+        let textures = texels.map(|texels| Texture::from_linear(texels.len() as u32, 1, texels, Vec::new())).into_iter().collect();
         let description = SceneDescription {
             geometry: g,
             materials: vec![material("floor", SurfaceModel::Lambert, 0.5, 0.0), sphere, material("light", SurfaceModel::Lambert, 0.0, 1e6)],

@@ -33,6 +33,7 @@ use super::neural::NeuralBsdf;
 use super::sheen::Sheen;
 use super::{Bsdf, BsdfSample, Bxdf, Lambert, MetallicRoughness, Mixture, Transmission};
 use crate::frame::Frame;
+use crate::lanes::Real;
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -40,20 +41,24 @@ use glam::{Vec2, Vec3};
 /// The clear coat's normal-incidence reflectance (index of refraction 1.5).
 const COAT_F0: f32 = 0.04;
 
-/// F_c(μ) = 0.04 + 0.96 (1 − μ)⁵ for μ = |cos| ≤ 1 to the coat's normal.
-#[inline]
-fn coat_fresnel(mu: f32) -> f32 {
-    COAT_F0 + (1.0 - COAT_F0) * (1.0 - mu).powi(5)
+/// F_c(μ) = 0.04 + 0.96 (1 − μ)⁵ for μ = |cos| ≤ 1 to the coat's normal (the fifth power as
+/// `powi(5)` evaluates it: x · (x² · x²)).
+#[inline(always)]
+fn coat_fresnel<R: Real>(mu: R) -> R {
+    let x = R::splat(1.0) - mu;
+    let x2 = x * x;
+    x * (x2 * x2) * (1.0 - COAT_F0) + COAT_F0
 }
 
 /// 1 − c F_c(μ): the part of what a surface emits under a clear coat of weight `weight`
-/// (clamped to [0, 1]) that leaves through it in a direction at cosine `cos` to the coat's
-/// normal. The specification puts the coat over emission, which it darkens by the coat's
-/// reflectance ([`Coat::reflectance`]).
-#[inline]
-pub fn coat_transmittance(weight: f32, cos: f32) -> f32 {
-    let weight = if weight.is_nan() { 0.0 } else { weight.clamp(0.0, 1.0) };
-    1.0 - weight * coat_fresnel(cos.abs().min(1.0))
+/// (clamped to [0, 1]; NaN counts as 0) that leaves through it in a direction at cosine `cos`
+/// to the coat's normal. The specification puts the coat over emission, which it darkens by
+/// the coat's reflectance ([`Coat::reflectance`]). Over [`Real`] values: the lane kernels
+/// darken coated triangle lights' samples with it.
+#[inline(always)]
+pub fn coat_transmittance<R: Real>(weight: R, cos: R) -> R {
+    let weight = R::select(weight.eq(weight), weight.clamp(0.0, 1.0), R::splat(0.0));
+    R::splat(1.0) - weight * coat_fresnel(cos.abs().min(R::splat(1.0)))
 }
 
 /// The clear coat of [`Layered`]: a GGX reflection of a weight c in [0, 1] about its own

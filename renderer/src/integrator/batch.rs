@@ -178,11 +178,12 @@ impl PathTracer {
     /// What beginning the vertex of `path` at `hit` (its random numbers `draws`) in a lane
     /// kernel needs — the hit's triangle, its material's BSDF there and double-sidedness
     /// ([`RenderScene::lane_hit`]) and its light ([`Self::kernel_light`]) — where the kernel
-    /// can find its surface point and light sample; `None` where [`Self::begin_drawn`] must
-    /// begin it (also where the path may not scatter there).
+    /// can find its surface point and light sample, with the emission the path finds there
+    /// added to it (as [`Self::begin_drawn`] adds it); `None` where [`Self::begin_drawn`] must
+    /// begin it (also where the path may not scatter there), `path` untouched.
     #[inline(always)]
     #[allow(clippy::type_complexity)]
-    pub(super) fn lane_begin<'s>(&self, scene: &'s RenderScene, path: &PathState, hit: &Hit, draws: &Draws) -> Option<(LaneHit, (Bsdf<'s>, bool), LaneLight<'s>)> {
+    pub(super) fn lane_begin<'s>(&self, scene: &'s RenderScene, path: &mut PathState, hit: &Hit, draws: &Draws) -> Option<(LaneHit, (Bsdf<'s>, bool), LaneLight<'s>)> {
         if !self.allows(path.segments + 1) {
             return None;
         }
@@ -190,6 +191,16 @@ impl PathTracer {
         // must begin the vertex anyway.
         let light = self.kernel_light(scene, draws.light, draws.u_light)?;
         let (lane_hit, bsdf, double_sided) = scene.lane_hit(hit)?;
+        // An emitting material's surface point found once more here, one by one: only the
+        // lights' own surfaces pay for it.
+        if scene.materials.emits(lane_hit.material) {
+            // `lane_hit` found the triangle sound, so a surface point exists unless an
+            // instance's placement fails, where the kernel ends the path as `begin_drawn`
+            // would, before its emission.
+            if let Some(sp) = scene.surface_point(hit, path.ray.direction) {
+                self.add_emission(scene, path, &sp);
+            }
+        }
         Some((lane_hit, (bsdf, double_sided), light))
     }
 

@@ -303,7 +303,8 @@ mod tests {
     /// diffuse ground (a point light and an environment map or, in place of the map, a
     /// constant environment; or, in place of the point light, a spot light), and in the
     /// feature showcase made Lambertian (a directional light, pushed drawn, a point light and
-    /// a triangle light with an emissive texture).
+    /// a triangle light with an emissive texture), and again with a clear coat over its
+    /// emissive sign whose weight varies over the sign (the emissive texture's red).
     #[test]
     fn diffuse_lanes_equal_scalar_scatter_bit_for_bit() {
         let load = crate::testing::data::shipped_scene;
@@ -327,7 +328,10 @@ mod tests {
         for m in showcase.materials.iter_mut().filter(|m| !m.transmits()) {
             m.model = crate::scene::SurfaceModel::Lambert;
         }
-        for (description, drawn_light) in [(load("cornell-box"), false), (preview, false), (constant, false), (spot, false), (showcase, true)] {
+        let mut coated = showcase.clone();
+        let sign = coated.materials.iter_mut().find(|m| m.emissive_texture.is_some()).expect("the showcase has an emissive sign");
+        sign.clearcoat = Some(crate::scene::Clearcoat { factor: 1.0, texture: sign.emissive_texture, roughness: 0.1, roughness_texture: None, normal_texture: None });
+        for (description, drawn_light) in [(load("cornell-box"), false), (preview, false), (constant, false), (spot, false), (showcase, true), (coated, true)] {
             diffuse_lanes_equal_scalar_scatter_in(&RenderScene::new(description).expect("scene"), drawn_light);
         }
     }
@@ -346,7 +350,7 @@ mod tests {
                 _ => None,
             });
             let (mut lanes, mut out) = (DiffuseLanes::default(), ScatteredLanes::default());
-            let (mut shadows, mut ended, mut drawn_by_kernel, mut points, mut spots, mut pushed_drawn, mut textured) = (0, 0, 0, 0, 0, 0, 0);
+            let (mut shadows, mut ended, mut drawn_by_kernel, mut points, mut spots, mut pushed_drawn, mut textured, mut coated) = (0, 0, 0, 0, 0, 0, 0, 0);
             for group in cases.chunks(LANES) {
                 lanes.clear();
                 for (vertex, bsdf, beta) in group {
@@ -356,6 +360,7 @@ mod tests {
                     spots += matches!(light, LaneLight::Spot { .. }) as usize;
                     pushed_drawn += matches!(light, LaneLight::Sampled(_)) as usize;
                     textured += matches!(light, LaneLight::Triangle { light, .. } if light.texture.is_some()) as usize;
+                    coated += matches!(light, LaneLight::Triangle { coat, .. } if coat > 0.0) as usize;
                     lanes.push(vertex, &bsdf.lobe(), *beta, light);
                 }
                 crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);
@@ -381,6 +386,8 @@ mod tests {
             assert_eq!(pushed_drawn > 0, drawn_light, "{strategy:?}: {pushed_drawn} directional samples pushed drawn");
             let textured_lights = (0..scene.lights.len() as u32).any(|l| scene.lights.triangle(l).is_some_and(|t| t.texture.is_some()));
             assert_eq!(textured > 0, textured_lights && strategy != Strategy::BsdfOnly, "{strategy:?}: {textured} lanes sample a textured triangle");
+            let coated_lights = (0..scene.lights.len() as u32).any(|l| scene.lights.triangle(l).is_some_and(|t| t.coat.is_some()));
+            assert_eq!(coated > 0, coated_lights && strategy != Strategy::BsdfOnly, "{strategy:?}: {coated} lanes sample a coated triangle");
         }
     }
 

@@ -3,20 +3,18 @@
 //! operations (so the same bits).
 //!
 //! A vertex pushes its chosen light as a [`LaneLight`]: an emissive triangle (its emissive
-//! texture read at the point drawn, which does not depend on the vertex) or
-//! the environment (constant or map) is sampled by the kernel and a point or spot light
-//! illuminates the vertex there, all lanes at once — the triangle's point (Heitz's mapping) and
-//! solid-angle density, the environment's draw with its sixteen alias-table look-ups issued
-//! together rather than one draw's dependent misses after another's; a directional light's
-//! sample, the same at every point, is drawn when the vertex is pushed, so its vertices too
-//! are begun in lanes; a coated triangle is drawn one by one at the vertex's point as
-//! [`PathTracer::scatter`] draws it (short work) and pushed drawn.
-//!
-//! [`PathTracer::scatter`]: super::PathTracer
+//! texture and its clear coat's weight read at the point drawn, which does not depend on the
+//! vertex) or the environment (constant or map) is sampled by the kernel and a point or spot
+//! light illuminates the vertex there, all lanes at once — the triangle's point (Heitz's
+//! mapping), solid-angle density and coat darkening, the environment's draw with its sixteen
+//! alias-table look-ups issued together rather than one draw's dependent misses after
+//! another's; a directional light's sample, the same at every point, is drawn when the
+//! vertex is pushed. Every light kind is thus begun in lanes.
 
 use super::scattered_lanes::ScatteredLanes;
 use super::{shadow_test, PathTracer, RealLightSample, Strategy, Vertex};
 use crate::lanes::{F32s, Mask, MaskOps, Vec2s, Vec3s, LANES};
+use crate::bsdf::layered::coat_transmittance;
 use crate::lights::area::{triangle_sample, TriangleLight};
 use crate::lights::punctual::{point_illumination, spot_illumination};
 use crate::lights::environment::Environment;
@@ -33,10 +31,11 @@ pub(crate) enum LaneLight<'s> {
     None,
     /// Drawn one by one, as `scatter` draws it.
     Sampled(LightSample),
-    /// An emissive triangle without clear coat chosen with probability `select_pdf`,
-    /// sampled by the kernel from `u` as `TriangleLight::sample` samples it; `radiance` what
-    /// the point drawn from `u` emits ([`TriangleLight::emitted_at_sample`]).
-    Triangle { light: &'s TriangleLight, radiance: Rgb, u: Vec2, select_pdf: f32 },
+    /// An emissive triangle chosen with probability `select_pdf`, sampled by the kernel from
+    /// `u` as `TriangleLight::sample` samples it; `radiance` what the point drawn from `u`
+    /// emits under its clear coat, and `coat` the coat's weight there
+    /// ([`TriangleLight::at_sample`]).
+    Triangle { light: &'s TriangleLight, radiance: Rgb, coat: f32, u: Vec2, select_pdf: f32 },
     /// The environment's sample, drawn by the kernel from `u`: the sample `scatter` would
     /// draw, its density times `select_pdf`.
     Environment { environment: &'s Environment, u: Vec2, select_pdf: f32 },
@@ -81,11 +80,11 @@ impl PathTracer {
         }
         let sampled = self.strategy != Strategy::BsdfOnly;
         if let Some(light) = scene.lights.triangle(index) {
-            return match (sampled, light.coat.is_none()) {
-                (false, _) => Some(LaneLight::None),
-                (true, true) => Some(LaneLight::Triangle { light, radiance: light.emitted_at_sample(u, scene.lights.textures()), u, select_pdf }),
-                (true, false) => None,
-            };
+            if !sampled {
+                return Some(LaneLight::None);
+            }
+            let (radiance, coat) = light.at_sample(u, scene.lights.textures());
+            return Some(LaneLight::Triangle { light, radiance, coat, u, select_pdf });
         }
         let environment = scene.lights.environment_of(index)?;
         Some(if sampled { LaneLight::Environment { environment, u, select_pdf } } else { LaneLight::None })
@@ -120,10 +119,12 @@ pub(crate) struct LightLanes<'s> {
     cos_inner: F32s,
     cos_outer: F32s,
     u: Vec2s,
-    /// The triangles' corners, unit normals and areas.
+    /// The triangles' corners, unit normals and areas, and their clear coats' weights at the
+    /// points drawn (0 without).
     corners: [Vec3s; 3],
     normal: Vec3s,
     area: F32s,
+    coat: F32s,
     /// Drawn samples; the triangles' radiance and the point lights' intensity; the
     /// selection probability where the kernel samples.
     direction: Vec3s,
@@ -162,13 +163,14 @@ impl<'s> LightLanes<'s> {
                 self.has_target[i] = ls.shadow_target.is_some();
                 self.target.set(i, ls.shadow_target.unwrap_or(Vec3::ZERO));
             }
-            LaneLight::Triangle { light, radiance, u, select_pdf } => {
+            LaneLight::Triangle { light, radiance, coat, u, select_pdf } => {
                 for (c, &corner) in self.corners.iter_mut().zip(&light.corners) {
                     c.set(i, corner);
                 }
                 self.normal.set(i, light.normal);
                 self.area.0[i] = light.area;
                 self.radiance.set(i, radiance);
+                self.coat.0[i] = coat;
                 self.u.set(i, u);
                 self.pdf.0[i] = select_pdf;
                 self.delta[i] = false;
@@ -214,11 +216,14 @@ impl<'s> LightLanes<'s> {
         };
         let triangle = Mask(self.triangle);
         if triangle.0.iter().any(|&t| t) {
-            // TriangleLight::sample's geometry.
+            // TriangleLight::sample's geometry and coat.
             let s = triangle_sample(self.corners, self.normal, self.area, p, self.u);
             ok = ok & (!triangle | s.ok);
             l.direction = triangle.select(s.direction, l.direction);
             l.pdf = triangle.select(s.pdf * self.pdf, l.pdf);
+            if (triangle & self.coat.gt(F32s::splat(0.0))).any() {
+                l.radiance = triangle.select(l.radiance * coat_transmittance(self.coat, s.cos_light), l.radiance);
+            }
             l.target = triangle.select(s.target, l.target);
         }
         // punctual::illuminate of point and spot lights, and LightSet::sample_chosen's target.

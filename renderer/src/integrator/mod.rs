@@ -274,11 +274,7 @@ impl PathTracer {
         let ray = path.ray;
         let Draws { light, u_light, uc, u } = draws;
         let sp = scene.surface_point(&hit, ray.direction)?;
-        let le = scene.emission(&sp, -ray.direction);
-        if le.max_element() > 0.0 {
-            let w = self.hit_weight(path.prev_bsdf_pdf, || scene.lights.pdf_triangle(hit.triangle, path.prev_p, sp.p));
-            path.l += path.beta * le * w;
-        }
+        self.add_emission(scene, path, &sp);
         if !self.allows(path.segments + 1) {
             return None;
         }
@@ -305,6 +301,17 @@ impl PathTracer {
             uc,
             u,
         })
+    }
+
+    /// Adds the radiance emitted at `sp` (where `path.ray` hit) toward the ray's origin,
+    /// weighed against the light sampling that could have found it.
+    #[inline(always)]
+    fn add_emission(&self, scene: &RenderScene, path: &mut PathState, sp: &SurfacePoint) {
+        let le = scene.emission(sp, -path.ray.direction);
+        if le.max_element() > 0.0 {
+            let w = self.hit_weight(path.prev_bsdf_pdf, || scene.lights.pdf_triangle(sp.triangle, path.prev_p, sp.p));
+            path.l += path.beta * le * w;
+        }
     }
 
     /// The light-sampling and BSDF-sampling half of a vertex, a pure function of the vertex

@@ -41,8 +41,15 @@ impl EmissionCoat {
     /// [`SceneMaterials::emission_toward`]: crate::material::SceneMaterials::emission_toward
     #[inline]
     fn transmittance(&self, textures: &[Texture], b: Vec2, cos: f32) -> f32 {
+        coat_transmittance(self.weight(textures, b), cos)
+    }
+
+    /// The coat's weight c (factor × texture red, not yet clamped) at barycentric coordinates
+    /// `b`.
+    #[inline]
+    fn weight(&self, textures: &[Texture], b: Vec2) -> f32 {
         let uv = self.uvs[0] * (1.0 - b.x - b.y) + self.uvs[1] * b.x + self.uvs[2] * b.y;
-        coat_transmittance(self.coat.weight(|t| t.lookup(textures, uv)), cos)
+        self.coat.weight(|t| t.lookup(textures, uv))
     }
 }
 
@@ -147,7 +154,7 @@ impl TriangleLight {
                 let b = Vec2::from(s.barycentric);
                 let radiance = self.emitted(b, textures);
                 match &self.coat {
-                    Some(coat) => radiance * coat.transmittance(textures, b, -Vec3::from(s.direction).dot(self.normal)),
+                    Some(coat) => radiance * coat.transmittance(textures, b, s.cos_light),
                     None => radiance,
                 }
             },
@@ -156,17 +163,19 @@ impl TriangleLight {
         })
     }
 
-    /// The radiance [`Self::sample`]'s point drawn from `u` emits, where the light has no
-    /// clear coat (whose darkening depends on the shading point): the same from every
-    /// shading point, so the lane kernels take it when a vertex is pushed.
+    /// What [`Self::sample`]'s point drawn from `u` emits before its clear coat, and the
+    /// coat's weight there (0 without a coat): the same from every shading point, so the
+    /// lane kernels take them when a vertex is pushed and darken the radiance by the coat
+    /// at the angle they find ([`coat_transmittance`]).
     #[inline]
-    pub fn emitted_at_sample(&self, u: Vec2, textures: &[Texture]) -> Rgb {
-        // The drawn point is found only where a texture is read there (every vertex that
-        // chooses an untextured light passes here).
-        match self.texture {
-            Some(_) => self.emitted(uniform_triangle(V2::from(u)).into(), textures),
-            None => self.radiance,
+    pub fn at_sample(&self, u: Vec2, textures: &[Texture]) -> (Rgb, f32) {
+        // The drawn point is found only where a texture or a coat is read there (every
+        // vertex that chooses a plain light passes here).
+        if self.texture.is_none() && self.coat.is_none() {
+            return (self.radiance, 0.0);
         }
+        let b = uniform_triangle(V2::from(u)).into();
+        (self.emitted(b, textures), self.coat.as_ref().map_or(0.0, |coat| coat.weight(textures, b)))
     }
 
     /// The radiance emitted at barycentric coordinates `b` (b1, b2), before any coat: the
@@ -194,13 +203,15 @@ impl TriangleLight {
 
 /// A point drawn on a triangle light, seen from a shading point, over [`Real`] values: where
 /// `ok`, the unit direction toward it, its distance, the solid-angle density (1/sr, without
-/// the light's selection), the shadow ray's target (the point offset off the light) and its
+/// the light's selection), the cosine of the direction back to the shading point to the
+/// light's normal, the shadow ray's target (the point offset off the light) and its
 /// barycentric coordinates (b1, b2).
 pub(crate) struct TriangleSample<R: Real> {
     pub ok: R::Mask,
     pub direction: V3<R>,
     pub distance: R,
     pub pdf: R,
+    pub cos_light: R,
     pub target: V3<R>,
     pub barycentric: V2<R>,
 }
@@ -225,6 +236,7 @@ pub(crate) fn triangle_sample<R: Real>(corners: [V3<R>; 3], normal: V3<R>, area:
         direction,
         distance,
         pdf,
+        cos_light,
         target: offset_origin(q, q_error, normal, -direction),
         barycentric: b,
     }

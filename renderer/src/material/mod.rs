@@ -346,11 +346,9 @@ impl SceneMaterials {
             .iter()
             .zip(&kinds)
             .map(|(m, &kind)| {
-                // Emits nothing (`emission_at`'s value is then the factor, which `begin` adds
-                // only where some channel is > 0, so NaN factors count as nothing too), and
-                // has no layers over its base.
-                #[allow(clippy::neg_cmp_op_on_partial_ord)]
-                let bare = m.clearcoat.is_none() && m.sheen.is_none() && !(m.emission.max_element() > 0.0);
+                // No layers over its base (emission, which only a coat darkens, is added when
+                // the vertex is pushed: `SceneMaterials::emits`).
+                let bare = m.clearcoat.is_none() && m.sheen.is_none();
                 let uniform = m.base_color_texture.is_none()
                     && (kind == Kind::Lambert || m.metallic_roughness_texture.is_none())
                     && m.transmission_texture.is_none()
@@ -547,6 +545,13 @@ impl SceneMaterials {
         self.materials[material as usize].emission
     }
 
+    /// Whether `material` may emit: some channel of its emissive factor is > 0 (elsewhere
+    /// [`Self::emission_at`] is zero or NaN, which the integrator adds as nothing).
+    #[inline]
+    pub fn emits(&self, material: u32) -> bool {
+        self.materials[material as usize].emission.max_element() > 0.0
+    }
+
     /// Radiance `material` emits from its front side at a point whose texture coordinates of
     /// a set are `uv(set)` (asked only for an emissive texture), W/(m² sr).
     #[inline]
@@ -701,7 +706,7 @@ mod tests {
         use crate::bsdf::metallic_roughness::MetallicRoughness;
         use crate::scene::{Material, SurfaceModel, Texture, TextureRef};
         // Texel 0: metallic 1, roughness 0.5; texel 1: metallic 0, roughness 1.
-        let texture = Texture { width: 2, height: 1, texels: vec![Rgb::new(0.0, 0.5, 1.0), Rgb::new(0.0, 1.0, 0.0)], alpha: Vec::new() };
+        let texture = Texture::from_linear(2, 1, vec![Rgb::new(0.0, 0.5, 1.0), Rgb::new(0.0, 1.0, 0.0)], Vec::new());
         let textured = Material {
             model: SurfaceModel::MetallicRoughness,
             metallic: 1.0,
@@ -760,7 +765,7 @@ mod tests {
         let names = latents.names();
         let (a, b) = (names[0].clone(), names[1].clone());
         // Texel 0: (1, 0, 0), alpha 1; texel 1: (0, 1, 0.5), alpha 0.25 (linear).
-        let texture = Texture { width: 2, height: 1, texels: vec![Rgb::new(1.0, 0.0, 0.0), Rgb::new(0.0, 1.0, 0.5)], alpha: vec![1.0, 0.25] };
+        let texture = Texture::from_linear(2, 1, vec![Rgb::new(1.0, 0.0, 0.0), Rgb::new(0.0, 1.0, 0.5)], vec![1.0, 0.25]);
         let at = |u: f32| move |_: u32| glam::Vec2::new(u, 0.5);
         let texel = TextureRef { filter: Filter::Nearest, ..TextureRef::new(0) };
         let material = |name: &str, form: VaryingForm, tint: Option<TextureRef>| Material {
@@ -788,7 +793,7 @@ mod tests {
         let expected = (0.5 * fa + 1.25 * fb) / 1.75;
         assert!((f(3, 0.75) - expected).abs().max_element() <= 1e-5 * expected.max_element(), "{} vs {expected}", f(3, 0.75));
         // A blend between palette entries mixes its two neighbours.
-        let texture = Texture { width: 1, height: 1, texels: vec![Rgb::splat(0.5)], alpha: Vec::new() };
+        let texture = Texture::from_linear(1, 1, vec![Rgb::splat(0.5)], Vec::new());
         let half = material("half", VaryingForm::Blend { ends: [a.clone(), b.clone()], t: TextureRef::new(0), channel: 0 }, None);
         let materials = SceneMaterials::prepare(vec![half], vec![texture], &[true], latents).unwrap();
         let Some(Bsdf::Mixture(m)) = materials.bsdf(0, true, at(0.5), Vec3::Z) else { panic!("a mixture") };
@@ -807,7 +812,7 @@ mod tests {
             model: SurfaceModel::Varying(Varying { form: VaryingForm::Blend { ends, t: TextureRef::new(0), channel: 0 }, tint: None }),
             ..Material::default_diffuse("ramp")
         };
-        let texture = || vec![Texture { width: 1, height: 1, texels: vec![Rgb::ONE], alpha: Vec::new() }];
+        let texture = || vec![Texture::from_linear(1, 1, vec![Rgb::ONE], Vec::new())];
         let unused = SceneMaterials::prepare(vec![blend([a.clone(), a.clone()])], texture(), &[false], latents).unwrap();
         assert_eq!(unused.stats().decoded_codes, 0);
         let msg = SceneMaterials::prepare(vec![blend([a.clone(), "no-such-code".into()])], texture(), &[true], latents).err().unwrap().to_string();

@@ -963,11 +963,11 @@ mod tests {
             .expect("encode");
         let t = Texture::from_encoded_srgb(&png, Path::new("a.gltf"), "image 0").expect("decode");
         assert!(
-            t.texels[0].abs_diff_eq(Rgb::new(0.0, 0.502_886, 1.0), 1e-4),
+            t.texel(0).abs_diff_eq(Rgb::new(0.0, 0.502_886, 1.0), 1e-4),
             "{}",
-            t.texels[0]
+            t.texel(0)
         );
-        assert_eq!(t.lookup(Vec2::new(0.3, 0.9)), t.texels[0]);
+        assert_eq!(t.lookup(Vec2::new(0.3, 0.9)), t.texel(0));
         let message = Texture::from_encoded_srgb(b"not an image", Path::new("a.gltf"), "image 0")
             .expect_err("garbage")
             .to_string();

@@ -9,17 +9,43 @@
 use crate::{Error, Result, Rgb};
 use glam::{Mat3, Vec2};
 use std::path::Path;
+use std::sync::LazyLock;
 
 /// A texture of linear RGB texels, row-major from the top row (glTF's v = 0), with the
 /// image's alpha channel where it has one that is not opaque everywhere.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Texture {
     pub width: u32,
     pub height: u32,
-    pub texels: Vec<Rgb>,
-    /// Alpha (coverage, linear in [0, 1]) per texel, in the order of `texels`; empty when
-    /// the image has no alpha channel or every texel is opaque (alpha 1).
-    pub alpha: Vec<f32>,
+    texels: Texels,
+    /// Whether some texel's alpha is below 1 (elsewhere alpha reads as 1 without a look-up).
+    has_alpha: bool,
+}
+
+/// How a texture holds its texels.
+#[derive(Clone, Debug)]
+enum Texels {
+    /// An 8-bit image's bytes (RGBA, alpha 255 where the image has none), decoded as they
+    /// are read: colour through `rgb` (the image's encoding, [`byte_values`]), alpha
+    /// linearly. A third of the memory of linear `f32` colour, the same values.
+    Bytes { rgba: Vec<[u8; 4]>, rgb: &'static [f32; 256] },
+    /// Linear colour and alpha (16-bit and floating-point images; alpha empty when
+    /// opaque).
+    Floats { rgb: Vec<Rgb>, alpha: Vec<f32> },
+}
+
+/// The linear value of each byte of a linear 8-bit channel, as the `image` crate converts
+/// it (the `f32` values the texture had when it held them decoded).
+static LINEAR_BYTES: LazyLock<[f32; 256]> = LazyLock::new(|| byte_values(|v| v));
+/// The linear value of each byte of an sRGB-encoded 8-bit channel.
+static SRGB_BYTES: LazyLock<[f32; 256]> = LazyLock::new(|| byte_values(srgb_to_linear));
+
+/// `decode` of the value the `image` crate gives each byte of an RGB(A) image as `f32`
+/// (x / 255 rounded once; its grey images' conversion can be an ulp off that).
+fn byte_values(decode: fn(f32) -> f32) -> [f32; 256] {
+    let bytes = image::RgbImage::from_fn(256, 1, |x, _| image::Rgb([x as u8; 3]));
+    let values = image::DynamicImage::ImageRgb8(bytes).to_rgba32f();
+    std::array::from_fn(|i| decode(values.get_pixel(i as u32, 0).0[0]))
 }
 
 /// How an image's 8- and 16-bit values map to linear values.
@@ -137,6 +163,35 @@ fn wrap_index(i: i64, n: usize, wrap: Wrap) -> usize {
 }
 
 impl Texture {
+    /// A texture of `width` × `height` linear texels `rgb` (row-major from the top row)
+    /// with alpha `alpha` per texel, or none (empty: opaque).
+    ///
+    /// # Panics
+    /// Where `rgb` (or a non-empty `alpha`) does not hold `width` × `height` values.
+    pub fn from_linear(width: u32, height: u32, rgb: Vec<Rgb>, alpha: Vec<f32>) -> Texture {
+        let n = width as usize * height as usize;
+        assert!(rgb.len() == n && (alpha.is_empty() || alpha.len() == n), "{width} x {height} texels");
+        let has_alpha = !alpha.iter().all(|&a| a >= 1.0);
+        let alpha = if has_alpha { alpha } else { Vec::new() };
+        Texture { width, height, texels: Texels::Floats { rgb, alpha }, has_alpha }
+    }
+
+    /// The linear colour of texel `i` (row-major from the top row).
+    pub fn texel(&self, i: usize) -> Rgb {
+        match &self.texels {
+            Texels::Bytes { rgba, rgb } => decode_rgb(rgba[i], rgb),
+            Texels::Floats { rgb, .. } => rgb[i],
+        }
+    }
+
+    /// The bytes the texels take.
+    pub fn heap_bytes(&self) -> usize {
+        match &self.texels {
+            Texels::Bytes { rgba, .. } => std::mem::size_of_val(rgba.as_slice()),
+            Texels::Floats { rgb, alpha } => std::mem::size_of_val(rgb.as_slice()) + std::mem::size_of_val(alpha.as_slice()),
+        }
+    }
+
     /// Bilinear look-up with repeat wrapping (glTF's default sampler).
     pub fn lookup(&self, uv: Vec2) -> Rgb {
         self.sample(uv, [Wrap::Repeat; 2], Filter::Linear)
@@ -145,15 +200,22 @@ impl Texture {
     /// The value at `uv` with the given wrap modes (u, v) and filter. Non-finite coordinates
     /// are read as (0, 0).
     pub fn sample(&self, uv: Vec2, wrap: [Wrap; 2], filter: Filter) -> Rgb {
-        self.filtered(uv, wrap, filter, |i| self.texels[i], Rgb::lerp)
+        match &self.texels {
+            Texels::Bytes { rgba, rgb } => self.filtered(uv, wrap, filter, |i| decode_rgb(rgba[i], rgb), Rgb::lerp),
+            Texels::Floats { rgb, .. } => self.filtered(uv, wrap, filter, |i| rgb[i], Rgb::lerp),
+        }
     }
 
     /// The alpha at `uv`, filtered as [`Texture::sample`]; 1 when the texture has no alpha.
     pub fn sample_alpha(&self, uv: Vec2, wrap: [Wrap; 2], filter: Filter) -> f32 {
-        if self.alpha.is_empty() {
+        if !self.has_alpha {
             return 1.0;
         }
-        self.filtered(uv, wrap, filter, |i| self.alpha[i], |a, b, t| a + (b - a) * t)
+        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        match &self.texels {
+            Texels::Bytes { rgba, .. } => self.filtered(uv, wrap, filter, |i| LINEAR_BYTES[rgba[i][3] as usize], lerp),
+            Texels::Floats { alpha, .. } => self.filtered(uv, wrap, filter, |i| alpha[i], lerp),
+        }
     }
 
     /// Texels fetched by `texel(index)` at `uv`, wrapped and filtered.
@@ -200,32 +262,36 @@ impl Texture {
             image.color(),
             image::ColorType::Rgb32F | image::ColorType::Rgba32F
         );
+        if matches!(image.color(), image::ColorType::L8 | image::ColorType::La8 | image::ColorType::Rgb8 | image::ColorType::Rgba8) {
+            let rgba: Vec<[u8; 4]> = image.into_rgba8().pixels().map(|p| p.0).collect();
+            let has_alpha = rgba.iter().any(|p| p[3] < u8::MAX);
+            let rgb = if encoding == Encoding::Linear { &*LINEAR_BYTES } else { &*SRGB_BYTES };
+            return Ok(Texture { width, height, texels: Texels::Bytes { rgba, rgb }, has_alpha });
+        }
         let decode = |v: f32| if is_float || encoding == Encoding::Linear { v } else { srgb_to_linear(v) };
         let rgba = image.to_rgba32f();
         let texels = rgba
             .pixels()
             .map(|p| Rgb::new(decode(p.0[0]), decode(p.0[1]), decode(p.0[2])))
             .collect();
-        let mut alpha: Vec<f32> = if image.color().has_alpha() {
+        let alpha: Vec<f32> = if image.color().has_alpha() {
             rgba.pixels().map(|p| p.0[3]).collect()
         } else {
             Vec::new()
         };
-        if alpha.iter().all(|&a| a >= 1.0) {
-            alpha = Vec::new();
-        }
-        Ok(Texture {
-            width,
-            height,
-            texels,
-            alpha,
-        })
+        Ok(Texture::from_linear(width, height, texels, alpha))
     }
 
     /// [`Texture::from_encoded`] for colour ([`Encoding::Srgb`]).
     pub fn from_encoded_srgb(bytes: &[u8], file: &Path, what: &str) -> Result<Texture> {
         Self::from_encoded(bytes, Encoding::Srgb, file, what)
     }
+}
+
+/// A byte texel's linear colour, its channels decoded by `table`.
+#[inline(always)]
+fn decode_rgb([r, g, b, _]: [u8; 4], table: &[f32; 256]) -> Rgb {
+    Rgb::new(table[r as usize], table[g as usize], table[b as usize])
 }
 
 /// The sRGB electro-optical transfer function (IEC 61966-2-1): encoded value in [0, 1] to
@@ -244,12 +310,7 @@ mod tests {
 
     /// A 4 × 1 texture with texels 0, 1, 2, 3 (all channels).
     fn ramp() -> Texture {
-        Texture {
-            width: 4,
-            height: 1,
-            texels: (0..4).map(|i| Rgb::splat(i as f32)).collect(),
-            alpha: Vec::new(),
-        }
+        Texture::from_linear(4, 1, (0..4).map(|i| Rgb::splat(i as f32)).collect(), Vec::new())
     }
 
     fn at(t: &Texture, u: f32, wrap: Wrap, filter: Filter) -> f32 {
@@ -311,6 +372,27 @@ mod tests {
         assert_eq!(r.lookup(&[ramp()], Vec2::new(0.125, 0.5)), Rgb::splat(1.0));
     }
 
+    /// An 8-bit image's texels, held as bytes, read as the values decoding the whole image
+    /// to `f32` gives (colour by its encoding, alpha linear), bit for bit, in a quarter of
+    /// the bytes of `f32` RGBA.
+    #[test]
+    fn byte_texels_read_as_the_decoded_image() {
+        let image = image::RgbaImage::from_fn(256, 1, |x, _| image::Rgba([x as u8, 255 - x as u8, (x / 2) as u8, x as u8]));
+        let mut png = Vec::new();
+        image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).unwrap();
+        let decoded = image::DynamicImage::ImageRgba8(image).to_rgba32f();
+        for (encoding, decode) in [(Encoding::Linear, (|v| v) as fn(f32) -> f32), (Encoding::Srgb, srgb_to_linear)] {
+            let t = Texture::from_encoded(&png, encoding, Path::new("a.gltf"), "png").unwrap();
+            assert_eq!(t.heap_bytes(), 256 * 4);
+            for (i, p) in decoded.pixels().enumerate() {
+                let want = Rgb::new(decode(p.0[0]), decode(p.0[1]), decode(p.0[2]));
+                assert_eq!(t.texel(i).to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "{encoding:?}, texel {i}");
+                let centre = Vec2::new((i as f32 + 0.5) / 256.0, 0.5);
+                assert_eq!(t.sample_alpha(centre, [Wrap::ClampToEdge; 2], Filter::Nearest).to_bits(), p.0[3].to_bits(), "alpha {i}");
+            }
+        }
+    }
+
     #[test]
     fn linear_and_srgb_decoding_of_png_and_jpeg() {
         let mut png = Vec::new();
@@ -319,12 +401,12 @@ mod tests {
         let path = Path::new("scene.gltf");
         let linear = Texture::from_encoded(&png, Encoding::Linear, path, "png").unwrap();
         let srgb = Texture::from_encoded(&png, Encoding::Srgb, path, "png").unwrap();
-        assert!((linear.texels[0].x - 128.0 / 255.0).abs() < 1e-6);
-        assert!((srgb.texels[0].x - 0.2158605).abs() < 1e-5, "{}", srgb.texels[0].x);
+        assert!((linear.texel(0).x - 128.0 / 255.0).abs() < 1e-6);
+        assert!((srgb.texel(0).x - 0.2158605).abs() < 1e-5, "{}", srgb.texel(0).x);
         let mut jpeg = Vec::new();
         pixel.write_to(&mut std::io::Cursor::new(&mut jpeg), image::ImageFormat::Jpeg).unwrap();
         let decoded = Texture::from_encoded(&jpeg, Encoding::Linear, path, "jpeg").unwrap();
-        assert!((decoded.texels[3].y - 128.0 / 255.0).abs() < 3.0 / 255.0, "{:?}", decoded.texels[3]);
+        assert!((decoded.texel(3).y - 128.0 / 255.0).abs() < 3.0 / 255.0, "{:?}", decoded.texel(3));
         let e = Texture::from_encoded(&jpeg[..jpeg.len() / 2], Encoding::Srgb, path, "image 0").unwrap_err().to_string();
         assert!(e.contains("scene.gltf") && e.contains("cannot decode image 0"), "{e}");
     }

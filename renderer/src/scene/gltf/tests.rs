@@ -653,9 +653,9 @@ fn base_color_texture_is_decoded_from_srgb() {
     assert_eq!(scene.materials[0].base_color_texture, Some(crate::scene::TextureRef::new(0)));
     let t = &scene.textures[0];
     assert_eq!((t.width, t.height), (2, 1));
-    assert!((t.texels[0].x - 1.0).abs() < 1e-5 && t.texels[0].z == 0.0);
-    assert!((t.texels[0].y - 0.215_861).abs() < 1e-4, "{}", t.texels[0]);
-    assert!((t.texels[1].x - 0.003_035).abs() < 1e-5, "{}", t.texels[1]);
+    assert!((t.texel(0).x - 1.0).abs() < 1e-5 && t.texel(0).z == 0.0);
+    assert!((t.texel(0).y - 0.215_861).abs() < 1e-4, "{}", t.texel(0));
+    assert!((t.texel(1).x - 0.003_035).abs() < 1e-5, "{}", t.texel(1));
 }
 
 /// One image used as sRGB base colour and as linear metallic-roughness data is decoded once
@@ -689,8 +689,8 @@ fn texture_references_read_samplers_transforms_and_encodings() {
     assert_eq!(scene.materials[2].base_color_texture.map(|t| t.tex_coord), Some(0));
     assert_ne!(mr.texture, base.texture);
     assert_eq!(b.base_color_texture.map(|t| t.texture), Some(base.texture), "the sRGB decoding is shared");
-    assert!((scene.textures[mr.texture].texels[0].y - 128.0 / 255.0).abs() < 1e-6, "linear data");
-    assert!((scene.textures[base.texture].texels[0].y - 0.215_861).abs() < 1e-4, "sRGB colour");
+    assert!((scene.textures[mr.texture].texel(0).y - 128.0 / 255.0).abs() < 1e-6, "linear data");
+    assert!((scene.textures[base.texture].texel(0).y - 0.215_861).abs() < 1e-4, "sRGB colour");
     assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
     assert!(scene.warnings[0].contains("material 'c' uses TEXCOORD_3"), "{:?}", scene.warnings);
 }
@@ -1089,9 +1089,9 @@ fn normal_emissive_and_alpha_slots_are_read() {
     let normal = m[0].normal_texture.expect("normal map");
     assert_eq!((normal.scale, normal.texture.tex_coord), (0.5, 1));
     assert_eq!(normal.texture.transform, Some(texture_transform(Vec2::new(0.5, 0.0), 0.0, Vec2::splat(2.0))));
-    assert!((scene.textures[normal.texture.texture].texels[0].y - 128.0 / 255.0).abs() < 1e-6, "linear");
+    assert!((scene.textures[normal.texture.texture].texel(0).y - 128.0 / 255.0).abs() < 1e-6, "linear");
     let emissive = m[0].emissive_texture.expect("emissive texture");
-    assert!((scene.textures[emissive.texture].texels[0].y - 0.215_861).abs() < 1e-4, "sRGB");
+    assert!((scene.textures[emissive.texture].texel(0).y - 0.215_861).abs() < 1e-4, "sRGB");
     assert_eq!((m[0].alpha_mode, m[0].base_alpha), (AlphaMode::Mask { cutoff: 0.25 }, 0.6));
     assert_eq!(m[1].alpha_mode, AlphaMode::Blend);
     assert_eq!(m[2].alpha_mode, AlphaMode::Mask { cutoff: 0.5 });
