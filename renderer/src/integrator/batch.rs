@@ -191,17 +191,22 @@ impl PathTracer {
         // must begin the vertex anyway.
         let light = self.kernel_light(scene, draws.light, draws.u_light)?;
         let (lane_hit, bsdf, double_sided) = scene.lane_hit(hit)?;
-        // An emitting material's surface point found once more here, one by one: only the
-        // lights' own surfaces pay for it.
         if scene.materials.emits(lane_hit.material) {
-            // `lane_hit` found the triangle sound, so a surface point exists unless an
-            // instance's placement fails, where the kernel ends the path as `begin_drawn`
-            // would, before its emission.
-            if let Some(sp) = scene.surface_point(hit, path.ray.direction) {
-                self.add_emission(scene, path, &sp);
-            }
+            self.add_emission_at(scene, path, hit);
         }
         Some((lane_hit, (bsdf, double_sided), light))
+    }
+
+    /// [`Self::add_emission`] at `hit`, its surface point found once more here, one by one:
+    /// only the lights' own surfaces pay for it (kept out of line: the batch step's loop
+    /// stays small). `lane_hit` found the triangle sound, so a surface point exists unless
+    /// an instance's placement fails, where the kernel ends the path as `begin_drawn` would,
+    /// before its emission.
+    #[inline(never)]
+    fn add_emission_at(&self, scene: &RenderScene, path: &mut PathState, hit: &Hit) {
+        if let Some(sp) = scene.surface_point(hit, path.ray.direction) {
+            self.add_emission(scene, path, &sp);
+        }
     }
 
     /// Hands path `i`'s vertex at `p`, scattered into `s`, on: its shadow test to the

@@ -167,13 +167,19 @@ impl TriangleLight {
     /// coat's weight there (0 without a coat): the same from every shading point, so the
     /// lane kernels take them when a vertex is pushed and darken the radiance by the coat
     /// at the angle they find ([`coat_transmittance`]).
-    #[inline]
+    #[inline(always)]
     pub fn at_sample(&self, u: Vec2, textures: &[Texture]) -> (Rgb, f32) {
         // The drawn point is found only where a texture or a coat is read there (every
-        // vertex that chooses a plain light passes here).
+        // vertex that chooses a plain light passes here: kept inline, the rest out of line).
         if self.texture.is_none() && self.coat.is_none() {
             return (self.radiance, 0.0);
         }
+        self.at_drawn_point(u, textures)
+    }
+
+    /// [`Self::at_sample`] of a textured or coated light.
+    #[inline(never)]
+    fn at_drawn_point(&self, u: Vec2, textures: &[Texture]) -> (Rgb, f32) {
         let b = uniform_triangle(V2::from(u)).into();
         (self.emitted(b, textures), self.coat.as_ref().map_or(0.0, |coat| coat.weight(textures, b)))
     }
