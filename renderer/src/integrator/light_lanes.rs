@@ -33,7 +33,7 @@ pub(crate) enum LaneLight<'s> {
     Sampled(LightSample),
     /// An emissive triangle chosen with probability `select_pdf`, sampled by the kernel from
     /// `u` as `TriangleLight::sample` samples it; `radiance` what the point drawn from `u`
-    /// emits under its clear coat, and `coat` the coat's weight there
+    /// emits before its clear coat, and `coat` the coat's weight there (0 without one)
     /// ([`TriangleLight::at_sample`]).
     Triangle { light: &'s TriangleLight, radiance: Rgb, coat: f32, u: Vec2, select_pdf: f32 },
     /// The environment's sample, drawn by the kernel from `u`: the sample `scatter` would
@@ -59,9 +59,10 @@ impl PathTracer {
 
     /// The [`LaneLight`] of a vertex whose chosen light is `light` (index, selection
     /// probability) and whose light sample's u is `u`, where it is known without the
-    /// vertex's point: a triangle without clear coat, the environment, a point or spot light (the kernel
-    /// samples or illuminates it), a directional light (the same sample everywhere, drawn
-    /// now), or no light; `None` where its sample must be drawn at the point first.
+    /// vertex's point: a triangle (textured, coated or not), the environment, a point or spot
+    /// light (the kernel samples or illuminates it), a directional light (the same sample
+    /// everywhere, drawn now), or no light; `None` where its sample must be drawn at the point
+    /// first (no light kind today).
     #[inline(always)]
     pub(crate) fn kernel_light<'s>(&self, scene: &'s RenderScene, light: Option<(u32, f32)>, u: Vec2) -> Option<LaneLight<'s>> {
         let Some((index, select_pdf)) = light else {
