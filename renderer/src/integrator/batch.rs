@@ -129,6 +129,7 @@ impl PathTracer {
                 let draws = self.draw(scene, path);
                 let beta = path.beta;
                 if let Some((lane_hit, (bsdf, double_sided), light)) = self.lane_begin(scene, path, &hit, &draws) {
+                    self.lane_emission(scene, path, &hit, lane_hit.material);
                     let at = HitAt { hit: &lane_hit, barycentric: hit.barycentric, direction: path.ray.direction, double_sided };
                     let settle = |i, p, s| self.settle(paths, results, i, p, s);
                     match bsdf {
@@ -178,12 +179,12 @@ impl PathTracer {
     /// What beginning the vertex of `path` at `hit` (its random numbers `draws`) in a lane
     /// kernel needs — the hit's triangle, its material's BSDF there and double-sidedness
     /// ([`RenderScene::lane_hit`]) and its light ([`Self::kernel_light`]) — where the kernel
-    /// can find its surface point and light sample, with the emission the path finds there
-    /// added to it (as [`Self::begin_drawn`] adds it); `None` where [`Self::begin_drawn`] must
-    /// begin it (also where the path may not scatter there), `path` untouched.
+    /// can find its surface point and light sample (the emission the path finds there is
+    /// [`Self::lane_emission`]'s); `None` where [`Self::begin_drawn`] must begin it (also
+    /// where the path may not scatter there).
     #[inline(always)]
     #[allow(clippy::type_complexity)]
-    pub(super) fn lane_begin<'s>(&self, scene: &'s RenderScene, path: &mut PathState, hit: &Hit, draws: &Draws) -> Option<(LaneHit, (Bsdf<'s>, bool), LaneLight<'s>)> {
+    pub(super) fn lane_begin<'s>(&self, scene: &'s RenderScene, path: &PathState, hit: &Hit, draws: &Draws) -> Option<(LaneHit, (Bsdf<'s>, bool), LaneLight<'s>)> {
         if !self.allows(path.segments + 1) {
             return None;
         }
@@ -191,17 +192,23 @@ impl PathTracer {
         // must begin the vertex anyway.
         let light = self.kernel_light(scene, draws.light, draws.u_light)?;
         let (lane_hit, bsdf, double_sided) = scene.lane_hit(hit)?;
-        if scene.materials.emits(lane_hit.material) {
-            self.add_emission_at(scene, path, hit);
-        }
         Some((lane_hit, (bsdf, double_sided), light))
     }
 
-    /// [`Self::add_emission`] at `hit`, its surface point found once more here, one by one:
-    /// only the lights' own surfaces pay for it (kept out of line: the batch step's loop
-    /// stays small). `lane_hit` found the triangle sound, so a surface point exists unless
-    /// an instance's placement fails, where the kernel ends the path as `begin_drawn` would,
+    /// Adds to `path` the emission it finds at `hit` on `material`, for a vertex
+    /// [`Self::lane_begin`] begins in lanes (as [`Self::begin_drawn`] adds it): the surface
+    /// point found once more, one by one, on emitting materials only (the lights' own
+    /// surfaces). `lane_hit` found the triangle sound, so a surface point exists unless an
+    /// instance's placement fails, where the kernel ends the path as `begin_drawn` would,
     /// before its emission.
+    #[inline(always)]
+    pub(super) fn lane_emission(&self, scene: &RenderScene, path: &mut PathState, hit: &Hit, material: u32) {
+        if scene.materials.emits(material) {
+            self.add_emission_at(scene, path, hit);
+        }
+    }
+
+    /// [`Self::add_emission`] at `hit` (kept out of line: the batch step's loop stays small).
     #[inline(never)]
     fn add_emission_at(&self, scene: &RenderScene, path: &mut PathState, hit: &Hit) {
         if let Some(sp) = scene.surface_point(hit, path.ray.direction) {

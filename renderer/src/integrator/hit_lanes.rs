@@ -259,7 +259,7 @@ mod tests {
             }
             let mut drawn = state.clone();
             let draws = tracer.draw(scene, &mut drawn);
-            let Some((_, (bsdf, _), _)) = tracer.lane_begin(scene, &mut drawn, &hit, &draws) else { continue };
+            let Some((_, (bsdf, _), _)) = tracer.lane_begin(scene, &drawn, &hit, &draws) else { continue };
             let cases = match bsdf {
                 Bsdf::Lambert(_) => &mut diffuse,
                 Bsdf::MetallicRoughness(_) => &mut glossy,
@@ -302,8 +302,9 @@ mod tests {
                 drawn.attenuate(hit.t);
                 let draws = tracer.draw(scene, &mut drawn);
                 assert_eq!(format!("{:?}", drawn.sampler), format!("{:?}", begun.sampler), "the same numbers drawn");
-                let (lane_hit, (bsdf, double_sided), light) = tracer.lane_begin(scene, &mut drawn, hit, &draws).expect("begins in lanes");
+                let (lane_hit, (bsdf, double_sided), light) = tracer.lane_begin(scene, &drawn, hit, &draws).expect("begins in lanes");
                 // The emission found at the hit, as `begin` adds it.
+                tracer.lane_emission(scene, &mut drawn, hit, lane_hit.material);
                 assert_eq!(drawn.l.to_array().map(f32::to_bits), begun.l.to_array().map(f32::to_bits), "{strategy:?}: the emission found");
                 counts.emitting += (drawn.l != state.l) as usize;
                 match (vertex, as_hit) {
