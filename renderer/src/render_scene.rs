@@ -285,40 +285,17 @@ impl RenderScene {
 
     /// What beginning `hit`'s vertex in lanes needs, where its material lets the lane
     /// kernels begin it ([`SceneMaterials::lane_bsdf`]) and its triangle is not degenerate:
-    /// the triangle with its normal map's reading at the hit ([`LaneHit`], for
-    /// [`surface_points_lanes`]), the material's BSDF there seen from its front, and whether
-    /// it is double-sided; `None` elsewhere.
+    /// the hit with its material ([`LaneHit`], whose triangle [`TriangleLanes::set`] reads
+    /// for [`surface_points_lanes`]), the material's BSDF there seen from its front, and
+    /// whether it is double-sided; `None` elsewhere.
     #[inline]
     pub(crate) fn lane_hit(&self, hit: &Hit) -> Option<(LaneHit, Bsdf<'_>, bool)> {
-        let tri = hit.triangle as usize;
-        let material = self.geometry.material_ids[tri];
+        let material = self.geometry.material_ids[hit.triangle as usize];
         let (bsdf, double_sided) = self.materials.lane_bsdf(material, |set| self.uv_at(hit.triangle, hit.barycentric, set))?;
-        let HitRecord { corners, ng, flat_normal } = self.hit_records[tri];
-        if ng == Vec3::ZERO {
+        if self.hit_records[hit.triangle as usize].ng == Vec3::ZERO {
             return None;
         }
-        let placed = match &self.instances {
-            Some(inst) if hit.instance != NO_INSTANCE => Some(inst.placements[hit.instance as usize]),
-            _ => None,
-        };
-        let flat = flat_normal != Vec3::ZERO;
-        let normals = if flat {
-            [flat_normal; 3]
-        } else {
-            self.geometry.triangles[tri].map(|v| self.geometry.normals[v as usize])
-        };
-        let map = self.materials.normal_map(material);
-        let lane_hit = LaneHit {
-            corners,
-            ng,
-            normals,
-            flat,
-            material,
-            placed,
-            mapped: map.is_some(),
-            bend: map.and_then(|map| self.normal_bend(tri, hit.barycentric, map)),
-        };
-        Some((lane_hit, bsdf, double_sided))
+        Some((LaneHit { hit: *hit, material }, bsdf, double_sided))
     }
 
     /// The surface point of a hit of a ray with direction `direction`; `None` for a
@@ -448,23 +425,42 @@ impl RenderScene {
     }
 }
 
-/// A hit on a triangle whose surface point can be found in lanes ([`RenderScene::lane_hit`]).
+/// A hit on a triangle whose surface point can be found in lanes ([`RenderScene::lane_hit`]),
+/// and the triangle's material. What finding the point needs (the triangle's corners and
+/// normals, an instance's transforms, a normal map's reading) is read from the scene into the
+/// lanes themselves ([`TriangleLanes::set`]), not gathered into a value first: returned and
+/// moved per vertex, such a value (with its optional parts written in pieces and copied
+/// whole) stalled store forwarding for ~5 % of the Cornell box's time.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct LaneHit {
-    pub corners: [Vec3; 3],
-    /// Unit geometric normal from the winding.
-    pub ng: Vec3,
-    /// The vertex normals, or where `flat` the unit shading normal (three times).
-    pub normals: [Vec3; 3],
-    pub flat: bool,
+    pub hit: Hit,
     pub material: u32,
-    /// Where the triangle is an instance's, the instance's transforms (the fields above are
-    /// in its mesh's space).
-    pub placed: Option<Placed<f32>>,
-    /// Whether the material has a normal map, and its reading at the hit where the vertices
-    /// carry tangents.
-    pub mapped: bool,
-    pub bend: Option<NormalBend<f32>>,
+}
+
+impl LaneHit {
+    /// Whether the triangle is flat-shaded (one shading normal over it).
+    #[cfg(test)]
+    pub fn flat(&self, scene: &RenderScene) -> bool {
+        scene.hit_records[self.hit.triangle as usize].flat_normal != Vec3::ZERO
+    }
+
+    /// Where the triangle is an instance's, the instance's transforms (the triangle's record
+    /// is in its mesh's space).
+    #[inline(always)]
+    pub fn placed<'s>(&self, scene: &'s RenderScene) -> Option<&'s Placed<f32>> {
+        match &scene.instances {
+            Some(inst) if self.hit.instance != NO_INSTANCE => Some(&inst.placements[self.hit.instance as usize]),
+            _ => None,
+        }
+    }
+
+    /// The normal map's reading at the hit, where the material has a normal map and the
+    /// vertices carry tangents.
+    #[cfg(test)]
+    pub fn bend(&self, scene: &RenderScene) -> Option<NormalBend<f32>> {
+        let map = scene.materials.normal_map(self.material)?;
+        scene.normal_bend(self.hit.triangle as usize, self.hit.barycentric, map)
+    }
 }
 
 /// A vertex's surface point per lane, as the lane kernels read it: position, its absolute
@@ -497,10 +493,11 @@ impl SurfaceLanes {
 
 
 /// The triangles of up to [`LANES`] hits whose surface points are found in lanes
-/// ([`surface_points_lanes`]): per lane, a [`LaneHit`]'s corners, geometric normal, vertex
-/// normals (the flat shading normal three times where `flat`), on an instance its
-/// transforms, and on a normal-mapped material the map's reading; whether any lane is
-/// smooth-shaded, whether any is on an instance, and whether any is normal-mapped.
+/// ([`surface_points_lanes`]): per lane, a [`LaneHit`]'s triangle's corners, geometric
+/// normal, vertex normals (where `flat`, the first is the flat shading normal and the others
+/// are unused), on an instance its transforms, and on a normal-mapped material the map's
+/// reading; whether any lane is smooth-shaded, whether any is on an instance, and whether
+/// any is normal-mapped.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct TriangleLanes {
     corners: [Vec3s; 3],
@@ -529,32 +526,44 @@ impl TriangleLanes {
         self.any_mapped = false;
     }
 
-    /// Lane `i` holds `hit`'s triangle.
+    /// Lane `i` holds the triangle of `hit`, a hit in `scene`.
     #[inline(always)]
-    pub fn set(&mut self, i: usize, hit: &LaneHit) {
-        for (corners, &corner) in self.corners.iter_mut().zip(&hit.corners) {
-            corners.set(i, corner);
+    pub fn set(&mut self, i: usize, scene: &RenderScene, hit: &LaneHit) {
+        let tri = hit.hit.triangle as usize;
+        let HitRecord { corners, ng, flat_normal } = scene.hit_records[tri];
+        for (lanes, corner) in self.corners.iter_mut().zip(corners) {
+            lanes.set(i, corner);
         }
+        self.ng.set(i, ng);
         // A flat lane's normal is its first; the others are read only where some lane is
         // smooth, and then not used for the flat lanes.
-        self.normals[0].set(i, hit.normals[0]);
-        if !hit.flat {
-            self.normals[1].set(i, hit.normals[1]);
-            self.normals[2].set(i, hit.normals[2]);
+        let flat = flat_normal != Vec3::ZERO;
+        if flat {
+            self.normals[0].set(i, flat_normal);
+        } else {
+            let g = &scene.geometry;
+            for (lanes, v) in self.normals.iter_mut().zip(g.triangles[tri]) {
+                lanes.set(i, g.normals[v as usize]);
+            }
         }
-        self.ng.set(i, hit.ng);
-        self.flat.0[i] = hit.flat;
-        self.any_smooth |= !hit.flat;
-        self.instanced.0[i] = hit.placed.is_some();
-        if let Some(placed) = &hit.placed {
+        self.flat.0[i] = flat;
+        self.any_smooth |= !flat;
+        let placed = hit.placed(scene);
+        self.instanced.0[i] = placed.is_some();
+        if let Some(placed) = placed {
             self.placed.set(i, placed);
             self.any_instanced = true;
         }
-        self.mapped.0[i] = hit.mapped;
-        self.bent.0[i] = hit.bend.is_some();
-        self.any_mapped |= hit.mapped;
-        if let Some(bend) = &hit.bend {
-            self.bends.set(i, bend);
+        // Each part written as it is read (no optional value built whole and copied).
+        self.bent.0[i] = false;
+        let map = scene.materials.normal_map(hit.material);
+        self.mapped.0[i] = map.is_some();
+        if let Some(map) = map {
+            self.any_mapped = true;
+            if let Some(bend) = scene.normal_bend(tri, hit.hit.barycentric, map) {
+                self.bent.0[i] = true;
+                self.bends.set(i, &bend);
+            }
         }
     }
 }

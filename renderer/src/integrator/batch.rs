@@ -130,7 +130,7 @@ impl PathTracer {
                 let beta = path.beta;
                 if let Some((lane_hit, (bsdf, double_sided), light)) = self.lane_begin(scene, path, &hit, &draws) {
                     self.lane_emission(scene, path, &hit, lane_hit.material);
-                    let at = HitAt { hit: &lane_hit, barycentric: hit.barycentric, direction: path.ray.direction, double_sided };
+                    let at = HitAt { scene, hit: &lane_hit, direction: path.ray.direction, double_sided };
                     let settle = |i, p, s| self.settle(paths, results, i, p, s);
                     match bsdf {
                         Bsdf::Lambert(l) => diffuse.push(i, light_only, |lanes| lanes.push_hit(&at, &l.lobe(), beta, &draws, light), settle),

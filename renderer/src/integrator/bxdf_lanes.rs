@@ -360,7 +360,7 @@ mod tests {
                     spots += matches!(light, LaneLight::Spot { .. }) as usize;
                     pushed_drawn += matches!(light, LaneLight::Sampled(_)) as usize;
                     textured += matches!(light, LaneLight::Triangle { light, .. } if light.texture.is_some()) as usize;
-                    coated += matches!(light, LaneLight::Triangle { coat, .. } if coat > 0.0) as usize;
+                    coated += matches!(light, LaneLight::Triangle { light, textures, u, .. } if light.at_sample(u, textures).1 > 0.0) as usize;
                     lanes.push(vertex, &bsdf.lobe(), *beta, light);
                 }
                 crate::integrator::scattered_lanes::scatter(&lanes, strategy == Strategy::LightOnly, &mut out);

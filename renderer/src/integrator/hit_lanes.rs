@@ -5,16 +5,15 @@
 
 use super::Vertex;
 use crate::lanes::{F32s, Mask, MaskOps, Vec2s, Vec3s, LANES};
-use crate::render_scene::{surface_points_lanes, LaneHit, SurfaceLanes, TriangleLanes};
-use glam::{Vec2, Vec3};
+use crate::render_scene::{surface_points_lanes, LaneHit, RenderScene, SurfaceLanes, TriangleLanes};
+use glam::Vec3;
 
 /// A hit whose surface point a lane kernel finds: a ray of direction `direction` reaching
-/// `hit`'s triangle at barycentric coordinates `barycentric`, on a material that is
-/// `double_sided` or not.
-#[derive(Clone, Copy, Debug)]
+/// `hit` in `scene`, on a material that is `double_sided` or not.
+#[derive(Clone, Copy)]
 pub(crate) struct HitAt<'a> {
+    pub scene: &'a RenderScene,
     pub hit: &'a LaneHit,
-    pub barycentric: Vec2,
     pub direction: Vec3,
     pub double_sided: bool,
 }
@@ -59,9 +58,9 @@ impl HitLanes {
     /// Lane `i` is the point `at`'s ray reaches.
     #[inline(always)]
     pub fn set_hit(&mut self, i: usize, at: &HitAt) {
-        let HitAt { hit, barycentric, direction, double_sided } = *at;
-        self.triangles.set(i, hit);
-        self.barycentric.set(i, barycentric);
+        let HitAt { scene, hit, direction, double_sided } = *at;
+        self.triangles.set(i, scene, hit);
+        self.barycentric.set(i, hit.hit.barycentric);
         self.direction.set(i, direction);
         self.double_sided[i] = double_sided;
         self.from_hit[i] = true;
@@ -310,12 +309,12 @@ mod tests {
                 match (vertex, as_hit) {
                     (Some(v), false) => lanes.push(&v, &one(&bsdf, Some(&v), lane_hit.material), state.beta, tracer.lane_light(scene, &v)),
                     _ => {
-                        let at = HitAt { hit: &lane_hit, barycentric: hit.barycentric, direction: state.ray.direction, double_sided };
+                        let at = HitAt { scene, hit: &lane_hit, direction: state.ray.direction, double_sided };
                         lanes.push_hit(&at, &one(&bsdf, None, lane_hit.material), state.beta, &draws, light);
                         counts.from_hits += 1;
-                        counts.smooth += !lane_hit.flat as usize;
-                        counts.instanced += lane_hit.placed.is_some() as usize;
-                        counts.bent += lane_hit.bend.is_some() as usize;
+                        counts.smooth += !lane_hit.flat(scene) as usize;
+                        counts.instanced += lane_hit.placed(scene).is_some() as usize;
+                        counts.bent += lane_hit.bend(scene).is_some() as usize;
                     }
                 }
                 counts.ended += scattered.is_none() as usize;

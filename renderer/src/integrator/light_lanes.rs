@@ -18,6 +18,7 @@ use crate::bsdf::layered::coat_transmittance;
 use crate::lights::area::{triangle_sample, TriangleLight};
 use crate::lights::punctual::{point_illumination, spot_illumination};
 use crate::lights::environment::Environment;
+use crate::scene::Texture;
 use crate::lights::LightSample;
 use crate::render_scene::{RenderScene, SurfaceLanes};
 use crate::scene::PunctualLight;
@@ -32,10 +33,10 @@ pub(crate) enum LaneLight<'s> {
     /// Drawn one by one, as `scatter` draws it.
     Sampled(LightSample),
     /// An emissive triangle chosen with probability `select_pdf`, sampled by the kernel from
-    /// `u` as `TriangleLight::sample` samples it; `radiance` what the point drawn from `u`
-    /// emits before its clear coat, and `coat` the coat's weight there (0 without one)
-    /// ([`TriangleLight::at_sample`]).
-    Triangle { light: &'s TriangleLight, radiance: Rgb, coat: f32, u: Vec2, select_pdf: f32 },
+    /// `u` as `TriangleLight::sample` samples it; what the point drawn from `u` emits before
+    /// its clear coat, and the coat's weight there, are read from the light's `textures` as
+    /// the lane takes it ([`TriangleLight::at_sample`] in [`LightLanes::set`]).
+    Triangle { light: &'s TriangleLight, textures: &'s [Texture], u: Vec2, select_pdf: f32 },
     /// The environment's sample, drawn by the kernel from `u`: the sample `scatter` would
     /// draw, its density times `select_pdf`.
     Environment { environment: &'s Environment, u: Vec2, select_pdf: f32 },
@@ -84,8 +85,7 @@ impl PathTracer {
             if !sampled {
                 return Some(LaneLight::None);
             }
-            let (radiance, coat) = light.at_sample(u, scene.lights.textures());
-            return Some(LaneLight::Triangle { light, radiance, coat, u, select_pdf });
+            return Some(LaneLight::Triangle { light, textures: scene.lights.textures(), u, select_pdf });
         }
         let environment = scene.lights.environment_of(index)?;
         Some(if sampled { LaneLight::Environment { environment, u, select_pdf } } else { LaneLight::None })
@@ -164,7 +164,10 @@ impl<'s> LightLanes<'s> {
                 self.has_target[i] = ls.shadow_target.is_some();
                 self.target.set(i, ls.shadow_target.unwrap_or(Vec3::ZERO));
             }
-            LaneLight::Triangle { light, radiance, coat, u, select_pdf } => {
+            LaneLight::Triangle { light, textures, u, select_pdf } => {
+                // Read here, into the lanes (returned with the light and moved, the values
+                // stalled store forwarding).
+                let (radiance, coat) = light.at_sample(u, textures);
                 for (c, &corner) in self.corners.iter_mut().zip(&light.corners) {
                     c.set(i, corner);
                 }
