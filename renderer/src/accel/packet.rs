@@ -944,6 +944,14 @@ impl ObjectRays {
         }
         out
     }
+
+    /// The packet kernel's hit filter for these rays in `instance`'s `mesh` (whose triangles
+    /// start at `first` in the scene): `accept` asked with each lane's `world` ray and the
+    /// hit as the scene sees it.
+    #[inline(always)]
+    fn accepted<'a>(&'a self, accept: &'a dyn Fn(&Ray, &Hit) -> bool, world: &'a [Ray], mesh: &'a Bvh, first: u32, instance: u32) -> Accepted<impl Fn(usize, u32, f32, Vec2) -> bool + 'a> {
+        Accepted(move |i: usize, slot, t, b| accept(&world[self.lane[i]], &placed(Hit { t, triangle: mesh.scene_triangle(slot), barycentric: b, instance }, first, instance)))
+    }
 }
 
 /// Closest hits through instances: each leaf of the top level is an instance, whose mesh
@@ -978,11 +986,7 @@ impl<S: Simd> PacketQuery<S> for InstanceClosestQuery<'_> {
             // SAFETY (both): the token `s` exists only where AVX2 and FMA exist.
             match self.accept {
                 None => unsafe { mesh.closest_packet(rays, out, &EveryHit) },
-                Some(accept) => {
-                    let world = self.rays;
-                    let filter = Accepted(|i: usize, slot, t, b| accept(&world[object.lane[i]], &placed(Hit { t, triangle: mesh.scene_triangle(slot), barycentric: b, instance }, first, instance)));
-                    unsafe { mesh.closest_packet(rays, out, &filter) }
-                }
+                Some(accept) => unsafe { mesh.closest_packet(rays, out, &object.accepted(accept, self.rays, mesh, first, instance)) },
             }
             for hit in out.iter_mut().flatten() {
                 *hit = placed(*hit, first, instance);
@@ -1039,11 +1043,7 @@ impl<S: Simd> PacketQuery<S> for InstanceOcclusionQuery<'_> {
             // SAFETY (both): the token `_s` exists only where AVX2 and FMA exist.
             match self.accept {
                 None => unsafe { mesh.occluded_packet(rays, out, &EveryHit) },
-                Some(accept) => {
-                    let world = self.rays;
-                    let filter = Accepted(|i: usize, slot, t, b| accept(&world[object.lane[i]], &placed(Hit { t, triangle: mesh.scene_triangle(slot), barycentric: b, instance }, first, instance)));
-                    unsafe { mesh.occluded_packet(rays, out, &filter) }
-                }
+                Some(accept) => unsafe { mesh.occluded_packet(rays, out, &object.accepted(accept, self.rays, mesh, first, instance)) },
             }
         }
         let mut still = lanes;

@@ -199,6 +199,9 @@ pub struct MaterialStats {
     pub bytes: usize,
     /// Bytes of the palettes alone.
     pub palette_bytes: usize,
+    /// Bytes the scene's decoded textures hold ([`Texture::heap_bytes`]: 8-bit images as
+    /// their RGBA bytes, others as linear `f32`).
+    pub texture_bytes: usize,
     /// Wall time spent opening and decoding, seconds.
     pub seconds: f64,
 }
@@ -341,6 +344,7 @@ impl SceneMaterials {
         let Opener { shared, mut stats, .. } = opener;
         stats.opened = shared.len();
         stats.bytes = shared.iter().map(SharedBsdf::heap_bytes).sum();
+        stats.texture_bytes = textures.iter().map(Texture::heap_bytes).sum();
         stats.seconds = started.elapsed().as_secs_f64();
         let lanes = materials
             .iter()
@@ -778,6 +782,7 @@ mod tests {
         let four = material("four", VaryingForm::Mix { parts: [&a, &b, &a, &b].map(|n| Binding::Neural(n.clone())).to_vec(), weights: texel }, None);
         let materials = SceneMaterials::prepare(vec![mix, blend, tinted, four], vec![texture], &[true; 4], latents).unwrap();
         let stats = materials.stats();
+        assert_eq!(stats.texture_bytes, 2 * 12 + 2 * 4, "two linear RGB texels and their alphas");
         assert_eq!((stats.decoded_codes, stats.palettes, stats.opened), (2 + PALETTE_SIZE, 1, 2 + PALETTE_SIZE), "{stats:?}");
         assert!(stats.palette_bytes > 0 && stats.bytes > stats.palette_bytes, "{stats:?}");
         let (code_a, code_b) = (latents.decode(&a).unwrap(), latents.decode(&b).unwrap());
