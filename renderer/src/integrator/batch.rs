@@ -129,7 +129,7 @@ impl PathTracer {
                 let draws = self.draw(scene, path);
                 let beta = path.beta;
                 if let Some((lane_hit, (bsdf, double_sided), light)) = self.lane_begin(scene, path, &hit, &draws) {
-                    self.lane_emission(scene, path, &hit, lane_hit.material);
+                    self.lane_emission(scene, path, &lane_hit);
                     let at = HitAt { scene, hit: &lane_hit, direction: path.ray.direction, double_sided };
                     let settle = |i, p, s| self.settle(paths, results, i, p, s);
                     match bsdf {
@@ -195,16 +195,16 @@ impl PathTracer {
         Some((lane_hit, (bsdf, double_sided), light))
     }
 
-    /// Adds to `path` the emission it finds at `hit` on `material`, for a vertex
-    /// [`Self::lane_begin`] begins in lanes (as [`Self::begin_drawn`] adds it): the surface
-    /// point found once more, one by one, on emitting materials only (the lights' own
+    /// Adds to `path` the emission it finds at `hit` (on its triangle's material), for a
+    /// vertex [`Self::lane_begin`] begins in lanes (as [`Self::begin_drawn`] adds it): the
+    /// surface point found once more, one by one, on emitting materials only (the lights' own
     /// surfaces). `lane_hit` found the triangle sound, so a surface point exists unless an
     /// instance's placement fails, where the kernel ends the path as `begin_drawn` would,
     /// before its emission.
     #[inline(always)]
-    pub(super) fn lane_emission(&self, scene: &RenderScene, path: &mut PathState, hit: &Hit, material: u32) {
-        if scene.materials.emits(material) {
-            self.add_emission_at(scene, path, hit);
+    pub(super) fn lane_emission(&self, scene: &RenderScene, path: &mut PathState, hit: &LaneHit) {
+        if scene.materials.emits(hit.material) {
+            self.add_emission_at(scene, path, &hit.hit);
         }
     }
 

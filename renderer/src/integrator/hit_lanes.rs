@@ -303,7 +303,7 @@ mod tests {
                 assert_eq!(format!("{:?}", drawn.sampler), format!("{:?}", begun.sampler), "the same numbers drawn");
                 let (lane_hit, (bsdf, double_sided), light) = tracer.lane_begin(scene, &drawn, hit, &draws).expect("begins in lanes");
                 // The emission found at the hit, as `begin` adds it.
-                tracer.lane_emission(scene, &mut drawn, hit, lane_hit.material);
+                tracer.lane_emission(scene, &mut drawn, &lane_hit);
                 assert_eq!(drawn.l.to_array().map(f32::to_bits), begun.l.to_array().map(f32::to_bits), "{strategy:?}: the emission found");
                 counts.emitting += (drawn.l != state.l) as usize;
                 match (vertex, as_hit) {
